@@ -1,0 +1,1 @@
+"""Metrics, suites, sweeps, leaderboard, reports and speed benchmarks."""

@@ -1,0 +1,334 @@
+"""Shared geometry leaf: camera model, SE(3) and quaternions in hvloc's conventions.
+
+This module imports only numpy, so every package may use it (see DESIGN.md).
+
+Conventions
+-----------
+* A transform ``T_A_B`` (4x4) maps coordinates in frame B to frame A:
+  ``p_A = T_A_B @ p_B``.  In names: ``cam2pad`` is ``T_P_C``.
+* Quaternions are Hamilton, stored ``(qx, qy, qz, qw)`` (TUM order).
+* Camera frame is OpenCV's: x right, y down, z along the optical axis.
+* Pixels are OpenCV's: the centre of the top-left pixel is (0, 0).
+* Distortion is OpenCV's 5-parameter model ``(k1, k2, p1, p2, k3)``.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "Camera",
+    "as_points",
+    "compose",
+    "invert",
+    "make_transform",
+    "quat_xyzw_from_matrix",
+    "matrix_from_quat_xyzw",
+    "transform_from_tum",
+    "tum_from_transform",
+    "so3_exp",
+    "so3_log",
+    "rotation_angle",
+    "transform_points",
+    "look_at_cam2world",
+    "rotation_z",
+]
+
+
+# ----------------------------------------------------------------------------- validation
+
+def as_points(points, dim: int, name: str = "points") -> np.ndarray:
+    """Return ``points`` as a float64 ``(N, dim)`` array, or raise ``ValueError`` naming it."""
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim == 1 and arr.shape[0] == dim:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != dim:
+        raise ValueError(f"{name} must have shape (N, {dim}), got {np.shape(points)}")
+    return arr
+
+
+def _as_transform(T, name: str = "T") -> np.ndarray:
+    arr = np.asarray(T, dtype=np.float64)
+    if arr.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4x4 transform, got shape {arr.shape}")
+    return arr
+
+
+# ----------------------------------------------------------------------------- SO(3) / SE(3)
+
+def make_transform(R, t) -> np.ndarray:
+    """4x4 transform from a 3x3 rotation and a 3-vector translation."""
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(R, dtype=np.float64).reshape(3, 3)
+    T[:3, 3] = np.asarray(t, dtype=np.float64).reshape(3)
+    return T
+
+
+def invert(T) -> np.ndarray:
+    """Inverse of a rigid transform: ``invert(T_A_B) == T_B_A``."""
+    T = _as_transform(T)
+    R, t = T[:3, :3], T[:3, 3]
+    return make_transform(R.T, -R.T @ t)
+
+
+def compose(*Ts) -> np.ndarray:
+    """``compose(T_A_B, T_B_C) == T_A_C``."""
+    out = np.eye(4)
+    for T in Ts:
+        out = out @ _as_transform(T)
+    return out
+
+
+def transform_points(T_A_B, points_B) -> np.ndarray:
+    """Map ``(N, 3)`` points from frame B to frame A."""
+    T = _as_transform(T_A_B)
+    P = as_points(points_B, 3)
+    return P @ T[:3, :3].T + T[:3, 3]
+
+
+def _skew(w) -> np.ndarray:
+    x, y, z = w
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def so3_exp(rotvec) -> np.ndarray:
+    """Rotation matrix of a rotation vector (axis * angle, radians), Rodrigues' formula."""
+    w = np.asarray(rotvec, dtype=np.float64).reshape(3)
+    theta = float(np.linalg.norm(w))
+    K = _skew(w)
+    if theta < 1e-8:
+        return np.eye(3) + K + 0.5 * K @ K
+    return np.eye(3) + (math.sin(theta) / theta) * K + ((1 - math.cos(theta)) / theta**2) * K @ K
+
+
+def so3_log(R) -> np.ndarray:
+    """Rotation vector of a rotation matrix (inverse of :func:`so3_exp`), stable near 0 and pi."""
+    q = quat_xyzw_from_matrix(R)
+    v, w = q[:3], q[3]
+    if w < 0:
+        v, w = -v, -w
+    s = float(np.linalg.norm(v))
+    if s < 1e-12:
+        return 2.0 * v
+    angle = 2.0 * math.atan2(s, w)
+    return v / s * angle
+
+
+def rotation_angle(R_a, R_b=None) -> float:
+    """Geodesic angle (radians) of ``R_a`` or, given ``R_b``, of ``R_a^T R_b``."""
+    R = np.asarray(R_a, dtype=np.float64)[:3, :3]
+    if R_b is not None:
+        R = R.T @ np.asarray(R_b, dtype=np.float64)[:3, :3]
+    return float(np.linalg.norm(so3_log(R)))
+
+
+def rotation_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def quat_xyzw_from_matrix(R) -> np.ndarray:
+    """Hamilton unit quaternion ``(qx, qy, qz, qw)`` with ``qw >= 0`` of a rotation matrix."""
+    m = np.asarray(R, dtype=np.float64)[:3, :3]
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    q = np.array(q)
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0 else q
+
+
+def matrix_from_quat_xyzw(q) -> np.ndarray:
+    """Rotation matrix of a Hamilton quaternion ``(qx, qy, qz, qw)`` (normalised first)."""
+    x, y, z, w = np.asarray(q, dtype=np.float64).reshape(4) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def transform_from_tum(row) -> np.ndarray:
+    """``(tx, ty, tz, qx, qy, qz, qw)`` -> 4x4."""
+    r = np.asarray(row, dtype=np.float64).reshape(7)
+    return make_transform(matrix_from_quat_xyzw(r[3:]), r[:3])
+
+
+def tum_from_transform(T) -> np.ndarray:
+    """4x4 -> ``(tx, ty, tz, qx, qy, qz, qw)``."""
+    T = _as_transform(T)
+    return np.concatenate([T[:3, 3], quat_xyzw_from_matrix(T[:3, :3])])
+
+
+def look_at_cam2world(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """OpenCV camera (z forward, y down) at ``eye`` looking at ``target``: returns ``T_W_C``."""
+    eye = np.asarray(eye, dtype=np.float64)
+    z = np.asarray(target, dtype=np.float64) - eye
+    z /= np.linalg.norm(z)
+    up = np.asarray(up, dtype=np.float64)
+    x = np.cross(z, -up)
+    if np.linalg.norm(x) < 1e-9:
+        x = np.cross(z, np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0]))
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return make_transform(np.column_stack([x, y, z]), eye)
+
+
+# ----------------------------------------------------------------------------- camera
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole camera with OpenCV distortion ``(k1, k2, p1, p2, k3)``; OpenCV pixel convention."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    dist: tuple = field(default=(0.0, 0.0, 0.0, 0.0, 0.0))
+
+    def __post_init__(self):
+        if self.width <= 0 or self.height <= 0:
+            raise ValueError(f"camera width/height must be positive, got {self.width}x{self.height}")
+        if not (self.fx > 0 and self.fy > 0):
+            raise ValueError(f"camera fx, fy must be positive, got {self.fx}, {self.fy}")
+        d = tuple(float(v) for v in self.dist)
+        if len(d) != 5:
+            raise ValueError(f"camera dist must have 5 values (k1 k2 p1 p2 k3), got {len(d)}")
+        object.__setattr__(self, "dist", d)
+
+    # -- construction / io
+    @classmethod
+    def from_hfov(cls, width: int, height: int, hfov_rad: float, dist=(0, 0, 0, 0, 0)) -> "Camera":
+        """Square pixels, principal point at the image centre, horizontal field of view given."""
+        f = (width / 2.0) / math.tan(hfov_rad / 2.0)
+        return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0, tuple(dist))
+
+    def to_dict(self) -> dict:
+        return {"width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy,
+                "cx": self.cx, "cy": self.cy, "dist": list(self.dist)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Camera":
+        return cls(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]),
+                   float(d["cx"]), float(d["cy"]), tuple(d.get("dist", (0, 0, 0, 0, 0))))
+
+    @classmethod
+    def from_json(cls, path) -> "Camera":
+        return cls.from_dict(json.loads(Path(path).read_text()))
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def has_distortion(self) -> bool:
+        return any(abs(v) > 0 for v in self.dist)
+
+    @property
+    def size_wh(self) -> tuple:
+        return (self.width, self.height)
+
+    def scaled(self, factor: float) -> "Camera":
+        """The same camera at ``factor`` times the resolution (pixel-centre convention kept)."""
+        return Camera(int(round(self.width * factor)), int(round(self.height * factor)),
+                      self.fx * factor, self.fy * factor,
+                      (self.cx + 0.5) * factor - 0.5, (self.cy + 0.5) * factor - 0.5, self.dist)
+
+    def without_distortion(self) -> "Camera":
+        return Camera(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
+
+    # -- normalised-plane distortion
+    def distort_normalized(self, xy) -> np.ndarray:
+        """Apply OpenCV distortion to ``(N, 2)`` undistorted normalised coordinates."""
+        xy = as_points(xy, 2, "xy")
+        k1, k2, p1, p2, k3 = self.dist
+        x, y = xy[:, 0], xy[:, 1]
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        return np.column_stack([xd, yd])
+
+    def undistort_normalized(self, xy_d, iterations: int = 20) -> np.ndarray:
+        """Invert :meth:`distort_normalized` by Gauss-Newton (converges to ~1e-12 in the lens's domain)."""
+        xy_d = as_points(xy_d, 2, "xy_d")
+        if not self.has_distortion:
+            return xy_d.copy()
+        k1, k2, p1, p2, k3 = self.dist
+        xy = xy_d.copy()
+        for _ in range(iterations):
+            x, y = xy[:, 0], xy[:, 1]
+            r2 = x * x + y * y
+            radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
+            fx_ = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xy_d[:, 0]
+            fy_ = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - xy_d[:, 1]
+            a = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
+            b = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+            c = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+            d = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
+            det = a * d - b * c
+            det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+            dx = (d * fx_ - b * fy_) / det
+            dy = (-c * fx_ + a * fy_) / det
+            xy[:, 0] -= dx
+            xy[:, 1] -= dy
+            if np.max(np.abs(dx) + np.abs(dy)) < 1e-14:
+                break
+        return xy
+
+    # -- pixels
+    def project(self, points_C) -> np.ndarray:
+        """``(N, 3)`` points in the camera frame -> ``(N, 2)`` distorted pixels (NaN behind the camera)."""
+        P = as_points(points_C, 3, "points_C")
+        z = P[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xy = P[:, :2] / z[:, None]
+        xy = self.distort_normalized(xy)
+        px = np.column_stack([self.fx * xy[:, 0] + self.cx, self.fy * xy[:, 1] + self.cy])
+        px[z <= 0] = np.nan
+        return px
+
+    def project_from(self, cam2frame, points_F) -> np.ndarray:
+        """Project points given in frame F, with the camera pose ``T_F_C`` (e.g. ``cam2pad``)."""
+        return self.project(transform_points(invert(cam2frame), points_F))
+
+    def normalized_from_pixels(self, px) -> np.ndarray:
+        """Distorted pixels -> undistorted normalised coordinates ``(x/z, y/z)``."""
+        px = as_points(px, 2, "px")
+        xy_d = np.column_stack([(px[:, 0] - self.cx) / self.fx, (px[:, 1] - self.cy) / self.fy])
+        return self.undistort_normalized(xy_d)
+
+    def undistort_pixels(self, px) -> np.ndarray:
+        """Distorted pixels -> pixels of the ideal pinhole camera with the same K."""
+        xy = self.normalized_from_pixels(px)
+        return np.column_stack([self.fx * xy[:, 0] + self.cx, self.fy * xy[:, 1] + self.cy])
+
+    def unproject(self, px, depth) -> np.ndarray:
+        """Distorted pixels and z-depths -> ``(N, 3)`` points in the camera frame."""
+        xy = self.normalized_from_pixels(px)
+        z = np.broadcast_to(np.asarray(depth, dtype=np.float64), (xy.shape[0],))
+        return np.column_stack([xy * z[:, None], z])
+
+    def in_image(self, px, margin: float = 0.0) -> np.ndarray:
+        """Boolean mask of pixels inside the image (pixel centres from 0 to size-1), with a margin."""
+        px = as_points(px, 2, "px")
+        with np.errstate(invalid="ignore"):
+            return ((px[:, 0] >= -0.5 + margin) & (px[:, 0] <= self.width - 0.5 - margin)
+                    & (px[:, 1] >= -0.5 + margin) & (px[:, 1] <= self.height - 0.5 - margin))

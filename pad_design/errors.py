@@ -1,0 +1,56 @@
+"""Input errors shared by every hvloc package (this is the lowest package, so all may import it).
+
+Library code raises :class:`InputError` for bad user input (specs, configs, datasets); the
+CLI front door turns it into one line on stderr and exit code 2.  Nothing else prints.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+
+class InputError(ValueError):
+    """Bad user input: a spec, config or dataset that cannot be used.  The message names the field."""
+
+
+def describe_validation_error(err: ValidationError, source: str = "") -> str:
+    """One line naming the first offending field, e.g. ``spec.yaml: camera.fx: must be > 0``."""
+    first = err.errors()[0]
+    loc = ".".join(str(p) for p in first.get("loc", ())) or "(top level)"
+    msg = first.get("msg", "invalid").removeprefix("Value error, ")
+    if first.get("type") == "extra_forbidden":
+        msg = "unknown key"
+    more = len(err.errors()) - 1
+    tail = f" (and {more} more problem{'s' if more > 1 else ''})" if more > 0 else ""
+    prefix = f"{source}: " if source else ""
+    if loc == "(top level)" and ":" in msg.split(" ")[0]:
+        return f"{prefix}{msg}{tail}"  # a cross-field check that names its field itself
+    return f"{prefix}{loc}: {msg}{tail}"
+
+
+def validate_model(model: type[BaseModel], data, source: str = ""):
+    """Validate ``data`` into ``model`` or raise :class:`InputError` with one clear line."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise InputError(f"{source or 'spec'}: expected a mapping at the top level, got {type(data).__name__}")
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise InputError(describe_validation_error(err, source)) from None
+
+
+def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
+    """Read a YAML file into a validated pydantic model; every failure is an :class:`InputError`."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    return validate_model(model, data, str(path))

@@ -1,0 +1,98 @@
+"""Exact 3D geometry of a pad in the pad frame P (metres): what ``pad.json`` holds.
+
+Pad frame (DESIGN.md): origin at the pad centre on its surface, z up, x toward the right edge,
+y toward the top edge as printed.  Every square's corners are listed in the order
+top-left, top-right, bottom-right, bottom-left as printed, i.e. (-,+), (+,+), (+,-), (-,-),
+which is also OpenCV ArUco's corner order and the ``c0..c3`` order of ``frames.csv``.
+"""
+from __future__ import annotations
+
+from .spec import PadSpec, hsv_of
+
+PAD_JSON_VERSION = 1
+MARKER_NAMES = ("Top", "Right", "Bottom")
+# Where each marker sits, as (sign x, sign y): Top is the right-angle corner (top-left as printed).
+MARKER_SIGNS = {"Top": (-1, 1), "Right": (1, 1), "Bottom": (-1, -1)}
+# A finder marker's nested squares, as (name, side in modules, colour inside the square).
+FINDER_SQUARES = (("outer", 7, "black"), ("ring_inner", 5, "white"), ("centre", 3, "black"))
+
+
+def square_corners(cx: float, cy: float, side: float) -> list:
+    """Corners (x, y, 0) of an axis-aligned square in the pad order TL, TR, BR, BL."""
+    h = side / 2.0
+    return [[cx - h, cy + h, 0.0], [cx + h, cy + h, 0.0], [cx + h, cy - h, 0.0], [cx - h, cy - h, 0.0]]
+
+
+def _marker_set(set_name: str, size: float, quiet_modules: float, offset: float, kind: str, ids=None) -> list:
+    module = size / 7.0 if kind == "finder" else size / 6.0
+    out = []
+    for i, name in enumerate(MARKER_NAMES):
+        sx, sy = MARKER_SIGNS[name]
+        cx, cy = sx * offset, sy * offset
+        if kind == "finder":
+            squares = [{"name": sq, "side_m": n * size / 7.0, "color_inside": col,
+                        "corners": square_corners(cx, cy, n * size / 7.0)} for sq, n, col in FINDER_SQUARES]
+        else:
+            squares = [{"name": "outer", "side_m": size, "color_inside": "black",
+                        "corners": square_corners(cx, cy, size)}]
+        m = {"name": name, "set": set_name, "kind": kind, "center": [cx, cy, 0.0], "size_m": size,
+             "module_m": module, "quiet_zone_m": quiet_modules * size / 7.0, "squares": squares}
+        if ids is not None:
+            m["aruco_id"] = int(ids[i])
+        out.append(m)
+    return out
+
+
+def segmentation_range(rgb, hue_halfwidth_deg: float = 20.0, s_min: float = 0.45, v_min: float = 0.18) -> dict:
+    """An OpenCV HSV range (H 0-180, S and V 0-255) around a colour, for ``cv2.inRange``.
+
+    ``lo``/``hi`` may wrap around hue 0: then ``hue_wraps`` is true and the range is
+    ``H >= lo[0] or H <= hi[0]``.
+    """
+    h, _, _ = hsv_of(rgb)
+    lo_h = (h - hue_halfwidth_deg) % 360.0 / 2.0
+    hi_h = (h + hue_halfwidth_deg) % 360.0 / 2.0
+    return {"lo": [round(lo_h, 2), round(s_min * 255), round(v_min * 255)],
+            "hi": [round(hi_h, 2), 255, 255], "hue_wraps": bool(lo_h > hi_h)}
+
+
+def build_geometry(spec: PadSpec) -> dict:
+    """The pad's features in the pad frame, as the ``pad.json`` document (without texture info)."""
+    h = spec.side_m / 2.0
+    f = h - spec.border_m
+    size = spec.marker_size_m
+    q = spec.quiet_zone_modules * size / 7.0
+    offset = f - q - size / 2.0
+    markers = []
+    if spec.variant in ("paper", "nested"):
+        markers += _marker_set("corner", size, spec.quiet_zone_modules, offset, "finder")
+    if spec.variant == "nested":
+        n = spec.nested_marker_size_m
+        nblock = n * (1 + 2 * spec.quiet_zone_modules / 7.0)
+        markers += _marker_set("centre", n, spec.quiet_zone_modules, nblock / 2.0, "finder")
+    if spec.variant == "aruco":
+        markers += _marker_set("corner", size, spec.quiet_zone_modules, offset, "aruco", spec.aruco_ids)
+    b = spec.border_m
+    cue = {"kind": "corner_square", "corner": "bottom_right", "color_rgb": list(spec.cue_color),
+           "corners": square_corners(h - b / 2.0, -h + b / 2.0, b),
+           "segmentation_hsv": segmentation_range(spec.cue_color, 20.0, 0.45, 0.25),
+           "note": "The bottom-right border square (the corner without a marker) has the cue colour; "
+                   "the other three border corners have the border colour, so the outline alone tells yaw."}
+    return {
+        "version": PAD_JSON_VERSION,
+        "frame": "P: origin at pad centre on its surface, x to the right edge, y to the top edge, z up; metres",
+        "corner_order": "TL, TR, BR, BL as printed: (-x,+y), (+x,+y), (+x,-y), (-x,-y)",
+        "variant": spec.variant,
+        "side_m": spec.side_m,
+        "border_m": spec.border_m,
+        "field_side_m": 2 * f,
+        "outer_corners": square_corners(0.0, 0.0, spec.side_m),
+        "field_corners": square_corners(0.0, 0.0, 2 * f),
+        "border": {"color_rgb": list(spec.border_color),
+                   "dark_color_rgb": [round(c * spec.border_dark_factor) for c in spec.border_color],
+                   "solid_band_m": spec.border_m / 4.0, "checker_m": spec.border_checker_m,
+                   "segmentation_hsv": segmentation_range(spec.border_color)},
+        "cue": cue,
+        "markers": markers,
+        "spec": spec.to_jsonable(),
+    }

@@ -1,0 +1,136 @@
+"""The pad spec: a validated description of a landing pad (defaults: the paper's 0.85 m pad)."""
+from __future__ import annotations
+
+import colorsys
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+
+def parse_color(value) -> tuple:
+    """``'#rrggbb'`` or ``[r, g, b]`` (0-255) -> ``(r, g, b)`` ints; ``ValueError`` otherwise."""
+    if isinstance(value, str):
+        s = value.strip().lstrip("#")
+        if len(s) != 6 or any(c not in "0123456789abcdefABCDEF" for c in s):
+            raise ValueError(f"{value!r} is not a colour: use '#rrggbb' or [r, g, b] with 0-255 values")
+        return tuple(int(s[i:i + 2], 16) for i in (0, 2, 4))
+    if isinstance(value, (list, tuple)) and len(value) == 3:
+        out = []
+        for v in value:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 255 or int(v) != v:
+                raise ValueError(f"{value!r} is not a colour: components must be integers 0-255")
+            out.append(int(v))
+        return tuple(out)
+    raise ValueError(f"{value!r} is not a colour: use '#rrggbb' or [r, g, b] with 0-255 values")
+
+
+def hsv_of(rgb) -> tuple:
+    """(hue degrees, saturation 0-1, value 0-1)."""
+    h, s, v = colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))
+    return h * 360.0, s, v
+
+
+# Hues that natural ground takes (soil, sand, dry and green grass, moss): a border colour must avoid them.
+NATURAL_GROUND_HUES_DEG = (15.0, 170.0)
+
+
+class PadSpec(BaseModel):
+    """Everything that defines a pad.  Lengths in metres, colours as '#rrggbb' or [r, g, b]."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+    variant: Literal["paper", "nested", "aruco"] = Field(
+        "paper", description="paper: three corner finder markers; nested: plus a small set in the centre "
+        "for low altitude; aruco: OpenCV ArUco markers of the same outer size instead of finder markers")
+    side_m: float = Field(0.85, gt=0, le=20, description="side of the square pad")
+    border_m: float = Field(0.10, gt=0, description="width of the coloured border")
+    border_color: tuple = Field("#ff30e0", description="saturated border colour natural ground lacks")
+    border_dark_factor: float = Field(0.1, ge=0.0, lt=0.9,
+                                      description="value of the border's dark checker cells, relative")
+    border_checker_m: float = Field(0.0125, gt=0, description="cell of the border's inner checker")
+    cue_color: tuple = Field("#ffd200", description="colour of the yaw cue (one border corner square)")
+    marker_size_m: float = Field(0.12, gt=0, description="outer side of a finder marker (7 modules)")
+    quiet_zone_modules: float = Field(1.0, ge=1.0, le=4.0, description="white margin around each marker")
+    nested_marker_size_m: float = Field(0.035, gt=0, description="finder markers of the centre set (nested)")
+    aruco_dictionary: str = Field("DICT_4X4_50", description="cv2.aruco predefined dictionary (aruco)")
+    aruco_ids: tuple = Field((0, 1, 2), description="ArUco ids at Top, Right, Bottom (aruco)")
+    texture_seed: int = Field(7, ge=0)
+    texture_min_feature_m: float = Field(0.004, gt=0, description="smallest texture element")
+    texture_max_feature_m: float = Field(0.03, gt=0, description="largest texture element")
+    texture_density: float = Field(0.26, gt=0.02, lt=0.6, description="share of the field area the "
+                                   "texture elements cover before merging")
+
+    @field_validator("border_color", "cue_color", mode="before")
+    @classmethod
+    def _color(cls, v):
+        return parse_color(v)
+
+    @field_validator("border_color")
+    @classmethod
+    def _saturated(cls, v):
+        h, s, val = hsv_of(v)
+        lo, hi = NATURAL_GROUND_HUES_DEG
+        if s < 0.6 or val < 0.5:
+            raise ValueError(f"border colour {v} is not saturated and bright enough "
+                             f"(saturation {s:.2f} >= 0.6 and value {val:.2f} >= 0.5 needed)")
+        if lo <= h <= hi:
+            raise ValueError(f"border colour {v} has hue {h:.0f} deg, which natural ground has "
+                             f"({lo:.0f}-{hi:.0f} deg); pick a magenta, purple or blue")
+        return v
+
+    @field_validator("cue_color")
+    @classmethod
+    def _cue_distinct(cls, v):
+        h, s, val = hsv_of(v)
+        if s < 0.6 or val < 0.5:
+            raise ValueError(f"cue colour {v} must be saturated (>= 0.6) and bright (>= 0.5)")
+        return v
+
+    @field_validator("aruco_ids")
+    @classmethod
+    def _ids(cls, v):
+        v = tuple(int(i) for i in v)
+        if len(v) != 3 or len(set(v)) != 3 or min(v) < 0:
+            raise ValueError("aruco_ids must be three distinct non-negative ids")
+        return v
+
+    @model_validator(mode="after")
+    def _fits(self):
+        if self.border_m * 4 > self.side_m:
+            raise ValueError(f"border_m: {self.border_m} m is more than a quarter of side_m {self.side_m} m")
+        hue_b, hue_c = hsv_of(self.border_color)[0], hsv_of(self.cue_color)[0]
+        dh = min(abs(hue_b - hue_c), 360 - abs(hue_b - hue_c))
+        if dh < 60:
+            raise ValueError(f"cue_color: hue within {dh:.0f} deg of the border colour; needs >= 60 deg")
+        if self.texture_min_feature_m >= self.texture_max_feature_m:
+            raise ValueError("texture_min_feature_m: must be smaller than texture_max_feature_m")
+        field = self.side_m - 2 * self.border_m
+        block = self.marker_size_m * (1 + 2 * self.quiet_zone_modules / 7.0)
+        if 2 * block > field + 1e-12:
+            raise ValueError(f"marker_size_m: markers of {self.marker_size_m} m with their quiet zones "
+                             f"({block:.3f} m each) overlap: two must fit across the {field:.3f} m field")
+        if self.border_checker_m * 2 > self.border_m:
+            raise ValueError("border_checker_m: must be at most half of border_m")
+        if self.variant == "nested":
+            nblock = self.nested_marker_size_m * (1 + 2 * self.quiet_zone_modules / 7.0)
+            free = field - 2 * block
+            if 2 * nblock > free + 1e-12:
+                raise ValueError(f"nested_marker_size_m: the centre set ({2 * nblock:.3f} m across) does not "
+                                 f"fit between the corner markers ({free:.3f} m free)")
+        if self.variant == "aruco":
+            import cv2
+
+            if not hasattr(cv2.aruco, self.aruco_dictionary):
+                raise ValueError(f"aruco_dictionary: {self.aruco_dictionary!r} is not a cv2.aruco dictionary")
+            d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.aruco_dictionary))
+            n = d.bytesList.shape[0]
+            if max(self.aruco_ids) >= n:
+                raise ValueError(f"aruco_ids: {self.aruco_dictionary} has ids 0-{n - 1}")
+        return self
+
+    def to_jsonable(self) -> dict:
+        d = self.model_dump()
+        d["border_color"] = "#%02x%02x%02x" % self.border_color
+        d["cue_color"] = "#%02x%02x%02x" % self.cue_color
+        d["aruco_ids"] = list(self.aruco_ids)
+        return d

@@ -1,0 +1,84 @@
+"""Planar views of the pad by homography warping: the fast floor for rendering a planar scene.
+
+Used by tests (synthetic views with exact labels, no OpenGL) and by the render-speed benchmark
+as the reference a real renderer is compared with.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from hvloc.geometry import Camera, invert
+
+
+def texture_to_pad(side_m: float, ppm: float) -> np.ndarray:
+    """3x3 affine: texture pixel (OpenCV centres) -> pad-frame (x, y) metres."""
+    h = side_m / 2.0
+    return np.array([[1.0 / ppm, 0.0, 0.5 / ppm - h], [0.0, -1.0 / ppm, h - 0.5 / ppm], [0.0, 0.0, 1.0]])
+
+
+def pad_plane_homography(camera: Camera, cam2pad: np.ndarray) -> np.ndarray:
+    """3x3 homography: pad-plane (x, y) metres -> undistorted image pixels."""
+    T = invert(cam2pad)
+    return camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])
+
+
+def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110, 70),
+                  levels: list | None = None) -> np.ndarray:
+    """RGB ``(H, W, 3)`` uint8 view of the pad (on a flat background colour) from pose ``cam2pad``.
+
+    Texture is taken from a pyramid level close to the image scale (no aliasing far away).
+    Lens distortion is applied exactly by remapping the ideal pinhole view.
+    """
+    tex = pad.texture_rgb
+    H = pad_plane_homography(camera, cam2pad)
+    # pixels per pad metre at the pad centre: choose a pyramid level at or above it
+    T = invert(cam2pad)
+    depth = max(float(T[2, 3]), 1e-3)
+    img_ppm = camera.fx / depth
+    level = 0
+    if levels is None:
+        levels = [tex]
+    while img_ppm * 2 <= pad.ppm / (2 ** level) and tex.shape[0] // (2 ** (level + 1)) > 8:
+        level += 1
+        if level >= len(levels):
+            levels.append(cv2.pyrDown(levels[-1]))
+    src = levels[level]
+    ppm = src.shape[1] / pad.side_m
+    Htot = H @ texture_to_pad(pad.side_m, ppm)
+    size = (camera.width, camera.height)
+    img = cv2.warpPerspective(src, Htot, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=tuple(int(c) for c in background))
+    if camera.has_distortion:
+        img = apply_distortion(img, camera)
+    return img
+
+
+def distortion_maps(camera: Camera):
+    """``cv2.remap`` maps that turn an ideal pinhole image (same K) into the distorted image."""
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+    px = np.column_stack([u.ravel(), v.ravel()])
+    und = camera.undistort_pixels(px)
+    mapx = und[:, 0].reshape(camera.height, camera.width).astype(np.float32)
+    mapy = und[:, 1].reshape(camera.height, camera.width).astype(np.float32)
+    return mapx, mapy
+
+
+def apply_distortion(img: np.ndarray, camera: Camera, maps=None) -> np.ndarray:
+    mapx, mapy = maps if maps is not None else distortion_maps(camera)
+    return cv2.remap(img, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def nadir_cam2pad(x: float, y: float, height: float, yaw: float = 0.0) -> np.ndarray:
+    """Camera looking straight down at height ``height`` above pad point (x, y), image top toward
+    pad +y when ``yaw`` = 0 (yaw rotates the camera about the pad's z axis)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    # camera axes in the pad frame: x_C = pad +x, y_C = pad -y, z_C = pad -z (looking down)
+    R0 = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T = np.eye(4)
+    T[:3, :3] = Rz @ R0
+    T[:3, 3] = (x, y, height)
+    return T

@@ -1,0 +1,97 @@
+"""The geometry leaf agrees with OpenCV, and its transforms go the way their names say."""
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from hvloc import geometry as g
+
+
+def random_rotation(rng):
+    return g.so3_exp(rng.normal(size=3) * rng.uniform(0, math.pi) / math.sqrt(3))
+
+
+DISTORTIONS = [(0, 0, 0, 0, 0), (-0.28, 0.09, 0.0012, -0.0008, -0.012), (0.12, -0.05, -0.002, 0.001, 0.01)]
+
+
+@pytest.mark.parametrize("dist", DISTORTIONS)
+def test_project_matches_opencv(dist):
+    rng = np.random.default_rng(1)
+    cam = g.Camera(1920, 1080, 1100.0, 1105.0, 955.3, 541.7, dist)
+    for _ in range(20):
+        R = random_rotation(rng)
+        t = rng.uniform(-1, 1, 3) + [0, 0, 6]
+        P = rng.uniform(-2, 2, (50, 3))
+        P[:, 2] = 0.0
+        cam2world = g.invert(g.make_transform(R, t))  # T_W_C, with T_C_W = (R, t)
+        Pc = g.transform_points(g.invert(cam2world), P)
+        keep = Pc[:, 2] > 0.5
+        # keep points within the lens's sensible domain (|x/z|, |y/z| < 1)
+        keep &= np.all(np.abs(Pc[:, :2] / Pc[:, 2:]) < 0.9, axis=1)
+        if keep.sum() < 5:
+            continue
+        ours = cam.project_from(cam2world, P[keep])
+        ref, _ = cv2.projectPoints(P[keep], cv2.Rodrigues(R)[0], t, cam.K, np.array(dist, float))
+        np.testing.assert_allclose(ours, ref[:, 0, :], atol=1e-6)
+
+
+@pytest.mark.parametrize("dist", DISTORTIONS)
+def test_undistort_matches_opencv_and_inverts_project(dist):
+    rng = np.random.default_rng(2)
+    cam = g.Camera(1920, 1080, 1100.0, 1105.0, 955.3, 541.7, dist)
+    xy = rng.uniform(-0.75, 0.75, (400, 2))
+    px = cam.project(np.column_stack([xy, np.ones(len(xy))]))
+    # ours inverts the forward model to numerical precision
+    np.testing.assert_allclose(cam.normalized_from_pixels(px), xy, atol=1e-9)
+    # OpenCV's iterative solver agrees (its default iteration count is looser, so ask for more)
+    ref = cv2.undistortPoints(px.reshape(-1, 1, 2), cam.K, np.array(dist, float), None, None, None,
+                                  (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12))[:, 0, :]
+    np.testing.assert_allclose(cam.normalized_from_pixels(px), ref, atol=1e-6)
+    # unproject at depth 3 then project returns the pixel
+    P = cam.unproject(px, 3.0)
+    np.testing.assert_allclose(P[:, 2], 3.0)
+    np.testing.assert_allclose(cam.project(P), px, atol=1e-6)
+
+
+def test_quaternion_conventions_hamilton_xyzw():
+    # 90 degrees about z maps x to y (Hamilton, active); TUM order puts qw last
+    R = g.so3_exp([0, 0, math.pi / 2])
+    np.testing.assert_allclose(R @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    q = g.quat_xyzw_from_matrix(R)
+    np.testing.assert_allclose(q, [0, 0, math.sin(math.pi / 4), math.cos(math.pi / 4)], atol=1e-12)
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        R = random_rotation(rng)
+        q = g.quat_xyzw_from_matrix(R)
+        assert q[3] >= 0 and abs(np.linalg.norm(q) - 1) < 1e-12
+        np.testing.assert_allclose(g.matrix_from_quat_xyzw(q), R, atol=1e-12)
+        np.testing.assert_allclose(g.so3_exp(g.so3_log(R)), R, atol=1e-9)
+        # agree with OpenCV's Rodrigues on the rotation vector
+        np.testing.assert_allclose(cv2.Rodrigues(R)[0].ravel(), g.so3_log(R), atol=1e-7)
+
+
+def test_transform_direction_and_tum_roundtrip():
+    # cam2pad = T_P_C: its translation is the camera position in the pad frame
+    T_P_C = g.make_transform(g.so3_exp([math.pi, 0, 0]), [0.1, -0.2, 3.0])
+    origin_C = np.zeros((1, 3))
+    np.testing.assert_allclose(g.transform_points(T_P_C, origin_C)[0], [0.1, -0.2, 3.0])
+    # the pad origin is 3 m in front of the camera looking down
+    np.testing.assert_allclose(g.transform_points(g.invert(T_P_C), [[0.1, -0.2, 0.0]])[0], [0, 0, 3.0], atol=1e-12)
+    row = g.tum_from_transform(T_P_C)
+    np.testing.assert_allclose(g.transform_from_tum(row), T_P_C, atol=1e-12)
+    np.testing.assert_allclose(g.compose(T_P_C, g.invert(T_P_C)), np.eye(4), atol=1e-12)
+
+
+def test_camera_validation_and_scaling():
+    with pytest.raises(ValueError, match="dist"):
+        g.Camera(10, 10, 5, 5, 4.5, 4.5, (0, 0, 0))
+    with pytest.raises(ValueError, match="fx"):
+        g.Camera(10, 10, -5, 5, 4.5, 4.5)
+    cam = g.Camera.from_hfov(800, 800, math.radians(60))
+    assert abs(cam.fx - 400 / math.tan(math.radians(30))) < 1e-9 and cam.cx == 399.5
+    # a point's pixel scales with the resolution under the pixel-centre convention
+    P = np.array([[0.3, -0.2, 2.0]])
+    np.testing.assert_allclose((cam.scaled(2).project(P) + 0.5), (cam.project(P) + 0.5) * 2, atol=1e-9)
+    with pytest.raises(ValueError, match="shape"):
+        cam.project(np.zeros((3, 2)))
