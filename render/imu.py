@@ -1,0 +1,56 @@
+"""IMU from the trajectory's derivatives: gyro and accelerometer in the body frame (FLU) with
+bias, bias random walk and white noise; an AHRS attitude with slow, correlated drift and noise."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hvloc.geometry import matrix_from_quat_xyzw, quat_xyzw_from_matrix, so3_exp
+
+from .trajectory import GRAVITY, Trajectory
+
+IMU_COLUMNS = ["t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
+               "ahrs_qx", "ahrs_qy", "ahrs_qz", "ahrs_qw"]
+
+
+def _random_walk(rng, n, dt, sigma0, walk):
+    x = np.empty((n, 3))
+    x[0] = rng.normal(0, sigma0, 3)
+    if n > 1:
+        x[1:] = x[0] + np.cumsum(rng.normal(0, walk * math.sqrt(dt), (n - 1, 3)), axis=0)
+    return x
+
+
+def _ou(rng, n, dt, sigma, tau):
+    """Ornstein-Uhlenbeck process, stationary std ``sigma`` (per axis), correlation time ``tau``."""
+    a = math.exp(-dt / tau)
+    x = np.empty((n, len(sigma)))
+    x[0] = rng.normal(0, sigma)
+    s = np.asarray(sigma) * math.sqrt(1 - a * a)
+    for k in range(1, n):
+        x[k] = a * x[k - 1] + rng.normal(0, s)
+    return x
+
+
+def synthesize_imu(traj: Trajectory, spec, rng: np.random.Generator, duration: float) -> np.ndarray:
+    """``(N, 11)`` rows in :data:`IMU_COLUMNS` order at ``spec.rate_hz`` over ``[0, duration]``."""
+    dt = 1.0 / spec.rate_hz
+    t = np.arange(0.0, duration + 1e-9, dt)
+    n = len(t)
+    s = traj.state(t)
+    gyro = s.omega_B + _random_walk(rng, n, dt, spec.gyro_bias_rad_s, spec.gyro_bias_walk_rad_s2) \
+        + rng.normal(0, spec.gyro_noise_rad_s, (n, 3))
+    f_W = s.acc_W + np.array([0.0, 0.0, GRAVITY])
+    f_B = np.einsum("nji,nj->ni", s.R_W_B, f_W)  # R_W_B^T f_W
+    accel = f_B + _random_walk(rng, n, dt, spec.accel_bias_mps2, spec.accel_bias_walk_mps3) \
+        + rng.normal(0, spec.accel_noise_mps2, (n, 3))
+    # AHRS error: a slow drift (most of the variance) plus a little white noise, in the body frame
+    sig = np.radians([spec.ahrs_roll_pitch_deg, spec.ahrs_roll_pitch_deg, spec.ahrs_yaw_deg])
+    err = _ou(rng, n, dt, sig * 0.95, spec.ahrs_drift_time_s) + rng.normal(0, sig * 0.3, (n, 3))
+    q = np.stack([quat_xyzw_from_matrix(R @ so3_exp(e)) for R, e in zip(s.R_W_B, err)])
+    return np.column_stack([t, gyro, accel, q])
+
+
+def ahrs_rotation(row) -> np.ndarray:
+    return matrix_from_quat_xyzw(np.asarray(row)[7:11])

@@ -1,0 +1,286 @@
+"""The landing scene in pyrender (OSMesa): pad on a platform or the ground, procedural ground,
+distractors, sun and ambient light, planar shadows (buildings' and the drone's own).
+
+Lighting is Lambertian under one sun and ambient light, computed exactly but cheaply: every
+horizontal surface gets the same irradiance, so the scene is rasterised unlit (pyrender's FLAT
+mode: texture colours exactly) and the common irradiance is applied in linear light after
+rendering (:mod:`render.imaging`).  What differs from it is baked in: box faces carry their
+Lambert factor relative to a horizontal surface as vertex colours, and shadows are translucent
+black polygons whose opacity turns "sun + ambient" into "ambient only".  This is ~4x faster
+than pyrender's per-pixel PBR shading on llvmpipe and has no shadow-map resolution limits.
+
+The one conversion between OpenCV's camera and pyrender's (OpenGL) camera lives here:
+:func:`pyrender_camera_pose` and :func:`pyrender_intrinsics`.  Nothing downstream flips an axis.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from hvloc.geometry import Camera, make_transform, rotation_z
+
+from .gl import import_pyrender
+from .textures import aruco_image, finder_marker_image, ground_texture
+
+# OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
+CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+PAD_THICKNESS_M = 0.002
+SHADOW_LIFT_M = 0.001
+
+
+def pyrender_camera_pose(cam2world_cv: np.ndarray) -> np.ndarray:
+    """``T_W_C`` of an OpenCV camera -> the pose pyrender wants for the same camera."""
+    return np.asarray(cam2world_cv, np.float64) @ CV_TO_GL
+
+
+def pyrender_intrinsics(camera: Camera) -> tuple:
+    """(fx, fy, cx, cy) for ``pyrender.IntrinsicsCamera``: OpenGL puts pixel centres at +0.5,
+    OpenCV at 0, so the principal point moves by half a pixel (the image is read back top-down)."""
+    return camera.fx, camera.fy, camera.cx + 0.5, camera.cy + 0.5
+
+
+@dataclass
+class SceneDraw:
+    """Everything random about a scene, drawn once per sequence (written into meta.json)."""
+
+    ground: str
+    sun_elevation_rad: float
+    sun_azimuth_rad: float
+    sun_intensity: float
+    ambient: float
+    boxes: list            # [(x, y, yaw, sx, sy, sz, (r, g, b))]
+    decoy_patches: list    # [(x, y, yaw, sx, sy)]
+    decoy_markers: list    # [(x, y, yaw, size, kind, id)]
+
+    def to_dict(self) -> dict:
+        return {"ground": self.ground, "sun_elevation_deg": math.degrees(self.sun_elevation_rad),
+                "sun_azimuth_deg": math.degrees(self.sun_azimuth_rad), "sun_intensity": self.sun_intensity,
+                "ambient": self.ambient, "boxes": self.boxes, "decoy_patches": self.decoy_patches,
+                "decoy_markers": self.decoy_markers}
+
+    @property
+    def sun_dir_W(self) -> np.ndarray:
+        """Unit vector pointing from the scene toward the sun."""
+        e, a = self.sun_elevation_rad, self.sun_azimuth_rad
+        return np.array([math.cos(e) * math.sin(a), math.cos(e) * math.cos(a), math.sin(e)])
+
+
+def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw:
+    u = lambda r: rng.uniform(r[0], r[1]) if r[1] > r[0] else r[0]  # noqa: E731
+    ri = lambda r: int(rng.integers(r[0], r[1] + 1))  # noqa: E731
+    d = env.distractors
+    lo = d.keep_clear_m
+    hi = max(lo + 1.0, view_radius_m)
+
+    def place():
+        r = math.sqrt(rng.uniform(lo * lo, hi * hi))
+        a = rng.uniform(0, 2 * math.pi)
+        return r * math.cos(a), r * math.sin(a), rng.uniform(0, math.pi)
+
+    boxes = []
+    for _ in range(ri(d.boxes)):
+        x, y, yaw = place()
+        sx, sy, sz = rng.uniform(1.0, 6.0), rng.uniform(1.0, 6.0), rng.uniform(0.4, 6.0)
+        col = tuple(int(c) for c in rng.choice([(150, 60, 50), (120, 120, 125), (200, 195, 185), (90, 80, 70),
+                                                (60, 90, 140)]))
+        boxes.append((x, y, yaw, sx, sy, sz, col))
+    patches = []
+    for _ in range(ri(d.decoy_patches)):
+        x, y, yaw = place()
+        patches.append((x, y, yaw, rng.uniform(0.3, 1.2), rng.uniform(0.3, 1.2)))
+    markers = []
+    for i in range(ri(d.decoy_markers)):
+        x, y, yaw = place()
+        markers.append((x, y, yaw, rng.uniform(0.15, 0.6), "finder" if i % 2 == 0 else "aruco", int(rng.integers(10, 50))))
+    return SceneDraw(str(rng.choice(env.ground)), math.radians(u(env.sun_elevation_deg)),
+                     math.radians(u(env.sun_azimuth_deg)), u(env.sun_intensity), u(env.ambient),
+                     boxes, patches, markers)
+
+
+class LandingScene:
+    """A pyrender scene plus an offscreen renderer for one camera size.
+
+    ``render(cam2world)`` returns an ``(H, W, 3)`` uint8 RGB image in OpenCV's pixel convention.
+    """
+
+    def __init__(self, pad, draw: SceneDraw, platform_height: float, platform_size: float,
+                 camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
+                 znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45):
+        pr = import_pyrender()
+        self.pr = pr
+        self.camera = camera
+        self.draw = draw
+        self.shadows = shadows
+        self.platform_height = platform_height
+        self.platform_size = platform_size
+        self.pad_surface_z = platform_height + PAD_THICKNESS_M
+        amb = draw.ambient
+        scene = pr.Scene(bg_color=[0.6, 0.7, 0.85, 1.0], ambient_light=[1.0, 1.0, 1.0])
+        self.scene = scene
+        self._count = 0
+        from OpenGL.GL import GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_REPEAT, GL_CLAMP_TO_EDGE
+
+        def textured_quad(img, sx, sy, uv_repeat=1.0, repeat=False, soft_edge_px=0):
+            """A flat quad.  ``soft_edge_px``: surround the texture with that many transparent
+            texels (edge colour replicated) and alpha-blend it, so the quad's outline is filtered
+            like any texture edge (sub-pixel exact) instead of being a hard, aliased polygon edge."""
+            sampler = pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
+                                 wrapS=GL_REPEAT if repeat else GL_CLAMP_TO_EDGE,
+                                 wrapT=GL_REPEAT if repeat else GL_CLAMP_TO_EDGE)
+            # RGBA rows are always 4-byte aligned: RGB rows of odd widths would be skewed by
+            # OpenGL's default unpack alignment
+            rgba = np.concatenate([img, np.full(img.shape[:2] + (1,), 255, np.uint8)], axis=2)
+            if soft_edge_px:
+                m = int(soft_edge_px)
+                sx *= (img.shape[1] + 2 * m) / img.shape[1]
+                sy *= (img.shape[0] + 2 * m) / img.shape[0]
+                rgba = cv2.copyMakeBorder(rgba, m, m, m, m, cv2.BORDER_REPLICATE)
+                rgba[:m, :, 3] = rgba[-m:, :, 3] = 0
+                rgba[:, :m, 3] = rgba[:, -m:, 3] = 0
+            tex = pr.Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA", sampler=sampler)
+            mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
+                                               alphaMode="BLEND" if soft_edge_px else "OPAQUE")
+            hx, hy = sx / 2, sy / 2
+            pos = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], np.float32)
+            # pyrender flips the image on upload, so v = 1 is its top row (pad +y)
+            uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32) * uv_repeat
+            normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
+            prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv,
+                                indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32), material=mat)
+            return pr.Mesh([prim])
+
+        def flat_quad(rgb, sx, sy, alpha=1.0):
+            mat = pr.MetallicRoughnessMaterial(baseColorFactor=[*(c / 255.0 for c in rgb), alpha], metallicFactor=0.0,
+                                               roughnessFactor=1.0, alphaMode="BLEND" if alpha < 1 else "OPAQUE")
+            hx, hy = sx / 2, sy / 2
+            pos = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], np.float32)
+            normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
+            return pr.Mesh([pr.Primitive(positions=pos, normals=normals,
+                                         indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32), material=mat)])
+
+        sun = draw.sun_dir_W
+        direct = draw.sun_intensity
+        horizontal = amb + direct * max(sun[2], 0.0)
+
+        def box(size, rgb, yaw=0.0):
+            import trimesh
+
+            m = trimesh.creation.box(size)
+            n_W = m.face_normals @ rotation_z(yaw).T
+            rel = (amb + direct * np.clip(n_W @ sun, 0.0, None)) / horizontal
+            lin = (np.asarray(rgb, float)[None, :] / 255.0) ** 2.2 * rel[:, None]
+            srgb = np.clip(lin, 0, 1) ** (1 / 2.2) * 255
+            m.visual.face_colors = np.column_stack([srgb, np.full(len(srgb), 255)]).astype(np.uint8)
+            return pr.Mesh.from_trimesh(m, smooth=False)
+
+        def pose_xy(x, y, z, yaw=0.0):
+            return make_transform(rotation_z(yaw), (x, y, z))
+
+        # ground: a large plane, texture tiled every 8 m
+        tile = 8.0
+        self._add(textured_quad(ground_texture(draw.ground, rng), ground_extent_m, ground_extent_m,
+                                uv_repeat=ground_extent_m / tile, repeat=True), pose=np.eye(4))
+        if platform_height > 0 and platform_size > 0:
+            self._add(box((platform_size, platform_size, platform_height), (110, 112, 118)),
+                      pose=pose_xy(0, 0, platform_height / 2))
+        # the pad's outline is a labelled feature: soft (texture-filtered) edges, not aliased ones
+        self.pad_node = self._add(textured_quad(pad.texture_rgb, pad.side_m, pad.side_m, soft_edge_px=16),
+                                  pose=pose_xy(0, 0, self.pad_surface_z))
+        for x, y, yaw, sx, sy, sz, col in draw.boxes:
+            self._add(box((sx, sy, sz), col, yaw), pose=pose_xy(x, y, sz / 2, yaw))
+        for x, y, yaw, sx, sy in draw.decoy_patches:
+            self._add(flat_quad(border_rgb, sx, sy), pose=pose_xy(x, y, 0.003, yaw))
+        for x, y, yaw, size, kind, mid in draw.decoy_markers:
+            img = finder_marker_image() if kind == "finder" else aruco_image(mid)
+            self._add(textured_quad(img, size, size), pose=pose_xy(x, y, 0.003, yaw))
+
+        # what the sun adds to a horizontal surface, relative to ambient alone (applied in imaging)
+        self.irradiance = horizontal
+        # planar shadows: what the sun does not reach gets only ambient light (alpha in sRGB)
+        k = amb / horizontal
+        self.shadow_alpha = float(np.clip(1 - k ** (1 / 2.2), 0.0, 0.95)) if shadows else 0.0
+        self._shade = lambda sx, sy: flat_quad((0, 0, 0), sx, sy, self.shadow_alpha)
+        if shadows and self.shadow_alpha > 0 and draw.boxes:
+            self._add_box_shadows(draw.boxes)
+        self.drone_size = drone_size_m
+        self.drone_shadow = None
+        if shadows and self.shadow_alpha > 0:
+            self.drone_shadow = self._add(self._shade(drone_size_m, drone_size_m), pose_xy(0, 0, -100), "shadow_drone")
+
+        fx, fy, cx, cy = pyrender_intrinsics(camera)
+        self.cam_node = scene.add(pr.IntrinsicsCamera(fx=fx, fy=fy, cx=cx, cy=cy, znear=znear, zfar=2000.0),
+                                  pose=np.eye(4))
+        self.renderer = pr.OffscreenRenderer(camera.width, camera.height)
+
+    def _add(self, mesh, pose=None, name: str = "mesh"):
+        """Add a mesh node with a unique, ordered name (draw order is deterministic)."""
+        self._count += 1
+        return self.scene.add(mesh, pose=np.eye(4) if pose is None else pose, name=f"{name}_{self._count:04d}")
+
+    def _add_box_shadows(self, boxes, m_per_px: float = 0.02):
+        """All boxes' shadows on the ground as one alpha texture: the union of each box's corners
+        cast along the sun (overlapping shadows darken once, and the draw order cannot matter)."""
+        pr = self.pr
+        s = self.draw.sun_dir_W
+        shift = -s[:2] / max(s[2], 0.05)
+        polys = []
+        for x, y, yaw, sx, sy, sz, _ in boxes:
+            c, sn = math.cos(yaw), math.sin(yaw)
+            pts = []
+            for dx in (-sx / 2, sx / 2):
+                for dy in (-sy / 2, sy / 2):
+                    bx, by = x + c * dx - sn * dy, y + sn * dx + c * dy
+                    pts += [(bx, by), (bx + shift[0] * sz, by + shift[1] * sz)]
+            polys.append(cv2.convexHull(np.array(pts, np.float32))[:, 0, :].astype(np.float64))
+        allp = np.concatenate(polys)
+        lo, hi = allp.min(axis=0) - 0.1, allp.max(axis=0) + 0.1
+        w, h = (np.ceil((hi - lo) / m_per_px)).astype(int) + 1
+        alpha = np.zeros((h, w), np.uint8)
+        for p in polys:
+            px = np.column_stack([(p[:, 0] - lo[0]) / m_per_px, (hi[1] - p[:, 1]) / m_per_px])
+            cv2.fillPoly(alpha, [np.round(px * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
+        rgba = np.zeros((h, w, 4), np.uint8)
+        rgba[..., 3] = (alpha.astype(np.float32) * self.shadow_alpha).astype(np.uint8)
+        from OpenGL.GL import GL_CLAMP_TO_EDGE, GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR
+
+        tex = pr.Texture(source=rgba, source_channels="RGBA",
+                         sampler=pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
+                                            wrapS=GL_CLAMP_TO_EDGE, wrapT=GL_CLAMP_TO_EDGE))
+        mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
+                                           alphaMode="BLEND")
+        sx, sy = w * m_per_px, h * m_per_px
+        pos = np.array([[0, 0, 0], [sx, 0, 0], [sx, sy, 0], [0, sy, 0]], np.float32)
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+        normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
+        prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv, material=mat,
+                            indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
+        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, SHADOW_LIFT_M * 2)), "shadow_boxes")
+
+    def set_drone(self, body2world: np.ndarray) -> None:
+        """Move the drone's shadow: its body (a flat square) cast along the sun onto the surface below."""
+        if self.drone_shadow is None:
+            return
+        s = self.draw.sun_dir_W
+        p = body2world[:3, 3]
+        yaw = math.atan2(body2world[1, 0], body2world[0, 0])
+        for surface in (self.pad_surface_z, 0.0):
+            k = (p[2] - surface) / max(s[2], 0.05)
+            xy = p[:2] - s[:2] * k
+            on_platform = max(abs(xy[0]), abs(xy[1])) <= max(self.platform_size, 0.0) / 2 and self.platform_height > 0
+            if surface == 0.0 or on_platform:
+                break
+        z = surface + SHADOW_LIFT_M if surface > 0 else SHADOW_LIFT_M * 3
+        self.scene.set_pose(self.drone_shadow, make_transform(rotation_z(yaw), (xy[0], xy[1], z)))
+
+    def render(self, cam2world: np.ndarray) -> np.ndarray:
+        self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
+        color, _ = self.renderer.render(self.scene, flags=self.pr.RenderFlags.FLAT)
+        return color
+
+    def close(self) -> None:
+        if self.renderer is not None:
+            self.renderer.delete()
+            self.renderer = None

@@ -1,0 +1,214 @@
+"""Dataset specs: validated pydantic models (unknown keys rejected), loaded from YAML.
+
+Lengths in metres, times in seconds, angles in degrees *in specs only* (people write specs);
+everything is converted to radians where it is used.  A range is written ``[lo, hi]``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from typing import Annotated, Literal
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+
+from pad_design.errors import load_yaml_model
+from pad_design.spec import PadSpec
+
+
+def _range_ok(v):
+    lo, hi = v
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError("range bounds must be finite")
+    if lo > hi:
+        raise ValueError(f"range low end {lo} exceeds its high end {hi}")
+    return (float(lo), float(hi))
+
+
+Range = Annotated[tuple[float, float], AfterValidator(_range_ok)]
+
+
+def _nonneg_range(v):
+    if v[0] < 0:
+        raise ValueError(f"range must be non-negative, got {list(v)}")
+    return v
+
+
+NonNegRange = Annotated[Range, AfterValidator(_nonneg_range)]
+IntRange = Annotated[tuple[int, int], AfterValidator(lambda v: tuple(int(x) for x in _range_ok(v)))]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class MountSpec(_Model):
+    """``T_B_C``: camera in the body frame (FLU).  Default: looking straight down, image top forward."""
+
+    xyz_m: tuple[float, float, float] = (0.0, 0.0, -0.05)
+    rpy_deg: tuple[float, float, float] = Field(
+        (180.0, 0.0, -90.0), description="extra rotation of the camera, applied as R_B_C = Rz(yaw) Ry(pitch) Rx(roll)")
+
+
+class CameraSpec(_Model):
+    width: int = Field(800, ge=16, le=8192)
+    height: int = Field(800, ge=16, le=8192)
+    hfov_deg: float = Field(60.0, gt=1.0, lt=170.0, description="horizontal field of view of the pinhole (fx)")
+    fy_over_fx: float = Field(1.0, gt=0.2, lt=5.0)
+    principal_offset_px: tuple[float, float] = Field((0.0, 0.0), description="(cx, cy) minus the image centre")
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    fps: float = Field(30.0, gt=0.0, le=1000.0)
+    exposure_s: float = Field(0.004, ge=0.0, description="shutter open time, centred on the frame time")
+    supersample: int = Field(1, ge=1, le=4, description="render at this many times the resolution, then average")
+    mount: MountSpec = MountSpec()
+
+    @model_validator(mode="after")
+    def _exposure(self):
+        if self.exposure_s > 1.0 / self.fps:
+            raise ValueError(f"exposure_s: {self.exposure_s} s is longer than a frame (1/fps = {1 / self.fps:.4f} s)")
+        return self
+
+
+class PlatformSpec(_Model):
+    height_m: float = Field(0.0, ge=0.0, le=50.0, description="pad surface above the ground")
+    size_m: float = Field(1.2, gt=0.0, description="side of the platform's top (0: no platform box)")
+    velocity_mps: tuple[float, float] = Field((0.0, 0.0), description="constant platform velocity (east, north)")
+
+
+Family = Literal["straight", "spiral", "hover_correct", "manoeuvres"]
+
+
+class TrajectorySpec(_Model):
+    families: list[Family] = Field(["straight", "spiral", "hover_correct", "manoeuvres"], min_length=1)
+    start_height_m: float = Field(20.0, gt=0.2, description="camera height above the pad at t = 0")
+    touchdown_height_m: float = Field(0.15, gt=0.01, description="camera height above the pad at contact")
+    duration_s: Range = Field((30.0, 40.0), description="descent duration (manoeuvres add their own time)")
+    lateral_offset_m: NonNegRange = Field((0.0, 3.0), description="horizontal start offset from the pad")
+    yaw_deg: Range = Field((-180.0, 180.0), description="initial heading")
+    yaw_change_deg: Range = Field((-90.0, 90.0), description="heading change over the descent")
+    spiral_turns: NonNegRange = (0.5, 1.5)
+    hover_steps: IntRange = (2, 4)
+    manoeuvre_height_m: NonNegRange = Field((1.5, 3.0), description="height of the manoeuvre set")
+    manoeuvre_step_m: NonNegRange = (0.2, 0.5)
+    gust_accel_mps2: NonNegRange = Field((0.0, 0.4), description="amplitude of smooth gust accelerations")
+    final_offset_m: NonNegRange = Field((0.0, 0.1), description="touchdown point's distance from the pad centre")
+
+    @model_validator(mode="after")
+    def _heights(self):
+        if self.touchdown_height_m >= self.start_height_m:
+            raise ValueError("touchdown_height_m: must be below start_height_m")
+        if self.duration_s[0] <= 0:
+            raise ValueError("duration_s: must be positive")
+        return self
+
+
+GroundKind = Literal["grass", "soil", "asphalt", "sand", "concrete"]
+
+
+class DistractorSpec(_Model):
+    boxes: IntRange = Field((0, 6), description="buildings/boxes around the pad")
+    decoy_patches: IntRange = Field((0, 2), description="flat patches of the pad's border colour")
+    decoy_markers: IntRange = Field((0, 2), description="lone finder-like squares and ArUco markers")
+    keep_clear_m: float = Field(2.5, ge=0.0, description="no distractor within this distance of the pad centre")
+
+
+class EnvironmentSpec(_Model):
+    ground: list[GroundKind] = Field(["grass", "soil", "asphalt", "sand", "concrete"], min_length=1)
+    distractors: DistractorSpec = DistractorSpec()
+    sun_elevation_deg: Range = (35.0, 80.0)
+    sun_azimuth_deg: Range = (0.0, 360.0)
+    sun_intensity: NonNegRange = Field((2.5, 4.0), description="pyrender directional-light intensity")
+    ambient: NonNegRange = Field((0.25, 0.45), description="ambient light level (0-1)")
+    shadows: bool = Field(True, description="cast shadows (sun), including the drone's own on the pad")
+
+
+class DegradationSpec(_Model):
+    motion_blur: bool = True
+    blur_subframes: int = Field(5, ge=1, le=64, description="sub-frame renders averaged over the exposure")
+    defocus_sigma_px: NonNegRange = (0.0, 0.6)
+    shot_noise: NonNegRange = Field((0.0, 0.02), description="Poisson-like noise std at full scale, sqrt-scaled")
+    read_noise: NonNegRange = Field((0.0, 0.008), description="Gaussian read noise std (0-1 scale)")
+    exposure_gain: NonNegRange = Field((0.85, 1.15), description="global brightness gain")
+    gamma: Range = Field((0.9, 1.1), description="tone curve exponent")
+    jpeg_quality: int | None = Field(None, ge=10, le=100, description="re-encode frames as JPEG at this quality")
+
+
+class ImuSpec(_Model):
+    rate_hz: float = Field(200.0, gt=0.0, le=2000.0)
+    gyro_noise_rad_s: float = Field(0.003, ge=0.0, description="white noise std per sample")
+    gyro_bias_rad_s: float = Field(0.002, ge=0.0, description="initial bias std")
+    gyro_bias_walk_rad_s2: float = Field(0.0002, ge=0.0, description="bias random walk per sqrt(s)")
+    accel_noise_mps2: float = Field(0.03, ge=0.0)
+    accel_bias_mps2: float = Field(0.03, ge=0.0)
+    accel_bias_walk_mps3: float = Field(0.001, ge=0.0)
+    ahrs_roll_pitch_deg: float = Field(0.3, ge=0.0, description="AHRS attitude error std, roll and pitch")
+    ahrs_yaw_deg: float = Field(1.0, ge=0.0, description="AHRS attitude error std, yaw")
+    ahrs_drift_time_s: float = Field(20.0, gt=0.0, description="correlation time of the AHRS error (slow drift)")
+
+
+class PhaseRuleSpec(_Model):
+    min_module_px: float = Field(2.0, gt=0.0, description="adjustment needs marker modules at least this big")
+
+
+class DatasetSpec(_Model):
+    name: str = Field("dataset", pattern=r"^[A-Za-z0-9_.-]+$")
+    seed: int = Field(0, ge=0)
+    sequences: int = Field(1, ge=1, le=100000)
+    camera: CameraSpec = CameraSpec()
+    pad: PadSpec = PadSpec()
+    pad_ppm: float = Field(2000.0, gt=100.0, le=10000.0, description="texture resolution of the pad")
+    platform: PlatformSpec = PlatformSpec()
+    trajectory: TrajectorySpec = TrajectorySpec()
+    environment: EnvironmentSpec = EnvironmentSpec()
+    degradations: DegradationSpec = DegradationSpec()
+    imu: ImuSpec = ImuSpec()
+    phase_rule: PhaseRuleSpec = PhaseRuleSpec()
+
+    @model_validator(mode="after")
+    def _pad_visible(self):
+        # At the start height the whole pad must fit in the image with some room, else no
+        # localizer could ever see it: a spec error, not a hard sequence.
+        cam = self.camera
+        f = (cam.width / 2.0) / math.tan(math.radians(cam.hfov_deg) / 2.0)
+        pad_px = self.pad.side_m * f / self.trajectory.start_height_m
+        if pad_px < 4.0:
+            raise ValueError(f"camera: the pad is only {pad_px:.1f} px wide at the start height "
+                             f"{self.trajectory.start_height_m} m (needs >= 4 px); raise the resolution "
+                             "or the field of view's focal length, or start lower")
+        half_view = self.trajectory.start_height_m * math.tan(math.radians(cam.hfov_deg) / 2.0) * \
+            min(1.0, cam.height / cam.width)
+        if self.trajectory.lateral_offset_m[1] + self.pad.side_m / 2 > half_view:
+            raise ValueError(f"trajectory.lateral_offset_m: up to {self.trajectory.lateral_offset_m[1]} m puts the pad "
+                             f"outside the camera's view at the start height (half-width {half_view:.2f} m)")
+        return self
+
+    def canonical_json(self) -> str:
+        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+
+    def sha256(self) -> str:
+        return hashlib.sha256(self.canonical_json().encode()).hexdigest()
+
+
+def load_dataset_spec(path) -> DatasetSpec:
+    return load_yaml_model(DatasetSpec, path)
+
+
+def export_schemas(out_dir) -> list:
+    """Write the JSON Schemas of the spec models to ``out_dir``; returns the paths."""
+    from pathlib import Path
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, model in (("dataset_spec", DatasetSpec), ("pad_spec", PadSpec)):
+        p = out / f"{name}.schema.json"
+        p.write_text(json.dumps(model.model_json_schema(), indent=1) + "\n")
+        paths.append(p)
+    return paths
+
+
+if __name__ == "__main__":  # python -m render.spec  -> refresh data_specs/schema/
+    from pathlib import Path
+
+    for p in export_schemas(Path(__file__).resolve().parent.parent / "data_specs" / "schema"):
+        print(p)

@@ -1,0 +1,259 @@
+"""Continuous-time landing trajectories: one model gives poses, velocities, accelerations and
+angular rates, so labels, motion blur and IMU data agree.
+
+A trajectory is the body's path relative to the pad (pad-aligned ENU axes; the platform moves
+without rotating) plus a heading.  Attitude is what a multirotor flies: the thrust axis (body z)
+follows the total acceleration plus gravity, body x follows the heading (Mellinger et al. 2011).
+Gusts are smooth sums of sinusoids added to the path, so the tilt follows them too.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hvloc.geometry import make_transform, so3_log
+
+GRAVITY = 9.80665
+
+
+def min_jerk(tau):
+    """Rest-to-rest minimum-jerk profile on [0, 1] (0 -> 1 with zero velocity and acceleration)."""
+    t = np.clip(tau, 0.0, 1.0)
+    return t**3 * (10 - 15 * t + 6 * t * t)
+
+
+class KeyframePath:
+    """Piecewise rest-to-rest minimum-jerk between keyframes ``(t, x, y, z, yaw)``."""
+
+    def __init__(self, keys):
+        k = np.asarray(keys, np.float64)
+        if k.ndim != 2 or k.shape[1] != 5 or np.any(np.diff(k[:, 0]) <= 0):
+            raise ValueError("keyframes must be (t, x, y, z, yaw) rows with increasing t")
+        self.k = k
+
+    @property
+    def duration(self) -> float:
+        return float(self.k[-1, 0])
+
+    def __call__(self, t):
+        t = np.asarray(t, np.float64)
+        k = self.k
+        i = np.clip(np.searchsorted(k[:, 0], t, side="right") - 1, 0, len(k) - 2)
+        t0, t1 = k[i, 0], k[i + 1, 0]
+        s = min_jerk((t - t0) / (t1 - t0))[..., None]
+        v = k[i, 1:] + s * (k[i + 1, 1:] - k[i, 1:])
+        return v[..., :3], v[..., 3]
+
+
+@dataclass
+class Gusts:
+    amp: np.ndarray    # (n, 3) acceleration amplitudes, m/s^2
+    omega: np.ndarray  # (n,) rad/s
+    phase: np.ndarray  # (n, 3)
+    fade_in: float
+    fade_out_start: float
+    fade_out_end: float
+
+    def displacement(self, t):
+        t = np.asarray(t, np.float64)[..., None, None]
+        # a displacement whose acceleration has amplitude amp: d = -amp / w^2 sin(w t + phi)
+        d = (self.amp / self.omega[:, None] ** 2 * np.sin(self.omega[:, None] * t + self.phase)).sum(axis=-2)
+        w = np.clip(t[..., 0, 0] / max(self.fade_in, 1e-9), 0, 1)
+        w = w * (1 - min_jerk((t[..., 0, 0] - self.fade_out_start) / max(self.fade_out_end - self.fade_out_start, 1e-9)))
+        return d * min_jerk(w)[..., None]
+
+
+@dataclass
+class TrajectoryState:
+    """Arrays over N times.  ``R_W_B`` (N, 3, 3); vectors (N, 3); ``omega_B`` body rates, rad/s."""
+
+    t: np.ndarray
+    pos_W: np.ndarray
+    vel_W: np.ndarray
+    acc_W: np.ndarray
+    R_W_B: np.ndarray
+    omega_B: np.ndarray
+    pad_W: np.ndarray  # (N, 3) pad origin in the world
+
+
+def attitude_from_acc(acc_W: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Body-to-world rotations of a multirotor with total acceleration ``acc_W`` and heading ``yaw``."""
+    thrust = acc_W + np.array([0.0, 0.0, GRAVITY])
+    zb = thrust / np.linalg.norm(thrust, axis=-1, keepdims=True)
+    xc = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=-1)
+    yb = np.cross(zb, xc)
+    yb /= np.linalg.norm(yb, axis=-1, keepdims=True)
+    xb = np.cross(yb, zb)
+    return np.stack([xb, yb, zb], axis=-1)
+
+
+class Trajectory:
+    """``path(t) -> (pos_rel (N,3), yaw (N,))`` relative to the pad; platform moving at ``pad_vel``."""
+
+    def __init__(self, path, duration: float, gusts: Gusts | None, pad_height: float, pad_vel=(0.0, 0.0),
+                 family: str = ""):
+        self.path, self.duration, self.gusts = path, float(duration), gusts
+        self.pad_height, self.pad_vel, self.family = pad_height, np.asarray(pad_vel, float), family
+
+    def _rel(self, t):
+        p, yaw = self.path(t)
+        if self.gusts is not None:
+            p = p + self.gusts.displacement(t)
+        return p, yaw
+
+    def pad_origin(self, t) -> np.ndarray:
+        t = np.asarray(t, np.float64)
+        return np.stack([self.pad_vel[0] * t, self.pad_vel[1] * t, np.full_like(t, self.pad_height)], axis=-1)
+
+    def state(self, t, h: float = 1e-3) -> TrajectoryState:
+        t = np.atleast_1d(np.asarray(t, np.float64))
+        p0, yaw = self._rel(t)
+        pm, _ = self._rel(t - h)
+        pp, _ = self._rel(t + h)
+        vel = (pp - pm) / (2 * h) + np.append(self.pad_vel, 0.0)
+        acc = (pp - 2 * p0 + pm) / (h * h)
+        R = attitude_from_acc(acc, yaw)
+        Rm = self._R(t - h)
+        Rp = self._R(t + h)
+        omega = np.stack([so3_log(a.T @ b) for a, b in zip(Rm, Rp)]) / (2 * h)
+        pad = self.pad_origin(t)
+        return TrajectoryState(t, p0 + pad, vel, acc, R, omega, pad)
+
+    def _R(self, t, h: float = 1e-3):
+        p0, yaw = self._rel(t)
+        pm, _ = self._rel(t - h)
+        pp, _ = self._rel(t + h)
+        return attitude_from_acc((pp - 2 * p0 + pm) / (h * h), yaw)
+
+    def body_poses(self, t) -> np.ndarray:
+        """``T_W_B`` (N, 4, 4)."""
+        s = self.state(t)
+        return np.stack([make_transform(R, p) for R, p in zip(s.R_W_B, s.pos_W)])
+
+    def pad_poses(self, t) -> np.ndarray:
+        """``T_W_P`` (N, 4, 4): the pad translates, never rotates."""
+        return np.stack([make_transform(np.eye(3), p) for p in self.pad_origin(np.atleast_1d(t))])
+
+
+# ----------------------------------------------------------------------------- families
+
+def _descent_profile(tau, h0, h1):
+    """Height with a quick start and a slow, careful end (min-jerk in a warped time)."""
+    return h1 + (h0 - h1) * (1.0 - min_jerk(np.clip(tau, 0, 1) ** 0.8))
+
+
+def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam: float,
+                    pad_height: float, pad_vel=(0.0, 0.0)) -> Trajectory:
+    """Draw one trajectory of ``family`` from the spec's ranges with ``rng``.
+
+    Heights in the spec are camera heights above the pad; ``body_above_cam`` converts them to the
+    body origin's (the camera hangs below the body by the mount's z offset).
+    """
+    tr = spec
+    u = lambda r: rng.uniform(r[0], r[1]) if r[1] > r[0] else r[0]  # noqa: E731
+    h0 = tr.start_height_m + body_above_cam
+    h1 = tr.touchdown_height_m + body_above_cam
+    D = u(tr.duration_s)
+    r0 = u(tr.lateral_offset_m)
+    a0 = rng.uniform(0, 2 * math.pi)
+    x0, y0 = r0 * math.cos(a0), r0 * math.sin(a0)
+    rf = u(tr.final_offset_m)
+    af = rng.uniform(0, 2 * math.pi)
+    xf, yf = rf * math.cos(af), rf * math.sin(af)
+    yaw0 = math.radians(u(tr.yaw_deg))
+    dyaw = math.radians(u(tr.yaw_change_deg))
+
+    if family == "straight":
+        def path(t):
+            tau = np.asarray(t, np.float64) / D
+            s_lat = min_jerk(tau / 0.7)
+            x = x0 + (xf - x0) * s_lat
+            y = y0 + (yf - y0) * s_lat
+            z = _descent_profile(tau, h0, h1)
+            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_jerk(tau)
+        duration = D
+    elif family == "spiral":
+        turns = u(tr.spiral_turns)
+        r_start = max(r0, 1.0)
+        def path(t):  # noqa: E306
+            tau = np.asarray(t, np.float64) / D
+            s = min_jerk(tau / 0.85)
+            r = r_start * (1 - s)
+            th = a0 + 2 * math.pi * turns * s
+            x = r * np.cos(th) + xf * s
+            y = r * np.sin(th) + yf * s
+            z = _descent_profile(tau, h0, h1)
+            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_jerk(tau) + 2 * math.pi * turns * s * 0.5
+        duration = D
+    elif family == "hover_correct":
+        n = int(rng.integers(tr.hover_steps[0], tr.hover_steps[1] + 1))
+        heights = h1 + (h0 - h1) * (1 - np.linspace(0, 1, n + 2) ** 0.6)
+        keys = [(0.0, x0, y0, h0, yaw0)]
+        t = 0.0
+        seg = D / (n + 1)
+        for i in range(1, n + 1):
+            frac = 1 - i / (n + 1)
+            err = rng.normal(0, 0.3 * frac * max(r0, 0.5), 2)
+            t += seg * 0.75
+            keys.append((t, xf + err[0], yf + err[1], heights[i], yaw0 + dyaw * i / (n + 1)))
+            t += seg * 0.25  # hover, then correct
+            keys.append((t, xf + err[0] * 0.2, yf + err[1] * 0.2, heights[i], yaw0 + dyaw * i / (n + 1)))
+        t += seg
+        keys.append((t, xf, yf, h1, yaw0 + dyaw))
+        path = KeyframePath(keys)
+        duration = path.duration
+    elif family == "manoeuvres":
+        hm = u(tr.manoeuvre_height_m) + body_above_cam
+        hm = min(max(hm, h1 + 0.6), h0)
+        d = u(tr.manoeuvre_step_m)
+        keys = [(0.0, x0, y0, h0, yaw0), (D * 0.8, 0.0, 0.0, hm, yaw0 + dyaw)]
+        t, yaw = D * 0.8, yaw0 + dyaw
+        fwd = np.array([math.cos(yaw), math.sin(yaw)])
+        left = np.array([-fwd[1], fwd[0]])
+        moves = [(fwd * d, 0.0), (-fwd * d, 0.0), (left * d, 0.0), (-left * d, 0.0)]
+        pos = np.zeros(2)
+        z = hm
+        for dxy, _ in moves:
+            t += 2.0
+            keys.append((t, pos[0] + dxy[0], pos[1] + dxy[1], z, yaw))
+            t += 0.5
+            keys.append((t, pos[0] + dxy[0], pos[1] + dxy[1], z, yaw))
+            t += 2.0
+            keys.append((t, pos[0], pos[1], z, yaw))
+        for dz in (d, -d):  # up, down
+            t += 2.0
+            keys.append((t, 0.0, 0.0, z + dz, yaw))
+        t += 5.0  # a full 360-degree spin
+        yaw += 2 * math.pi
+        keys.append((t, 0.0, 0.0, z, yaw))
+        t += 0.2 * D + 2.0
+        keys.append((t, xf, yf, h1, yaw))
+        path = KeyframePath(keys)
+        duration = path.duration
+    else:
+        raise ValueError(f"unknown trajectory family {family!r}")
+
+    amp_max = u(tr.gust_accel_mps2)
+    gusts = None
+    if amp_max > 0:
+        ncomp = 3
+        amp = rng.uniform(0.3, 1.0, (ncomp, 3)) * amp_max / ncomp
+        amp[:, 2] *= 0.3
+        gusts = Gusts(amp, rng.uniform(0.6, 3.0, ncomp), rng.uniform(0, 2 * math.pi, (ncomp, 3)),
+                      fade_in=2.0, fade_out_start=duration - 4.0, fade_out_end=duration - 0.5)
+    return Trajectory(path, duration, gusts, pad_height, pad_vel, family)
+
+
+def angular_rate_check(traj: Trajectory, t0: float, t1: float, n: int = 2000) -> float:
+    """Angle (rad) between integrating ``omega_B`` over [t0, t1] and the attitude change (a self-test)."""
+    from hvloc.geometry import so3_exp
+
+    ts = np.linspace(t0, t1, n + 1)
+    s = traj.state(ts)
+    R = s.R_W_B[0].copy()
+    dt = ts[1] - ts[0]
+    for k in range(n):
+        R = R @ so3_exp(0.5 * (s.omega_B[k] + s.omega_B[k + 1]) * dt)
+    return float(np.linalg.norm(so3_log(R.T @ s.R_W_B[-1])))

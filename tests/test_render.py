@@ -1,0 +1,259 @@
+"""The renderer's labels agree with its images; datasets are deterministic, resumable, verified."""
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from hvloc.features import refine_quad
+from hvloc.geometry import invert, rotation_angle, so3_exp, transform_points
+from render.dataset import Dataset, read_tum, verify_dataset
+from render.generate import generate, plan_sequence
+from render.spec import DatasetSpec, load_dataset_spec
+
+SPECS = Path(__file__).parent / "specs"
+REPO = Path(__file__).parent.parent
+
+
+def spec_from(path, **over):
+    d = yaml.safe_load(Path(path).read_text())
+    for k, v in over.items():
+        cur = d
+        keys = k.split(".")
+        for kk in keys[:-1]:
+            cur = cur.setdefault(kk, {})
+        cur[keys[-1]] = v
+    return DatasetSpec.model_validate(d)
+
+
+@pytest.fixture(scope="module")
+def sharp_datasets(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sharp")
+    plain = spec_from(SPECS / "sharp.yaml")
+    dist = spec_from(SPECS / "sharp.yaml", **{"camera.dist": [-0.22, 0.06, 0.001, -0.0007, -0.005], "name": "sharpdist",
+                                              "camera.supersample": 2})
+    out = {}
+    for s in (plain, dist):
+        generate(s, root / s.name, show_progress=False)
+        out[s.name] = Dataset(root / s.name)
+    return out
+
+
+def _corner_errors(seq):
+    """Errors (px) of refined corners against projected labels: marker squares where their
+    modules are >= 4 px, the pad outline where it is fully in view."""
+    cam = seq.camera
+    pad = seq.pad
+    errs = {"markers": [], "outline": []}
+    for k in range(len(seq)):
+        f = seq.frame(k)
+        pad2cam = invert(f.cam2pad)
+        rgb = f.rgb
+        rng = np.random.default_rng(k)
+        jobs = []
+        if f.markers_visible == 3:
+            gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+            sq = [np.asarray(s["corners"]) for m in pad.markers("corner") for s in m["squares"]]
+            module = min(np.linalg.norm(np.diff(cam.project(transform_points(pad2cam, q)), axis=0), axis=1).min()
+                         for q in sq[::3]) / 7
+            if module >= 4:
+                jobs += [("markers", q, gray, min(3.0, 0.45 * module)) for q in sq]
+        if f.pad_fully_visible:
+            # magenta against the grey platform: the green channel has the contrast
+            jobs.append(("outline", pad.outer_corners_P, rgb[..., 1].astype(np.float32), 2.0))
+        for kind, P, img, hw in jobs:
+            truth = cam.project(transform_points(pad2cam, P))
+            found, _ = refine_quad(img, truth + rng.uniform(-0.7, 0.7, truth.shape), half_width=hw, camera=cam)
+            assert found is not None, f"frame {k}: no {kind} corners found"
+            errs[kind] += list(np.linalg.norm(found - truth, axis=1))
+    return {k: np.array(v) for k, v in errs.items()}
+
+
+@pytest.mark.parametrize("name", ["sharp", "sharpdist"])
+def test_projection_consistency(sharp_datasets, name):
+    """Corners found in rendered images agree with pad.json projected by the labels."""
+    seq = sharp_datasets[name][0]
+    errs = _corner_errors(seq)
+    for kind, e in errs.items():
+        assert len(e) >= 40, f"{name}: only {len(e)} {kind} corners checked"
+    e = np.concatenate(list(errs.values()))
+    med, worst = float(np.median(e)), float(e.max())
+    detail = ", ".join(f"{k}: median {np.median(v):.3f} max {v.max():.3f}" for k, v in errs.items())
+    assert med <= 0.1 and worst <= 0.25, f"{name}: {detail} px"
+
+
+def test_frames_csv_corners_match_independent_projection(sharp_datasets):
+    seq = sharp_datasets["sharpdist"][0]
+    info = json.loads((seq.root / "camera.json").read_text())
+    K = np.array([[info["fx"], 0, info["cx"]], [0, info["fy"], info["cy"]], [0, 0, 1]])
+    pad_doc = json.loads((seq.root / "pad.json").read_text())
+    P = np.asarray(pad_doc["outer_corners"], float)
+    gt = read_tum(seq.root / "groundtruth.tum")
+    for k in range(len(seq)):
+        T = seq.cam2pad[k]
+        R_C_P = T[:3, :3].T
+        t_C_P = -R_C_P @ T[:3, 3]
+        px, _ = cv2.projectPoints(P, cv2.Rodrigues(R_C_P)[0], t_C_P, K, np.array(info["dist"]))
+        px = px[:, 0, :]
+        inside = (px[:, 0] >= -0.5) & (px[:, 0] <= info["width"] - 0.5) & (px[:, 1] >= -0.5) & (px[:, 1] <= info["height"] - 0.5)
+        lab = seq.frame(k).corners_px
+        assert np.array_equal(np.isnan(lab).any(axis=1), ~inside)
+        np.testing.assert_allclose(lab[inside], px[inside], atol=1e-3)  # cv2.Rodrigues is float-exact to ~1e-7
+        np.testing.assert_allclose(gt[k, 1:4], T[:3, 3], atol=1e-9)
+
+
+def test_dataset_verifies_and_reads_back(sharp_datasets):
+    ds = sharp_datasets["sharp"]
+    assert verify_dataset(ds.root) == []
+    seq = ds[0]
+    assert len(seq) == len(list((seq.root / "images").glob("*.png")))
+    assert seq.image(0).shape == (480, 480, 3) and seq.image(0).dtype == np.uint8
+    assert set(seq.phase_gt) <= {"approaching", "adjustment", "touchdown"}
+    # heights decrease from the start to the end, and height_above_pad is tz of T_P_C
+    assert seq.columns["tz"][0] > 3.0 and seq.columns["tz"][-1] < 0.7
+    from render.dataset import frame_dataset
+
+    fd = frame_dataset(ds.root)
+    item = fd[3]
+    assert tuple(item["image"].shape) == (3, 480, 480) and item["cam2pad"].shape == (4, 4)
+
+
+def test_tampering_is_caught(sharp_datasets, tmp_path):
+    src = sharp_datasets["sharp"].root
+    dst = tmp_path / "copy"
+    shutil.copytree(src, dst)
+    p = dst / "seq_0000" / "frames.csv"
+    text = p.read_text().splitlines()
+    text[3] = text[3].replace(",", ",9", 1)
+    p.write_text("\n".join(text) + "\n")
+    (dst / "seq_0000" / "images" / "000001.png").unlink()
+    problems = verify_dataset(dst)
+    assert any("frames.csv: checksum" in x for x in problems)
+    assert any("000001.png" in x for x in problems)
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "dataset", "verify", str(dst)], capture_output=True, text=True)
+    assert r.returncode == 1 and "problem" in r.stdout
+
+
+def _tiny(**over):
+    return spec_from(REPO / "data_specs" / "tiny.yaml", **{"camera.width": 96, "camera.height": 96,
+                                                             "trajectory.start_height_m": 2.5,
+                                                             "trajectory.duration_s": [2.0, 2.0],
+                                                             "trajectory.lateral_offset_m": [0.0, 0.2],
+                                                             "degradations.blur_subframes": 2, **over})
+
+
+def _dataset_digest(root):
+    m = json.loads((Path(root) / "manifest.json").read_text())
+    return m["files"]
+
+
+def test_determinism_and_single_sequence_regeneration(tmp_path):
+    spec = _tiny()
+    generate(spec, tmp_path / "a", show_progress=False)
+    generate(spec, tmp_path / "b", show_progress=False)
+    fa, fb = _dataset_digest(tmp_path / "a"), _dataset_digest(tmp_path / "b")
+    assert fa == fb and len(fa) > 10
+    # sequence 1 alone equals sequence 1 of the full run
+    generate(spec, tmp_path / "c", show_progress=False, only=[1])
+    fc = _dataset_digest(tmp_path / "c")
+    assert {k: v for k, v in fa.items() if k.startswith("seq_0001/")} == fc
+
+
+def test_resume_after_interruption_equals_uninterrupted(tmp_path):
+    spec = _tiny()
+    full = tmp_path / "full"
+    generate(spec, full, show_progress=False)
+    part = tmp_path / "part"
+    generate(spec, part, show_progress=False, only=[0])
+    # an interrupted sequence leaves a .tmp- folder, which verify does not accept
+    (part / ".tmp-seq_0001" / "images").mkdir(parents=True)
+    (part / ".tmp-seq_0001" / "images" / "000000.png").write_bytes(b"partial")
+    problems = verify_dataset(part)
+    assert any("seq_0001: missing" in p for p in problems) and any(".tmp-seq_0001" in p for p in problems)
+    res = generate(spec, part, show_progress=False)
+    assert res.skipped == ["seq_0000"] and res.rendered == ["seq_0001"]
+    assert verify_dataset(part) == []
+    assert _dataset_digest(part) == _dataset_digest(full)
+
+
+def test_other_spec_in_out_dir_is_refused(tmp_path):
+    from pad_design.errors import InputError
+
+    generate(_tiny(), tmp_path / "d", show_progress=False, only=[0])
+    with pytest.raises(InputError, match="another spec"):
+        generate(_tiny(seed=99), tmp_path / "d", show_progress=False)
+
+
+def test_imu_consistency():
+    """Integrated gyro reproduces the labelled attitude change over 1 s within the noise model;
+    accelerometer minus gravity matches the trajectory's second derivative."""
+    spec = load_dataset_spec(REPO / "data_specs" / "sim800.yaml")
+    from render.trajectory import GRAVITY
+
+    for index in range(4):
+        plan = plan_sequence(spec, index)
+        imu = plan.imu
+        traj = plan.trajectory
+        dt = 1.0 / spec.imu.rate_hz
+        for t0 in (5.0, 20.0):
+            sel = (imu[:, 0] >= t0 - 1e-9) & (imu[:, 0] <= t0 + 1.0 + 1e-9)
+            rows = imu[sel]
+            R = np.eye(3)
+            for a, b in zip(rows[:-1], rows[1:]):
+                R = R @ so3_exp(0.5 * (a[1:4] + b[1:4]) * dt)
+            s = traj.state([rows[0, 0], rows[-1, 0]])
+            truth = s.R_W_B[0].T @ s.R_W_B[1]
+            err = rotation_angle(R, truth)
+            # noise: random walk of white noise over 1 s, plus bias (~3 sigma)
+            bound = 3 * (spec.imu.gyro_noise_rad_s * math.sqrt(dt * 1.0) + spec.imu.gyro_bias_rad_s * math.sqrt(3)
+                         + spec.imu.gyro_bias_walk_rad_s2)
+            assert err < bound, f"seq {index} t0 {t0}: gyro integration off by {err:.4f} rad (bound {bound:.4f})"
+        # accelerometer: rotate to the world, remove gravity, compare with the trajectory's acceleration
+        s = traj.state(imu[:, 0])
+        a_W = np.einsum("nij,nj->ni", s.R_W_B, imu[:, 4:7]) - [0, 0, GRAVITY]
+        resid = a_W - s.acc_W
+        assert np.abs(resid.mean(axis=0)).max() < 4 * spec.imu.accel_bias_mps2 + 0.01
+        assert resid.std(axis=0).max() < 3 * spec.imu.accel_noise_mps2 + 0.02
+
+
+BAD = [
+    ("camerra: {}\n", "camerra: unknown key"),
+    ("trajectory: {duration_s: [40, 30]}\n", "trajectory.duration_s"),
+    ("camera: {width: 64, height: 64}\n", "camera"),
+    ("trajectory: {lateral_offset_m: [0, 30]}\n", "lateral_offset_m"),
+    ("camera: {fps: 30, exposure_s: 0.5}\n", "exposure_s"),
+    ("environment: {ground: [lava]}\n", "environment.ground.0"),
+]
+
+
+@pytest.mark.parametrize("text,names", BAD)
+def test_bad_dataset_spec_exits_2_naming_the_field(tmp_path, text, names):
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "generate", str(p), "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and names in lines[0], r.stderr
+    assert not out.exists()
+
+
+def test_shipped_specs_validate_and_schemas_are_current():
+    from render.spec import export_schemas
+
+    for p in sorted((REPO / "data_specs").glob("*.yaml")):
+        load_dataset_spec(p)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        for new in export_schemas(d):
+            committed = REPO / "data_specs" / "schema" / new.name
+            assert committed.exists() and committed.read_text() == new.read_text(), \
+                f"{committed} is stale: run python -m render.spec"
