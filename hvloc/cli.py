@@ -10,7 +10,9 @@ COMMANDS = {
     "pad": ("pad_design.cli", "design a landing pad: texture, pad.json geometry, printable PDFs"),
     "generate": ("render.cli:generate_main", "render labelled landing sequences from a dataset spec"),
     "dataset": ("render.cli:dataset_main", "verify or look at a generated dataset"),
-    "localize": ("hvloc.localize_cli", "run the hierarchical localizer over a dataset"),
+    # the harness that feeds datasets to the localizer reads them with render/, which hvloc/ may not
+    # import (DESIGN.md layout), so it lives in benchmarks/
+    "localize": ("benchmarks.run:localize_main", "run the hierarchical localizer over a dataset"),
     "bench": ("benchmarks.cli", "score localizers: run suites, sweep switch heights, compare, leaderboard"),
     "demo": ("benchmarks.demo", "render, localize and score the tiny built-in default end to end"),
 }

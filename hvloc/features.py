@@ -77,15 +77,18 @@ def edge_points(gray: np.ndarray, pts: np.ndarray, normals: np.ndarray, half_wid
     mid = 0.5 * (lo + hi)
     thr = max(4.0, 0.25 * float(np.median(np.abs(contrast))))
     v = (prof - mid[:, None]) * np.sign(contrast)[:, None]
-    out = []
-    for i in np.nonzero(np.abs(contrast) >= thr)[0]:
-        cross = np.nonzero((v[i, :-1] < 0) & (v[i, 1:] >= 0))[0]
-        if len(cross) == 0:
-            continue
-        j = cross[np.argmin(np.abs(r[cross]))]
-        t = v[i, j] / (v[i, j] - v[i, j + 1])
-        out.append(pts[i] + (r[j] + t * step) * normals[i])
-    return np.array(out).reshape(-1, 2)
+    # upward crossings of the mid level; keep the one nearest the profile's centre
+    cross = (v[:, :-1] < 0) & (v[:, 1:] >= 0) & (np.abs(contrast) >= thr)[:, None]
+    if not cross.any():
+        return np.zeros((0, 2))
+    dist = np.where(cross, np.abs(r[:-1])[None, :], np.inf)
+    j = np.argmin(dist, axis=1)
+    rows = np.nonzero(np.isfinite(dist[np.arange(len(j)), j]))[0]
+    j = j[rows]
+    a, b = v[rows, j], v[rows, j + 1]
+    frac = a / (a - b)
+    off = r[j] + frac * step
+    return pts[rows] + off[:, None] * normals[rows]
 
 
 def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None,

@@ -1,0 +1,41 @@
+"""``hvloc bench run|compare``."""
+from __future__ import annotations
+
+import argparse
+import json
+
+from pad_design.errors import InputError
+
+
+def main(argv: list) -> int:
+    p = argparse.ArgumentParser(prog="hvloc bench", description="Score localizers per landing phase.")
+    sub = p.add_subparsers(dest="action", required=True)
+    r = sub.add_parser("run", help="generate/reuse a suite's datasets, localize, score, report")
+    r.add_argument("suite", help="suite YAML, or a name in data_specs/suites/")
+    r.add_argument("--out", required=True)
+    r.add_argument("--workers", type=int, default=1)
+    r.add_argument("--quiet", action="store_true")
+    c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
+    c.add_argument("new", help="results.json (or its folder)")
+    c.add_argument("baseline", help="results.json (or its folder)")
+    a = p.parse_args(argv)
+    from .suite import compare, load_results, run_suite
+
+    if a.action == "run":
+        res = run_suite(a.suite, a.out, workers=a.workers, show_progress=not a.quiet)
+        from .report import phase_table
+
+        print(phase_table(res["summary"]))
+        print(f"\nreport: {a.out}/report.md (plots in {a.out}/plots/); results: {a.out}/results.json")
+        return 0
+    new, base = load_results(a.new), load_results(a.baseline)
+    if new.get("suite_sha256") != base.get("suite_sha256"):
+        raise InputError("results are of different suites (suite_sha256 differs); nothing to compare")
+    worse = compare(new, base)
+    if not worse:
+        print("no metric got worse than the baseline")
+        return 0
+    print("| localizer | scope | metric | baseline | new |\n|---|---|---|---|---|")
+    for loc, scope, m, b, n in worse:
+        print(f"| {loc} | {scope} | {m} | {json.dumps(b)} | {json.dumps(n)} |")
+    return 1

@@ -1,0 +1,133 @@
+"""Scores of a localizer on labelled sequences: per ground-truth phase, per estimated phase and
+over the suite.  No trajectory alignment: poses are in the pad frame and must be right as they are.
+
+Units in names: ``_m`` metres, ``_deg`` degrees (reports only), ``_pct`` percent of height,
+``_ms`` milliseconds, ``_s`` seconds.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hvloc.geometry import rotation_angle, transform_from_tum
+
+PHASES = ("approaching", "adjustment", "touchdown")
+FALSE_ACCEPT_REL = 0.10   # an accepted pose off by more than 10 % of height ...
+FALSE_ACCEPT_DEG = 5.0    # ... or 5 degrees is a false accept
+
+
+def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
+    """Per-frame arrays: position error (m), orientation error (deg), yaw error (deg), height (m)."""
+    n = len(gt_cols["frame"])
+    if len(est_cols["frame"]) != n:
+        raise ValueError(f"estimates have {len(est_cols['frame'])} frames, labels {n}")
+    pos_err = np.full(n, np.nan)
+    rot_err = np.full(n, np.nan)
+    yaw_err = np.full(n, np.nan)
+    keys = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+    has = np.array([s in ("ok", "rejected") for s in est_cols["status"]])
+    for k in np.nonzero(has)[0]:
+        E = transform_from_tum([est_cols[c][k] for c in keys])
+        G = transform_from_tum([gt_cols[c][k] for c in keys])
+        if not np.all(np.isfinite(E)):
+            continue
+        pos_err[k] = float(np.linalg.norm(E[:3, 3] - G[:3, 3]))
+        rot_err[k] = math.degrees(rotation_angle(E[:3, :3], G[:3, :3]))
+        ye = math.atan2(E[1, 0], E[0, 0]) - math.atan2(G[1, 0], G[0, 0])
+        yaw_err[k] = abs(math.degrees((ye + math.pi) % (2 * math.pi) - math.pi))
+    return {"pos_err_m": pos_err, "rot_err_deg": rot_err, "yaw_err_deg": yaw_err,
+            "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
+            "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),
+            "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float)}
+
+
+def _stats(x: np.ndarray, prefix: str) -> dict:
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return {f"{prefix}_rmse": None, f"{prefix}_median": None, f"{prefix}_p95": None}
+    return {f"{prefix}_rmse": float(np.sqrt(np.mean(x * x))), f"{prefix}_median": float(np.median(x)),
+            f"{prefix}_p95": float(np.percentile(x, 95))}
+
+
+def longest_gap_s(t: np.ndarray, ok: np.ndarray) -> float:
+    """Longest time without an accepted pose (from the last ok frame, or the start)."""
+    if t.size == 0:
+        return 0.0
+    last = t[0]
+    gap = 0.0
+    seen = False
+    for ti, o in zip(t, ok):
+        if o:
+            gap = max(gap, ti - last) if seen or ti > t[0] else gap
+            last, seen = ti, True
+    gap = max(gap, t[-1] - last) if seen else t[-1] - t[0]
+    return float(gap)
+
+
+def score(fe: dict, mask: np.ndarray | None = None) -> dict:
+    """All metrics over the frames in ``mask`` (default all)."""
+    m = np.ones_like(fe["pos_err_m"], bool) if mask is None else mask
+    n = int(m.sum())
+    out = {"frames": n}
+    if n == 0:
+        return out
+    ok = (fe["status"] == "ok") & m
+    rej = (fe["status"] == "rejected") & m
+    h = fe["height_m"]
+    pe, re = fe["pos_err_m"], fe["rot_err_deg"]
+    wrong = (pe > FALSE_ACCEPT_REL * h) | (re > FALSE_ACCEPT_DEG)
+    out["availability"] = float(ok.sum() / n)
+    out["longest_gap_s"] = longest_gap_s(fe["t_s"][m], ok[m])
+    out.update(_stats(pe[ok], "pos_err_m"))
+    out.update(_stats(100.0 * pe[ok] / h[ok], "pos_err_pct"))
+    out.update(_stats(re[ok], "rot_err_deg"))
+    out.update(_stats(fe["yaw_err_deg"][ok], "yaw_err_deg"))
+    out["false_accepts"] = int((ok & wrong).sum())
+    out["rejections_right"] = int((rej & wrong).sum())
+    out["rejections_wrong"] = int((rej & ~wrong).sum())
+    out["wrong_phase_frames"] = int((ok & (fe["phase_est"] != fe["phase_gt"])).sum())
+    ms = fe["ms"][m]
+    out["ms_p50"] = float(np.percentile(ms, 50))
+    out["ms_p95"] = float(np.percentile(ms, 95))
+    return out
+
+
+def switch_heights(fe: dict) -> list:
+    """(from, to, height) each time the estimated phase of accepted poses changed."""
+    out = []
+    prev = None
+    for st, ph, h in zip(fe["status"], fe["phase_est"], fe["height_m"]):
+        if st != "ok":
+            continue
+        if prev is not None and ph != prev:
+            out.append((prev, str(ph), float(h)))
+        prev = str(ph)
+    return out
+
+
+def gt_boundaries(fe: dict) -> list:
+    out = []
+    prev = None
+    for ph, h in zip(fe["phase_gt"], fe["height_m"]):
+        if prev is not None and ph != prev:
+            out.append((prev, str(ph), float(h)))
+        prev = str(ph)
+    return out
+
+
+def score_sequence(fe: dict) -> dict:
+    res = {"all": score(fe)}
+    for p in PHASES:
+        res[f"gt:{p}"] = score(fe, fe["phase_gt"] == p)
+        res[f"est:{p}"] = score(fe, (fe["phase_est"] == p) & (fe["status"] != "lost"))
+    res["switches"] = switch_heights(fe)
+    res["gt_boundaries"] = gt_boundaries(fe)
+    # touchdown drift: position error at contact (last frame)
+    last = len(fe["pos_err_m"]) - 1
+    res["contact_pos_err_m"] = float(fe["pos_err_m"][last]) if fe["status"][last] == "ok" else None
+    return res
+
+
+def concat(fes: list) -> dict:
+    return {k: np.concatenate([f[k] for f in fes]) for k in fes[0]}

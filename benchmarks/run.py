@@ -1,0 +1,117 @@
+"""Run a localizer over a dataset and write its estimates (DESIGN.md, "Localizer output").
+
+This harness lives in ``benchmarks`` because it reads datasets with ``render``'s reader, and the
+localizer package (``hvloc``) may import only ``pad_design`` (DESIGN.md, layout).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hvloc.config import LocalizerConfig, load_config
+from hvloc.geometry import tum_from_transform
+from hvloc.localizer import Estimate, HierarchicalLocalizer
+from pad_design.errors import InputError, validate_model
+
+ESTIMATE_COLUMNS = ["frame", "t", "phase", "status", "tx", "ty", "tz", "qx", "qy", "qz", "qw", "ms",
+                    "method", "n_corr", "rms_px", "reason"]
+
+
+def imu_at(imu: np.ndarray, t: float):
+    """The latest IMU row at or before ``t`` (the AHRS attitude a flight computer would have)."""
+    j = int(np.searchsorted(imu[:, 0], t + 1e-9)) - 1
+    return imu[max(j, 0)]
+
+
+def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None) -> list:
+    loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+    imu = seq.imu if use_imu else None
+    out = []
+    for k in range(len(seq)):
+        t = float(seq.t[k])
+        est = loc.process(seq.image(k), t, imu_at(imu, t) if imu is not None else None)
+        out.append(est)
+        if progress:
+            progress(1)
+    return out
+
+
+def write_estimates(seq_out: Path, estimates: list) -> None:
+    from render.dataset import write_csv, write_tum
+
+    seq_out.mkdir(parents=True, exist_ok=True)
+    rows, tum_t, tum_p = [], [], []
+    for k, e in enumerate(estimates):
+        pose = tum_from_transform(e.cam2pad) if e.cam2pad is not None else [float("nan")] * 7
+        rows.append([k, e.t, e.phase, e.status, *pose, round(e.ms, 3), e.method, e.n_corr, e.rms_px,
+                     e.reason.replace(",", ";").replace("\n", " ")])
+        if e.status == "ok":
+            tum_t.append(e.t)
+            tum_p.append(pose)
+    tmp = seq_out / ".estimates.csv.tmp"
+    write_csv(tmp, ESTIMATE_COLUMNS, rows)
+    tmp.replace(seq_out / "estimates.csv")
+    tmp = seq_out / ".estimates.tum.tmp"
+    write_tum(tmp, tum_t, tum_p, "t tx ty tz qx qy qz qw  (estimated T_P_C, status ok only)")
+    tmp.replace(seq_out / "estimates.tum")
+
+
+def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: bool = True,
+                     show_progress: bool = True) -> dict:
+    """Localize every sequence of a dataset; writes ``OUT/<seq>/estimates.{csv,tum}``."""
+    from render.dataset import Dataset
+
+    ds = Dataset(root)
+    config = config or LocalizerConfig()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    total = sum(len(ds[s]) for s in ds.sequence_ids)
+    bar = None
+    if show_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=total, unit="frame", desc="localize")
+    t0 = time.time()
+    results = {}
+    try:
+        for seq in ds:
+            est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None)
+            write_estimates(out / seq.id, est)
+            results[seq.id] = est
+    finally:
+        if bar:
+            bar.close()
+    (out / "localizer_config.json").write_text(json.dumps(config.model_dump(), indent=1) + "\n")
+    return {"sequences": results, "seconds": time.time() - t0, "frames": total}
+
+
+def read_estimates(path) -> dict:
+    from render.dataset import read_csv_columns
+
+    return read_csv_columns(Path(path))
+
+
+def localize_main(argv: list) -> int:
+    p = argparse.ArgumentParser(prog="hvloc localize", description="Run the hierarchical localizer over a dataset.")
+    p.add_argument("dataset")
+    p.add_argument("--out", required=True, help="results folder: <seq>/estimates.csv and estimates.tum")
+    p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
+    p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
+    p.add_argument("--quiet", action="store_true")
+    a = p.parse_args(argv)
+    cfg = load_config(a.config) if a.config else LocalizerConfig()
+    if not Path(a.dataset).is_dir():
+        raise InputError(f"{a.dataset}: no such dataset folder")
+    res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet)
+    n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)
+    print(f"{a.out}: {len(res['sequences'])} sequence(s), {res['frames']} frames, {n_ok} poses ok "
+          f"({res['seconds']:.1f} s)")
+    return 0
+
+
+__all__ = ["localize_dataset", "localize_sequence", "write_estimates", "read_estimates", "Estimate",
+           "validate_model"]

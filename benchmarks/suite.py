@@ -1,0 +1,213 @@
+"""Benchmark suites: datasets (spec, sequences, seed) x localizer configs, run and scored."""
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field
+
+from hvloc.config import LocalizerConfig
+from pad_design.errors import InputError, load_yaml_model, validate_model
+
+from . import metrics as M
+
+RESULTS_SCHEMA = "hvloc-results/1"
+REPO = Path(__file__).resolve().parent.parent
+
+
+class DatasetEntry(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    spec: str = Field(description="dataset spec YAML, relative to the suite file or the repository")
+    sequences: int | None = Field(None, ge=1)
+    seed: int | None = Field(None, ge=0)
+    overrides: dict = Field(default_factory=dict, description="spec fields to override (nested mapping)")
+
+
+class LocalizerEntry(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str
+    config: dict = Field(default_factory=dict, description="fields of hvloc's LocalizerConfig")
+    use_imu: bool = True
+
+
+class Suite(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str
+    datasets: list[DatasetEntry] = Field(min_length=1)
+    localizers: list[LocalizerEntry] = Field(min_length=1)
+
+
+def _deep_update(d: dict, u: dict) -> dict:
+    out = dict(d)
+    for k, v in u.items():
+        out[k] = _deep_update(out.get(k, {}), v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def load_suite(path) -> tuple:
+    path = Path(path)
+    if not path.exists():
+        cand = REPO / "data_specs" / "suites" / f"{path.name}.yaml"
+        if cand.exists():
+            path = cand
+    suite = load_yaml_model(Suite, path)
+    from render.spec import DatasetSpec
+
+    specs = []
+    for i, d in enumerate(suite.datasets):
+        sp = (path.parent / d.spec) if (path.parent / d.spec).exists() else (REPO / d.spec)
+        if not sp.exists():
+            raise InputError(f"{path}: datasets.{i}.spec: {d.spec} not found")
+        raw = yaml.safe_load(sp.read_text()) or {}
+        raw = _deep_update(raw, d.overrides)
+        if d.sequences is not None:
+            raw["sequences"] = d.sequences
+        if d.seed is not None:
+            raw["seed"] = d.seed
+        specs.append(validate_model(DatasetSpec, raw, f"{path}: datasets.{i} ({d.spec})"))
+    configs = []
+    for i, loc in enumerate(suite.localizers):
+        configs.append((loc, validate_model(LocalizerConfig, loc.config, f"{path}: localizers.{i}.config")))
+    h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [c.model_dump_json() for _, c in configs]
+                                  + [l.model_dump_json() for l, _ in configs]).encode()).hexdigest()
+    return suite, specs, configs, h
+
+
+def provenance() -> dict:
+    from render.dataset import package_versions
+
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True,
+                                timeout=5).stdout.strip() or None
+        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO,
+                                    capture_output=True, text=True, timeout=5).stdout.strip())
+    except (OSError, subprocess.SubprocessError):
+        commit, dirty = None, None
+    import os
+
+    return {"commit": commit, "dirty": dirty, "machine": {"platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count()},
+            "versions": package_versions(), "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> dict:
+    """Generate (or reuse) the suite's datasets, run each localizer, score, write results."""
+    from render.dataset import Dataset, verify_dataset
+    from render.generate import generate
+
+    from .run import localize_dataset, read_estimates
+
+    suite, specs, configs, suite_hash = load_suite(suite_path)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    data_root = out / "datasets"
+    rows, per_seq, fes_by_loc = [], {}, {}
+    timing = {}
+    for spec in specs:
+        droot = data_root / f"{spec.name}-{spec.sha256()[:10]}"
+        t0 = time.time()
+        generate(spec, droot, workers=workers, show_progress=show_progress)
+        timing[f"generate:{spec.name}"] = time.time() - t0
+        problems = verify_dataset(droot, check_labels=False)
+        if problems:
+            raise InputError(f"{droot}: dataset does not verify: {problems[0]}")
+        ds = Dataset(droot)
+        for loc, cfg in configs:
+            rdir = out / "estimates" / loc.name / droot.name
+            t0 = time.time()
+            localize_dataset(droot, rdir, cfg, use_imu=loc.use_imu, show_progress=show_progress)
+            timing[f"localize:{loc.name}:{spec.name}"] = time.time() - t0
+            for seq in ds:
+                est = read_estimates(rdir / seq.id / "estimates.csv")
+                fe = M.frame_errors(seq.columns, est)
+                key = f"{loc.name}/{spec.name}/{seq.id}"
+                per_seq[key] = M.score_sequence(fe)
+                per_seq[key]["family"] = seq.meta.get("family")
+                fes_by_loc.setdefault(loc.name, []).append(fe)
+                for k in range(len(fe["status"])):
+                    rows.append([loc.name, spec.name, seq.id, k, float(fe["t_s"][k]), float(fe["height_m"][k]),
+                                 str(fe["phase_gt"][k]), str(fe["phase_est"][k]), str(fe["status"][k]),
+                                 float(fe["pos_err_m"][k]), float(fe["rot_err_deg"][k]), float(fe["ms"][k])])
+    summary = {}
+    for name, fes in fes_by_loc.items():
+        fe = M.concat(fes)
+        summary[name] = {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
+        contact = [per_seq[k]["contact_pos_err_m"] for k in per_seq if k.startswith(name + "/")]
+        contact = [c for c in contact if c is not None]
+        summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None
+    results = {"schema": RESULTS_SCHEMA, "suite": suite.name, "suite_sha256": suite_hash,
+               "provenance": provenance(), "summary": summary, "sequences": per_seq, "timing_s": timing,
+               "localizers": {l.name: c.model_dump() for l, c in configs}}
+    from render.dataset import atomic_write_text, write_csv
+
+    atomic_write_text(out / "results.json", json.dumps(_clean(results), indent=1) + "\n")
+    write_csv(out / "results.csv", ["localizer", "dataset", "sequence", "frame", "t", "height_m", "phase_gt",
+                                    "phase_est", "status", "pos_err_m", "rot_err_deg", "ms"], rows)
+    from .report import write_report
+
+    write_report(out, results, fes_by_loc, data_root)
+    return results
+
+
+def _clean(o):
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return None if not np.isfinite(o) else float(o)
+    if isinstance(o, np.integer):
+        return int(o)
+    return o
+
+
+def load_results(path) -> dict:
+    p = Path(path)
+    if p.is_dir():
+        p = p / "results.json"
+    try:
+        r = json.loads(p.read_text())
+    except (OSError, ValueError) as err:
+        raise InputError(f"{p}: cannot read results ({err})") from None
+    if r.get("schema") != RESULTS_SCHEMA:
+        raise InputError(f"{p}: results schema {r.get('schema')!r}, expected {RESULTS_SCHEMA!r}")
+    return r
+
+
+# metric -> (direction, absolute tolerance): "lower" is better or "higher" is better
+TOLERANCES = {
+    "availability": ("higher", 0.01),
+    "pos_err_m_rmse": ("lower", 0.002),
+    "pos_err_pct_median": ("lower", 0.05),
+    "rot_err_deg_rmse": ("lower", 0.05),
+    "false_accepts": ("lower", 0),
+    "longest_gap_s": ("lower", 0.2),
+}
+
+
+def compare(new: dict, base: dict, tolerances: dict = TOLERANCES) -> list:
+    """Rows (localizer, scope, metric, baseline, new) of everything that got worse beyond tolerance."""
+    worse = []
+    for loc, scopes in base["summary"].items():
+        if loc not in new["summary"]:
+            worse.append((loc, "-", "missing in new results", None, None))
+            continue
+        for scope, metrics in scopes.items():
+            if not isinstance(metrics, dict):
+                continue
+            for m, (direction, tol) in tolerances.items():
+                b = metrics.get(m)
+                n = new["summary"][loc].get(scope, {}).get(m)
+                if b is None:
+                    continue
+                if n is None:
+                    worse.append((loc, scope, m, b, n))
+                elif (direction == "lower" and n > b + tol) or (direction == "higher" and n < b - tol):
+                    worse.append((loc, scope, m, b, n))
+    return worse

@@ -1,0 +1,46 @@
+"""Localizer configuration: plain values (the benchmark sweeps the switching heights)."""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from pad_design.errors import load_yaml_model
+
+
+class LocalizerConfig(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+    # phase switching (heights above the pad, metres)
+    adjust_height_m: float = Field(8.0, gt=0.0, description="below this, finder markers are tried")
+    touchdown_height_m: float = Field(1.0, gt=0.0, description="below this, the flow tracker takes over "
+                                      "when markers are lost")
+    hysteresis_m: float = Field(0.3, ge=0.0, description="margin before switching back")
+    use_outline: bool = True
+    use_markers: bool = True
+    use_flow: bool = True
+    # detection
+    binarization: Literal["otsu", "adaptive"] = "otsu"
+    roi_margin: float = Field(0.6, ge=0.0, description="ROI around the predicted pad, relative to its size")
+    # false-pose detection
+    false_pose_detection: bool = True
+    imu_jump_deg: float = Field(4.0, gt=0.0, description="reject when vision-vs-IMU rotation jumps by more")
+    imu_drift_rate: float = Field(0.05, gt=0.0, le=1.0, description="how fast the vision-IMU offset may drift "
+                                  "(EMA weight per accepted frame)")
+    max_reprojection_px: float = Field(3.0, gt=0.0)
+    max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
+    # tracker
+    flow_reanchor_scale: float = Field(1.4, gt=1.0, description="new keyframe when the scale changes by more")
+    flow_min_tracks: int = Field(30, ge=8)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.touchdown_height_m >= self.adjust_height_m:
+            raise ValueError("touchdown_height_m: must be below adjust_height_m")
+        if not (self.use_outline or self.use_markers or self.use_flow):
+            raise ValueError("use_outline: at least one of use_outline, use_markers, use_flow must be on")
+        return self
+
+
+def load_config(path) -> LocalizerConfig:
+    return load_yaml_model(LocalizerConfig, path)

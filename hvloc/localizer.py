@@ -1,0 +1,290 @@
+"""The hierarchical localizer: Approaching (pad outline), Adjustment (finder markers),
+Touchdown (Harris + pyramidal Lucas-Kanade to a keyframe), phase switching with hysteresis and
+fallback, and false-pose detection (vision vs IMU rotation jumps, reprojection and motion gates).
+
+``process`` never raises on an image: anything it cannot use gives ``status="lost"`` with a
+reason.
+"""
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from . import phases as ph
+from .config import LocalizerConfig
+from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
+from .pose import PoseResult, solve_planar_pose
+
+PHASES = ("approaching", "adjustment", "touchdown")
+METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown"}
+DEFAULT_T_B_C = make_transform(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]), (0.0, 0.0, -0.05))
+
+
+@dataclass
+class Estimate:
+    t: float
+    phase: str
+    status: str                  # ok | rejected | lost
+    cam2pad: np.ndarray | None   # T_P_C
+    n_corr: int = 0
+    rms_px: float = float("nan")
+    cov: np.ndarray | None = None
+    ms: float = 0.0
+    reason: str = ""
+    method: str = ""
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def height(self) -> float:
+        return float(self.cam2pad[2, 3]) if self.cam2pad is not None else float("nan")
+
+
+def check_image(image) -> tuple:
+    """``(rgb uint8 (H, W, 3) or None, gray uint8 (H, W) or None, reason)``: what the phases can use."""
+    if not isinstance(image, np.ndarray):
+        return None, None, f"image is a {type(image).__name__}, not a numpy array"
+    if image.ndim not in (2, 3) or image.size == 0:
+        return None, None, f"image has shape {image.shape}"
+    if image.ndim == 3 and image.shape[2] not in (1, 3, 4):
+        return None, None, f"image has {image.shape[2]} channels (1, 3 or 4 supported)"
+    if min(image.shape[:2]) < 16:
+        return None, None, f"image is too small ({image.shape[1]}x{image.shape[0]})"
+    img = image
+    if img.dtype != np.uint8:
+        if not np.issubdtype(img.dtype, np.number) or np.issubdtype(img.dtype, np.complexfloating):
+            return None, None, f"image dtype {img.dtype} is not numeric"
+        f = np.nan_to_num(img.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        hi = float(f.max()) if f.size else 0.0
+        scale = 255.0 if np.issubdtype(img.dtype, np.floating) and hi <= 1.0 else (255.0 / 65535.0 if hi > 255 else 1.0)
+        img = np.clip(f * scale, 0, 255).astype(np.uint8)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    if img.ndim == 2:
+        return None, np.ascontiguousarray(img), ""
+    if img.shape[2] == 4:
+        img = img[..., :3]
+    rgb = np.ascontiguousarray(img)
+    return rgb, cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), ""
+
+
+def imu_rotation(imu) -> np.ndarray | None:
+    """``R_W_B`` from an IMU sample: a 3x3 matrix, a quaternion (qx, qy, qz, qw), or an imu.csv row."""
+    if imu is None:
+        return None
+    a = np.asarray(imu, np.float64)
+    if a.shape == (3, 3):
+        return a
+    if a.shape == (4,):
+        return matrix_from_quat_xyzw(a)
+    if a.shape == (11,):
+        return matrix_from_quat_xyzw(a[7:11])
+    return None
+
+
+class HierarchicalLocalizer:
+    """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``."""
+
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None):
+        self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        self.camera = camera
+        self.config = config or LocalizerConfig()
+        self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
+        self.outer_P = np.asarray(self.geometry["outer_corners"], np.float64)
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase = "approaching"
+        self.last: Estimate | None = None       # last accepted estimate
+        self.R_W_P: np.ndarray | None = None     # running vision-IMU rotation offset
+        self.imu_rejects = 0
+        self.kf: ph.Keyframe | None = None
+        self.prev_gray: np.ndarray | None = None
+        self.tracks: np.ndarray | None = None
+        self.frames_since_kf = 0
+        self._pending_tracks = None
+
+    # ------------------------------------------------------------------ public
+    def process(self, image, t: float, imu=None) -> Estimate:
+        t0 = time.perf_counter()
+        try:
+            est = self._process(image, float(t), imu)
+        except Exception as err:  # never raise on an image: report it
+            est = Estimate(float(t) if np.isfinite(t) else float("nan"), self.phase, "lost", None,
+                           reason=f"internal error: {type(err).__name__}: {err}",
+                           extras={"traceback": traceback.format_exc(limit=3)})
+        est.ms = (time.perf_counter() - t0) * 1000.0
+        return est
+
+    # ------------------------------------------------------------------ internals
+    def _process(self, image, t: float, imu) -> Estimate:
+        self._pending_tracks = None
+        rgb, gray, why = check_image(image)
+        if gray is None:
+            return Estimate(t, self.phase, "lost", None, reason=why)
+        if gray.shape != (self.camera.height, self.camera.width):
+            return Estimate(t, self.phase, "lost", None,
+                            reason=f"image is {gray.shape[1]}x{gray.shape[0]}, camera is {self.camera.width}x{self.camera.height}")
+        R_W_B = imu_rotation(imu)
+        up_C = None
+        if R_W_B is not None:
+            R_W_C = R_W_B @ self.T_B_C[:3, :3]
+            up_C = R_W_C.T @ np.array([0.0, 0.0, 1.0])
+        cfg = self.config
+        h = self.last.height if self.last is not None else None
+        self._update_phase(h)
+        order = {"approaching": ["outline", "markers"],
+                 "adjustment": ["markers", "outline", "flow"],
+                 "touchdown": ["markers", "flow", "outline"]}[self.phase]
+        enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}
+        reasons = []
+        result = None
+        for method in order:
+            if not enabled[method]:
+                continue
+            if method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m:
+                continue
+            if method == "flow" and (self.kf is None or self.prev_gray is None):
+                reasons.append("flow: no keyframe")
+                continue
+            res, why = self._try(method, rgb, gray, up_C)
+            if res is not None:
+                result = (method, res)
+                break
+            reasons.append(f"{method}: {why}")
+        if result is None:
+            self._advance_tracks(gray)
+            return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
+        method, (pose, n, extras) = result
+        est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
+                       extras=extras)
+        verdict = self._gate(est, R_W_B)
+        if verdict:
+            est.status, est.reason = "rejected", verdict
+            self._advance_tracks(gray)
+            return est
+        self.last = est
+        self._after_accept(method, est, gray)
+        return est
+
+    def _update_phase(self, h) -> None:
+        cfg = self.config
+        if h is None:
+            return
+        hy = cfg.hysteresis_m
+        if self.phase == "approaching" and h < cfg.adjust_height_m - hy:
+            self.phase = "adjustment"
+        elif self.phase == "adjustment":
+            if h > cfg.adjust_height_m + hy:
+                self.phase = "approaching"
+            elif h < cfg.touchdown_height_m and self.last is not None and self.last.method != "markers":
+                self.phase = "touchdown"
+        elif self.phase == "touchdown" and h > cfg.touchdown_height_m + hy:
+            self.phase = "adjustment"
+
+    def _prior(self):
+        return self.last.cam2pad if self.last is not None else None
+
+    def _try(self, method: str, rgb, gray, up_C):
+        prior = self._prior()
+        cfg = self.config
+        if method == "flow":
+            px = ph.track_to_keyframe(self.kf, self.prev_gray, self.tracks, gray)
+            res, inl, why = ph.pose_from_tracks(self.camera, self.kf, px, prior, up_C)
+            self._pending_tracks = px
+            if res is None:
+                return None, why
+            return (res, int(inl.sum()), {"tracks": int(np.isfinite(px).all(axis=1).sum())}), "ok"
+        roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
+        attempts = [roi, None] if roi is not None else [None]
+        why = ""
+        for r in attempts:
+            if method == "outline":
+                hint = None
+                if prior is not None:
+                    hint = self.camera.project_from(prior, self.outer_P[:1])[0]
+                det, why = ph.detect_outline(rgb, self.geometry, self.camera, roi=r, yaw_hint_corner0=hint)
+            else:
+                det, why = ph.detect_markers(gray, self.geometry, self.camera, roi=r, method=cfg.binarization)
+            if det is not None:
+                pose = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
+                if pose is not None:
+                    return (pose, len(det.pts_P), dict(det.info, roi=r is not None)), "ok"
+                why = "pose failed"
+        return None, why
+
+    def _gate(self, est: Estimate, R_W_B) -> str:
+        cfg = self.config
+        if not cfg.false_pose_detection:
+            return ""
+        if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
+            return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
+        if est.cam2pad[2, 3] <= 0:
+            return "camera below the pad plane"
+        if self.last is not None:
+            dt = max(est.t - self.last.t, 1e-3)
+            jump = float(np.linalg.norm(est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]))
+            allowed = cfg.max_speed_mps * dt + 0.05 + 0.05 * self.last.height
+            if jump > allowed:
+                return f"moved {jump:.2f} m in {dt:.3f} s (> {allowed:.2f} m possible)"
+        if R_W_B is not None:
+            R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
+            if self.R_W_P is None:
+                self.R_W_P = R_W_P
+            else:
+                jump = math.degrees(rotation_angle(self.R_W_P, R_W_P))
+                if jump > cfg.imu_jump_deg:
+                    self.imu_rejects += 1
+                    if self.imu_rejects >= 8:  # the reference itself was wrong: start again
+                        self.R_W_P, self.imu_rejects = R_W_P, 0
+                    return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
+                # slow drift: move the reference a little toward the new offset
+                d = so3_log(self.R_W_P.T @ R_W_P)
+                self.R_W_P = self.R_W_P @ so3_exp(cfg.imu_drift_rate * d)
+            self.imu_rejects = 0
+        return ""
+
+    def _after_accept(self, method: str, est: Estimate, gray) -> None:
+        """Keep the flow tracker ready near the ground: a keyframe from an anchored (markers or
+        outline) pose, renewed when the view has changed enough; flow poses advance the tracks."""
+        cfg = self.config
+        h = est.height
+        near = h < cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m
+        if not cfg.use_flow or not near:
+            self.kf = None
+            self.prev_gray = None
+            return
+        self.frames_since_kf += 1
+        if method in ("markers", "outline"):
+            stale = (self.kf is None or not self.kf.anchored or self.frames_since_kf > 10
+                     or not (1 / 1.1 < self.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1))
+            if stale:
+                self._new_keyframe(gray, est.cam2pad, anchored=True)
+            return
+        px = self._pending_tracks
+        n_ok = int(np.isfinite(px).all(axis=1).sum())
+        scale = self.kf.cam2pad[2, 3] / max(h, 1e-6)
+        if n_ok < cfg.flow_min_tracks or not (1 / cfg.flow_reanchor_scale < scale < cfg.flow_reanchor_scale):
+            if self._new_keyframe(gray, est.cam2pad, anchored=False):
+                return
+        self.tracks, self.prev_gray = px, gray
+
+    def _new_keyframe(self, gray, cam2pad, anchored: bool) -> bool:
+        kf = ph.make_keyframe(gray, cam2pad, self.camera, anchored=anchored)
+        if kf is None:
+            return False
+        self.kf, self.tracks, self.prev_gray, self.frames_since_kf = kf, kf.px.copy(), kf.gray, 0
+        return True
+
+    def _advance_tracks(self, gray) -> None:
+        """A frame without an accepted pose: if the tracker ran on it, keep its tracks current."""
+        if self.kf is not None and self._pending_tracks is not None:
+            self.tracks, self.prev_gray = self._pending_tracks, gray

@@ -1,0 +1,387 @@
+"""The three phases as plain functions, usable alone: outline detection (Approaching), finder
+markers (Adjustment) and the flow tracker (Touchdown).  Each detector returns correspondences
+(pad points in metres, image pixels) or ``None`` with a reason; pose comes from :mod:`.pose`."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from . import markers as mk
+from .features import refine_quad
+from .geometry import Camera, invert, transform_points
+
+
+@dataclass
+class Detection:
+    """Correspondences found in one image: ``pts_P`` (N, 3) metres, ``px`` (N, 2) pixels."""
+
+    pts_P: np.ndarray
+    px: np.ndarray
+    kind: str
+    info: dict = field(default_factory=dict)
+
+
+def _signed_area(q: np.ndarray) -> float:
+    x, y = q[:, 0], q[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _hsv_mask(hsv: np.ndarray, rng: dict) -> np.ndarray:
+    lo, hi = np.array(rng["lo"], float), np.array(rng["hi"], float)
+    if rng.get("hue_wraps"):
+        a = cv2.inRange(hsv, np.array([lo[0], lo[1], lo[2]]), np.array([180, hi[1], hi[2]]))
+        b = cv2.inRange(hsv, np.array([0, lo[1], lo[2]]), np.array([hi[0], hi[1], hi[2]]))
+        return a | b
+    return cv2.inRange(hsv, lo, hi)
+
+
+# ----------------------------------------------------------------------------- Approaching
+
+def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
+                   yaw_hint_corner0: np.ndarray | None = None) -> tuple:
+    """The pad's outer corners (TL, TR, BR, BL) by colour segmentation.
+
+    Returns ``(Detection | None, reason)``.  Decoys are rejected by shape (convex quad, side
+    ratios), by how much of the quad is border colour (a pad is a ring, a decoy patch is solid),
+    and the corner order comes from the yellow cue corner (bottom-right), or, when the cue cannot
+    be read, from ``yaw_hint_corner0``: the predicted pixel of the TL corner.
+    """
+    x0, y0 = 0, 0
+    img = rgb
+    if roi is not None:
+        x0, y0, x1, y1 = roi
+        img = rgb[y0:y1, x0:x1]
+    if img.shape[0] < 8 or img.shape[1] < 8:
+        return None, "image too small"
+    # segment on a smaller copy when the search area is large: the corners are refined at full
+    # resolution afterwards, so this costs no accuracy
+    scale = 1
+    while img.shape[1] // (2 * scale) >= 480 and img.shape[0] // (2 * scale) >= 270:
+        scale *= 2
+    small = img if scale == 1 else cv2.resize(img, (img.shape[1] // scale, img.shape[0] // scale),
+                                                interpolation=cv2.INTER_AREA)
+    hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
+    border = pad_geometry["border"]["segmentation_hsv"]
+    cue = pad_geometry["cue"]["segmentation_hsv"]
+    mask = _hsv_mask(hsv, border)
+    cue_mask = _hsv_mask(hsv, cue)
+    # the cue square belongs to the pad: add every cue-coloured blob that touches the border colour
+    n_lab, labels = cv2.connectedComponents(cue_mask, connectivity=8)
+    if n_lab > 1:
+        touching = np.unique(labels[(cv2.dilate(mask, np.ones((5, 5), np.uint8)) > 0) & (labels > 0)])
+        cue_part = np.isin(labels, touching).astype(np.uint8) * 255 if len(touching) else np.zeros_like(mask)
+    else:
+        cue_part = np.zeros_like(mask)
+    full = cv2.morphologyEx(mask | cue_part, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    side = pad_geometry["side_m"]
+    field_side = pad_geometry["field_side_m"]
+    ring_share = 1.0 - (field_side / side) ** 2  # expected border share of the pad's area
+    best, best_score = None, -1.0
+    for c in contours:
+        area = cv2.contourArea(c)
+        if area < 36:
+            continue
+        hull = cv2.convexHull(c)
+        peri = cv2.arcLength(hull, True)
+        quad = None
+        for eps in (0.02, 0.04, 0.06, 0.09, 0.12):
+            ap = cv2.approxPolyDP(hull, eps * peri, True)
+            if len(ap) == 4:
+                quad = ap[:, 0, :].astype(np.float64)
+                break
+        if quad is None:
+            continue
+        qa = abs(_signed_area(quad))
+        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+        if qa <= 0 or sides.min() / sides.max() < 0.4:
+            continue
+        share = _mask_share(full, quad)
+        if not (0.5 * ring_share <= share <= min(0.95, 1.6 * ring_share)):
+            continue  # a solid patch of the colour, or a thin frame: not the pad
+        score = qa * (1.0 - abs(share - ring_share))
+        if score > best_score:
+            best, best_score = quad, score
+    if best is None:
+        return None, "no pad-coloured quadrilateral"
+    quad = best
+    if _signed_area(quad) < 0:
+        quad = quad[::-1]
+    # the cue: which corner region is yellow
+    centre = quad.mean(axis=0)
+    b_share = pad_geometry["border_m"] / side
+    yellow = []
+    for q in quad:
+        p = q + (centre - q) * b_share  # middle of the border corner square (diagonal inset)
+        u, v = int(round(p[0])), int(round(p[1]))
+        r = max(1, int(round(np.linalg.norm(q - centre) * b_share * 0.4)))
+        patch = cue_mask[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
+        yellow.append(float(patch.mean()) / 255.0 if patch.size else 0.0)
+    yellow = np.array(yellow)
+    info_yellow = [round(float(y), 2) for y in yellow]
+    order = None
+    how = "cue"
+    if yellow.max() > 0.3 and np.sort(yellow)[-2] < 0.5 * yellow.max():
+        k = int(np.argmax(yellow))  # the BR corner
+        order = [(k + 2) % 4, (k + 3) % 4, k, (k + 1) % 4]
+    elif yaw_hint_corner0 is not None:
+        k = int(np.argmin(np.linalg.norm((quad + 0.5) * scale - 0.5 + [x0, y0] - yaw_hint_corner0, axis=1)))
+        order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
+        how = "previous"
+    if order is None:
+        return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
+    quad = (quad[order] + 0.5) * scale - 0.5 + [x0, y0]
+    # sub-pixel: edges on the chroma channel (border and cue saturated, natural ground not)
+    side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+    band_px = side_px * pad_geometry["border"]["solid_band_m"] / side
+    hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
+    # only the quad's neighbourhood is converted (a full 1080p frame costs milliseconds)
+    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
+    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
+    f = rgb[by0:by1, bx0:bx1]
+    chan = (f.max(axis=2).astype(np.float32) - f.min(axis=2))  # chroma: border and cue bright, ground dull
+    cam_s = _shifted(camera, bx0, by0)
+    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)  # coarse quad
+    if refined is not None:  # then narrow, around the refined sides
+        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
+        if again is not None:
+            refined, res = again, res2
+    if refined is not None:
+        refined = refined + [bx0, by0]
+    if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
+        refined = quad
+    pts = np.asarray(pad_geometry["outer_corners"], float)
+    return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": side_px, "line_rms": res}), "ok"
+
+
+def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
+    """Share of the quad's pixels that are set in ``mask``."""
+    x, y, w, h = cv2.boundingRect(quad.astype(np.float32))
+    x, y = max(x, 0), max(y, 0)
+    sub = mask[y:y + h, x:x + w]
+    if sub.size == 0:
+        return 0.0
+    poly = np.zeros_like(sub)
+    cv2.fillConvexPoly(poly, np.round(quad - [x, y]).astype(np.int32), 255)
+    n = cv2.countNonZero(poly)
+    return float(cv2.countNonZero(sub & poly)) / max(n, 1)
+
+
+# ----------------------------------------------------------------------------- Adjustment
+
+MARKER_AXES = {"Top": (-1, 1), "Right": (1, 1), "Bottom": (-1, -1)}
+
+
+def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
+                   method: str = "otsu") -> tuple:
+    """Finder markers -> all nested-square corners.  Returns ``(Detection | None, reason)``."""
+    x0, y0 = 0, 0
+    img = gray
+    if roi is not None:
+        x0, y0, x1, y1 = roi
+        img = gray[y0:y1, x0:x1]
+    if img.shape[0] < 16 or img.shape[1] < 16:
+        return None, "image too small"
+    triples, nests = [], []
+    # the configured binarization first; the other one when it fails (shadows across a marker
+    # defeat a global Otsu threshold, a local one copes)
+    for m in (method, "adaptive" if method == "otsu" else "otsu"):
+        nests = mk.find_finder_nests(mk.binarize_dark(img, m))
+        triples = mk.find_marker_triples(nests) if len(nests) >= 3 else []
+        if triples:
+            break
+    if not triples:
+        return None, f"{len(nests)} finder nests, no marker layout"
+    sets = {}
+    for m in pad_geometry["markers"]:
+        if m["kind"] == "finder":
+            sets.setdefault(m["set"], {})[m["name"]] = m
+    expect = {s: ms["Top"]["size_m"] / (2 * abs(ms["Top"]["center"][0])) for s, ms in sets.items() if "Top" in ms}
+    pts_P, px = [], []
+    used = []
+    g = img.astype(np.float32)
+    for t in triples:
+        ratio = t.spacing_ratio
+        set_name = min(expect, key=lambda s: abs(math.log(ratio / expect[s])))
+        if abs(math.log(ratio / expect[set_name])) > 0.5 or set_name in used:
+            continue
+        ms = sets[set_name]
+        # homography from the pad's marker centres + outline corners to the image: predicts all corners
+        src, dst = [], []
+        for name, nest in t.by_name.items():
+            quad = _contour_quad(nest.outline)
+            if quad is None:
+                break
+            corners = np.asarray(ms[name]["squares"][0]["corners"], float)[:, :2]
+            quad = _order_like(quad, corners, t)
+            src.append(corners)
+            dst.append(quad)
+        if len(src) != 3:
+            continue
+        H, _ = cv2.findHomography(np.concatenate(src), np.concatenate(dst), 0)
+        if H is None:
+            continue
+        module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
+        hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
+        for name in ("Top", "Right", "Bottom"):
+            for sq in ms[name]["squares"]:
+                P = np.asarray(sq["corners"], float)
+                guess = cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :]
+                ref, _ = refine_quad(g, guess, half_width=hw, camera=_shifted(camera, x0, y0))
+                if ref is None or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
+                    continue
+                pts_P.append(P)
+                px.append(ref + [x0, y0])
+        used.append(set_name)
+    if not pts_P:
+        return None, "markers found but no corner refined"
+    return Detection(np.concatenate(pts_P), np.concatenate(px), "markers", {"sets": used}), "ok"
+
+
+def _shifted(camera: Camera | None, x0: int, y0: int):
+    if camera is None or not camera.has_distortion or (x0 == 0 and y0 == 0):
+        return camera
+    return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx - x0, camera.cy - y0, camera.dist)
+
+
+def _contour_quad(contour: np.ndarray) -> np.ndarray | None:
+    hull = cv2.convexHull(contour)
+    peri = cv2.arcLength(hull, True)
+    for eps in (0.02, 0.04, 0.07, 0.1):
+        ap = cv2.approxPolyDP(hull, eps * peri, True)
+        if len(ap) == 4:
+            return ap[:, 0, :].astype(np.float64)
+    box = cv2.boxPoints(cv2.minAreaRect(contour))
+    return box.astype(np.float64)
+
+
+def _order_like(quad_px: np.ndarray, corners_P: np.ndarray, t: mk.MarkerTriple) -> np.ndarray:
+    """Order an image quad like the pad corners, using the marker triple's image axes."""
+    ex = t.right.center_px - t.top.center_px
+    ey = t.top.center_px - t.bottom.center_px  # pad +y in the image
+    ex /= max(np.linalg.norm(ex), 1e-9)
+    ey /= max(np.linalg.norm(ey), 1e-9)
+    c = quad_px.mean(axis=0)
+    cp = corners_P.mean(axis=0)
+    out = np.zeros_like(quad_px)
+    used = set()
+    for i, P in enumerate(corners_P):
+        dirP = np.sign(P - cp)
+        target = dirP[0] * ex + dirP[1] * ey
+        scores = [float((q - c) @ target) if j not in used else -np.inf for j, q in enumerate(quad_px)]
+        j = int(np.argmax(scores))
+        used.add(j)
+        out[i] = quad_px[j]
+    return out
+
+
+# ----------------------------------------------------------------------------- Touchdown
+
+@dataclass
+class Keyframe:
+    gray: np.ndarray
+    cam2pad: np.ndarray
+    px: np.ndarray        # (N, 2) feature pixels in the keyframe
+    pts_P: np.ndarray     # (N, 3) the same features on the pad plane
+    anchored: bool        # made from a pad-anchored pose (markers/outline), not a chained one
+
+
+def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchored: bool,
+                  max_corners: int = 150, mask: np.ndarray | None = None) -> Keyframe | None:
+    """Harris corners of a frame, placed on the pad plane with the frame's pose."""
+    pts = cv2.goodFeaturesToTrack(gray, max_corners, 0.005, 8, mask=mask, blockSize=5, useHarrisDetector=True, k=0.04)
+    if pts is None or len(pts) < 8:
+        return None
+    px = pts[:, 0, :].astype(np.float64)
+    rays = np.column_stack([camera.normalized_from_pixels(px), np.ones(len(px))])  # camera frame
+    R, t = cam2pad[:3, :3], cam2pad[:3, 3]
+    d = rays @ R.T  # ray directions in P
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -t[2] / d[:, 2]
+    ok = np.isfinite(s) & (s > 0)
+    P = t + s[:, None] * d
+    half = 10.0  # keep points on the pad plane near the pad (the tracker assumes one plane)
+    ok &= (np.abs(P[:, 0]) < half) & (np.abs(P[:, 1]) < half)
+    if ok.sum() < 8:
+        return None
+    P[:, 2] = 0.0
+    return Keyframe(gray.copy(), cam2pad.copy(), px[ok], P[ok], anchored)
+
+
+LK_PARAMS = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+
+
+def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, gray: np.ndarray,
+                      fb_max_px: float = 1.0) -> tuple:
+    """Track keyframe features into ``gray``: frame-to-frame LK from ``prev_px`` with a
+    forward-backward check, then refined against the keyframe itself (LK from the keyframe,
+    started at the tracked positions), which keeps the error from accumulating.
+
+    Returns ``(px (N, 2) with NaN where lost)``."""
+    out = np.full_like(prev_px, np.nan)
+    ok = np.isfinite(prev_px).all(axis=1)
+    if ok.sum() < 4:
+        return out
+    p0 = prev_px[ok].astype(np.float32).reshape(-1, 1, 2)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **LK_PARAMS)
+    if p1 is None:
+        return out
+    pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **LK_PARAMS)
+    fb = np.linalg.norm((pb - p0)[:, 0, :], axis=1)
+    good = (st[:, 0] == 1) & (stb[:, 0] == 1) & (fb < fb_max_px)
+    # refine against the keyframe (drift control)
+    kf_px = kf.px[ok].astype(np.float32).reshape(-1, 1, 2)
+    p2, st2, _ = cv2.calcOpticalFlowPyrLK(kf.gray, gray, kf_px, p1.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+                                          **{**LK_PARAMS, "maxLevel": 1})
+    if p2 is not None:
+        close = (st2[:, 0] == 1) & (np.linalg.norm((p2 - p1)[:, 0, :], axis=1) < 2.0)
+        p1 = np.where(close[:, None, None], p2, p1)
+    idx = np.nonzero(ok)[0]
+    out[idx[good]] = p1[good, 0, :]
+    return out
+
+
+def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad: np.ndarray | None,
+                     up_C=None, ransac_px: float = 2.0) -> tuple:
+    """RANSAC homography between the keyframe's pad points and their tracked pixels, then the
+    planar pose on the inliers.  Returns ``(PoseResult | None, inlier mask, reason)``."""
+    from .pose import solve_planar_pose
+
+    ok = np.isfinite(px).all(axis=1)
+    if ok.sum() < 8:
+        return None, ok, f"{int(ok.sum())} tracks left"
+    P = kf.pts_P[ok]
+    xy = camera.normalized_from_pixels(px[ok])
+    thr = ransac_px / camera.fx
+    H, inl = cv2.findHomography(P[:, :2], xy, cv2.RANSAC, thr)
+    if H is None:
+        return None, ok, "no homography"
+    inl = inl[:, 0].astype(bool)
+    if inl.sum() < 8:
+        return None, ok, f"{int(inl.sum())} homography inliers"
+    mask = np.zeros(len(px), bool)
+    mask[np.nonzero(ok)[0][inl]] = True
+    res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad)
+    return res, mask, "ok" if res is not None else "pose failed"
+
+
+def project_roi(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, margin: float, min_size: int = 32):
+    """Bounding box (x0, y0, x1, y1) of projected points with a relative margin, clipped to the
+    image; ``None`` if nothing projects in front of the camera."""
+    Pc = transform_points(invert(cam2pad), pts_P)
+    if np.any(Pc[:, 2] <= 0.05):
+        return None
+    px = camera.project(Pc)
+    lo, hi = px.min(axis=0), px.max(axis=0)
+    size = hi - lo
+    pad = size * margin + 8
+    x0, y0 = np.floor(lo - pad).astype(int)
+    x1, y1 = np.ceil(hi + pad).astype(int)
+    x0, y0 = max(x0, 0), max(y0, 0)
+    x1, y1 = min(x1, camera.width), min(y1, camera.height)
+    if x1 - x0 < min_size or y1 - y0 < min_size:
+        return None
+    return (int(x0), int(y0), int(x1), int(y1))

@@ -1,0 +1,211 @@
+"""Pose from 2D-3D correspondences on the pad plane (z = 0).
+
+Normalised DLT homography -> decomposition into R, t with orthonormalisation (our own, used by
+the tracker and as a check); IPPE (OpenCV's ``SOLVEPNP_IPPE``, both solutions) for the two
+candidate poses of a planar target; choice between them with the gravity direction from the
+IMU or the previous pose (the nadir "flip" ambiguity); Levenberg-Marquardt refinement of the
+reprojection error, then (with an IMU) a Gauss-Newton step that adds the AHRS gravity direction
+as a prior on the pad's tilt; a 6x6 covariance from the reprojection Jacobian.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .geometry import Camera, invert, make_transform, rotation_angle, so3_exp
+
+
+@dataclass
+class PoseResult:
+    cam2pad: np.ndarray        # T_P_C
+    rms_px: float              # reprojection RMS in pixels
+    n: int                     # correspondences used
+    cov: np.ndarray            # 6x6 covariance of (position xyz in P [m], rotation vector [rad])
+    other_rms_px: float        # RMS of the rejected flip solution (inf if none)
+    flip_choice: str           # how the flip was resolved: gravity, previous, rms, single
+
+
+def normalized_dlt_homography(src_xy: np.ndarray, dst_xy: np.ndarray) -> np.ndarray | None:
+    """Homography mapping ``src`` to ``dst`` (N >= 4) by Hartley-normalised DLT."""
+    if len(src_xy) < 4:
+        return None
+
+    def norm(p):
+        c = p.mean(axis=0)
+        s = np.sqrt(2) / max(np.mean(np.linalg.norm(p - c, axis=1)), 1e-12)
+        return np.array([[s, 0, -s * c[0]], [0, s, -s * c[1]], [0, 0, 1]])
+
+    Ts, Td = norm(src_xy), norm(dst_xy)
+    s = (Ts @ np.column_stack([src_xy, np.ones(len(src_xy))]).T).T
+    d = (Td @ np.column_stack([dst_xy, np.ones(len(dst_xy))]).T).T
+    A = np.zeros((2 * len(s), 9))
+    A[0::2, 0:3] = s
+    A[0::2, 6:9] = -d[:, 0:1] * s
+    A[1::2, 3:6] = s
+    A[1::2, 6:9] = -d[:, 1:2] * s
+    _, sv, vt = np.linalg.svd(A)
+    if sv[-2] < 1e-12:
+        return None
+    H = np.linalg.inv(Td) @ vt[-1].reshape(3, 3) @ Ts
+    return H / H[2, 2] if abs(H[2, 2]) > 1e-15 else H
+
+
+def pose_from_homography(H_norm: np.ndarray) -> np.ndarray | None:
+    """``T_C_P`` from a homography mapping pad (x, y) to normalised image coordinates.
+
+    ``H ~ [r1 r2 t]``: scale so that r1, r2 have unit norm on average, choose the sign that
+    puts the pad in front of the camera, orthonormalise ``[r1 r2 r1 x r2]`` by SVD.
+    """
+    h1, h2, h3 = H_norm[:, 0], H_norm[:, 1], H_norm[:, 2]
+    s = 2.0 / (np.linalg.norm(h1) + np.linalg.norm(h2))
+    if not np.isfinite(s):
+        return None
+    if h3[2] * s < 0:
+        s = -s
+    r1, r2, t = h1 * s, h2 * s, h3 * s
+    R = np.column_stack([r1, r2, np.cross(r1, r2)])
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    return make_transform(R, t)
+
+
+def _residuals(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> np.ndarray:
+    return (camera.project_from(cam2pad, pts_P) - px).ravel()
+
+
+def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> float:
+    r = _residuals(camera, cam2pad, pts_P, px)
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
+
+
+def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """6x6 covariance of (camera position in P, rotation vector) from the reprojection Jacobian,
+    scaled by the residual variance (at least (0.1 px)^2)."""
+    r0 = _residuals(camera, cam2pad, pts_P, px)
+    J = np.zeros((r0.size, 6))
+    eps = 1e-6
+    for i in range(6):
+        d = np.zeros(6)
+        d[i] = eps
+        T = cam2pad.copy()
+        T[:3, 3] += d[:3]
+        T[:3, :3] = T[:3, :3] @ so3_exp(d[3:])
+        J[:, i] = (_residuals(camera, T, pts_P, px) - r0) / eps
+    dof = max(r0.size - 6, 1)
+    sigma2 = max(float(r0 @ r0) / dof, 0.01)
+    try:
+        return np.linalg.inv(J.T @ J) * sigma2
+    except np.linalg.LinAlgError:
+        return np.full((6, 6), np.inf)
+
+
+def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
+                        sigma_px: float, sigma_up_rad: float, iterations: int = 4) -> np.ndarray:
+    """Gauss-Newton on the reprojection error plus a prior that the pad's normal is the IMU's up.
+
+    With few, close-together correspondences (the pad outline far away) the tilt of a planar
+    target is weakly observed and couples into a lateral position error of height x tilt; the
+    AHRS knows roll and pitch to a fraction of a degree, so this prior removes that coupling.
+    """
+    T = cam2pad.copy()
+    up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
+
+    def residual(T):
+        r = _residuals(camera, T, pts_P, px) / sigma_px
+        n_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # pad normal in the camera frame
+        return np.concatenate([r, (n_C - up) / sigma_up_rad])
+
+    r0 = residual(T)
+    for _ in range(iterations):
+        J = np.zeros((r0.size, 6))
+        for i in range(6):
+            d = np.zeros(6)
+            d[i] = 1e-6
+            Ti = T.copy()
+            Ti[:3, 3] += d[:3]
+            Ti[:3, :3] = Ti[:3, :3] @ so3_exp(d[3:])
+            J[:, i] = (residual(Ti) - r0) / 1e-6
+        try:
+            step = -np.linalg.solve(J.T @ J + 1e-9 * np.eye(6), J.T @ r0)
+        except np.linalg.LinAlgError:
+            break
+        Tn = T.copy()
+        Tn[:3, 3] += step[:3]
+        Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:])
+        rn = residual(Tn)
+        if rn @ rn >= r0 @ r0:
+            break
+        T, r0 = Tn, rn
+        if np.abs(step).max() < 1e-9:
+            break
+    return T
+
+
+def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
+                      prev_cam2pad: np.ndarray | None = None, refine: bool = True,
+                      gravity_sigma_deg: float | None = 0.5, sigma_px: float = 0.3) -> PoseResult | None:
+    """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels.
+
+    ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
+    the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
+    the lower reprojection error.
+    """
+    pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
+    px = np.asarray(px, np.float64).reshape(-1, 2)
+    n = len(pts_P)
+    if n < 4 or not np.all(np.isfinite(px)):
+        return None
+    xy = camera.normalized_from_pixels(px)
+    obj = np.ascontiguousarray(pts_P[:, :3])
+    try:
+        ok, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, np.ascontiguousarray(xy.reshape(-1, 1, 2)), np.eye(3), None,
+                                                     flags=cv2.SOLVEPNP_IPPE)
+    except cv2.error:
+        ok = 0
+    cands = []
+    if ok:
+        for rv, tv in zip(rvecs, tvecs):
+            R, _ = cv2.Rodrigues(rv)
+            T_C_P = make_transform(R, tv.ravel())
+            if T_C_P[2, 3] <= 0:
+                continue
+            cands.append(invert(T_C_P))
+    if not cands:
+        H = normalized_dlt_homography(obj[:, :2], xy)
+        T = pose_from_homography(H) if H is not None else None
+        if T is None:
+            return None
+        cands = [invert(T)]
+    rms = [reprojection_rms(camera, c, obj, px) for c in cands]
+    choice = "single"
+    best = int(np.argmin(rms))
+    if len(cands) == 2:
+        if up_C is not None:
+            # the pad's normal (z of P) in the camera frame should point up
+            align = [float((c[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C) for c in cands]
+            best, choice = int(np.argmax(align)), "gravity"
+        elif prev_cam2pad is not None:
+            ang = [rotation_angle(c[:3, :3], prev_cam2pad[:3, :3]) for c in cands]
+            best, choice = int(np.argmin(ang)), "previous"
+        else:
+            choice = "rms"
+    T = cands[best]
+    other = rms[1 - best] if len(cands) == 2 else float("inf")
+    if refine and n >= 4:
+        T_C_P = invert(T)
+        rv, _ = cv2.Rodrigues(T_C_P[:3, :3])
+        tv = T_C_P[:3, 3].reshape(3, 1).copy()
+        try:
+            rv, tv = cv2.solvePnPRefineLM(obj, np.ascontiguousarray(xy.reshape(-1, 1, 2)), np.eye(3), None, rv, tv)
+            R, _ = cv2.Rodrigues(rv)
+            T_ref = invert(make_transform(R, tv.ravel()))
+            if tv.ravel()[2] > 0:
+                T = T_ref
+        except cv2.error:
+            pass
+    if up_C is not None and gravity_sigma_deg:
+        T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, np.radians(gravity_sigma_deg))
+    rms_best = reprojection_rms(camera, T, obj, px)
+    return PoseResult(T, rms_best, n, pose_covariance(camera, T, obj, px), other, choice)
