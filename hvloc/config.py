@@ -30,7 +30,7 @@ class LocalizerConfig(BaseModel):
     max_reprojection_px: float = Field(3.0, gt=0.0)
     max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
     # tracker
-    flow_reanchor_scale: float = Field(1.4, gt=1.0, description="new keyframe when the scale changes by more")
+    flow_reanchor_scale: float = Field(1.15, gt=1.0, description="new keyframe when the scale changes by more")
     flow_min_tracks: int = Field(30, ge=8)
 
     @model_validator(mode="after")

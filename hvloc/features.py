@@ -37,7 +37,7 @@ def _distort_px(camera: Camera, px_und: np.ndarray) -> np.ndarray:
     return np.column_stack([xy[:, 0] * camera.fx + camera.cx, xy[:, 1] * camera.fy + camera.cy])
 
 
-def side_samples(a, b, camera: Camera | None = None, n_max: int = 40, trim: float = 0.15):
+def side_samples(a, b, camera: Camera | None = None, n_max: int = 40, trim: float = 0.2):
     """Sample points and unit normals along the image of the straight segment a->b (pixels).
 
     Without distortion that is the segment itself; with it, the curve the straight 3D edge

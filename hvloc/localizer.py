@@ -106,11 +106,7 @@ class HierarchicalLocalizer:
         self.last: Estimate | None = None       # last accepted estimate
         self.R_W_P: np.ndarray | None = None     # running vision-IMU rotation offset
         self.imu_rejects = 0
-        self.kf: ph.Keyframe | None = None
-        self.prev_gray: np.ndarray | None = None
-        self.tracks: np.ndarray | None = None
-        self.frames_since_kf = 0
-        self._pending_tracks = None
+        self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks)
 
     # ------------------------------------------------------------------ public
     def process(self, image, t: float, imu=None) -> Estimate:
@@ -126,7 +122,6 @@ class HierarchicalLocalizer:
 
     # ------------------------------------------------------------------ internals
     def _process(self, image, t: float, imu) -> Estimate:
-        self._pending_tracks = None
         rgb, gray, why = check_image(image)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
@@ -152,7 +147,7 @@ class HierarchicalLocalizer:
                 continue
             if method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m:
                 continue
-            if method == "flow" and (self.kf is None or self.prev_gray is None):
+            if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")
                 continue
             res, why = self._try(method, rgb, gray, up_C)
@@ -161,7 +156,7 @@ class HierarchicalLocalizer:
                 break
             reasons.append(f"{method}: {why}")
         if result is None:
-            self._advance_tracks(gray)
+            self.flow.skip()
             return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
         method, (pose, n, extras) = result
         est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
@@ -169,7 +164,7 @@ class HierarchicalLocalizer:
         verdict = self._gate(est, R_W_B)
         if verdict:
             est.status, est.reason = "rejected", verdict
-            self._advance_tracks(gray)
+            self.flow.skip()
             return est
         self.last = est
         self._after_accept(method, est, gray)
@@ -197,12 +192,10 @@ class HierarchicalLocalizer:
         prior = self._prior()
         cfg = self.config
         if method == "flow":
-            px = ph.track_to_keyframe(self.kf, self.prev_gray, self.tracks, gray)
-            res, inl, why = ph.pose_from_tracks(self.camera, self.kf, px, prior, up_C)
-            self._pending_tracks = px
+            res, n, why = self.flow.track(gray, prior, up_C)
             if res is None:
                 return None, why
-            return (res, int(inl.sum()), {"tracks": int(np.isfinite(px).all(axis=1).sum())}), "ok"
+            return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"
         roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
         attempts = [roi, None] if roi is not None else [None]
         why = ""
@@ -213,7 +206,8 @@ class HierarchicalLocalizer:
                     hint = self.camera.project_from(prior, self.outer_P[:1])[0]
                 det, why = ph.detect_outline(rgb, self.geometry, self.camera, roi=r, yaw_hint_corner0=hint)
             else:
-                det, why = ph.detect_markers(gray, self.geometry, self.camera, roi=r, method=cfg.binarization)
+                det, why = ph.detect_markers(gray, self.geometry, self.camera, roi=r, method=cfg.binarization,
+                                             rgb=rgb if cfg.use_outline else None)
             if det is not None:
                 pose = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
                 if pose is not None:
@@ -257,34 +251,14 @@ class HierarchicalLocalizer:
         outline) pose, renewed when the view has changed enough; flow poses advance the tracks."""
         cfg = self.config
         h = est.height
-        near = h < cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m
-        if not cfg.use_flow or not near:
-            self.kf = None
-            self.prev_gray = None
+        if not cfg.use_flow or h > cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m:
+            self.flow.reset()
             return
-        self.frames_since_kf += 1
-        if method in ("markers", "outline"):
-            stale = (self.kf is None or not self.kf.anchored or self.frames_since_kf > 10
-                     or not (1 / 1.1 < self.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1))
-            if stale:
-                self._new_keyframe(gray, est.cam2pad, anchored=True)
+        if method == "flow":
+            self.flow.accept(est.cam2pad, est.rms_px)
             return
-        px = self._pending_tracks
-        n_ok = int(np.isfinite(px).all(axis=1).sum())
-        scale = self.kf.cam2pad[2, 3] / max(h, 1e-6)
-        if n_ok < cfg.flow_min_tracks or not (1 / cfg.flow_reanchor_scale < scale < cfg.flow_reanchor_scale):
-            if self._new_keyframe(gray, est.cam2pad, anchored=False):
-                return
-        self.tracks, self.prev_gray = px, gray
-
-    def _new_keyframe(self, gray, cam2pad, anchored: bool) -> bool:
-        kf = ph.make_keyframe(gray, cam2pad, self.camera, anchored=anchored)
-        if kf is None:
-            return False
-        self.kf, self.tracks, self.prev_gray, self.frames_since_kf = kf, kf.px.copy(), kf.gray, 0
-        return True
-
-    def _advance_tracks(self, gray) -> None:
-        """A frame without an accepted pose: if the tracker ran on it, keep its tracks current."""
-        if self.kf is not None and self._pending_tracks is not None:
-            self.tracks, self.prev_gray = self._pending_tracks, gray
+        f = self.flow
+        f.frames_since_kf += 1
+        if (f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
+                or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
+            f.anchor(gray, est.cam2pad, anchored=True)

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import markers as mk
 from .features import refine_quad
-from .geometry import Camera, invert, transform_points
+from .geometry import Camera, invert, rotation_angle, transform_points
 
 
 @dataclass
@@ -134,7 +134,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     quad = (quad[order] + 0.5) * scale - 0.5 + [x0, y0]
-    # sub-pixel: edges on the chroma channel (border and cue saturated, natural ground not)
+    # sub-pixel: edges on a channel linear in the colours, where the border is bright
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
     band_px = side_px * pad_geometry["border"]["solid_band_m"] / side
     hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
@@ -142,7 +142,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
     bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
     f = rgb[by0:by1, bx0:bx1]
-    chan = (f.max(axis=2).astype(np.float32) - f.min(axis=2))  # chroma: border and cue bright, ground dull
+    chan = _border_channel(f)
     cam_s = _shifted(camera, bx0, by0)
     refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)  # coarse quad
     if refined is not None:  # then narrow, around the refined sides
@@ -155,6 +155,15 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
         refined = quad
     pts = np.asarray(pad_geometry["outer_corners"], float)
     return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": side_px, "line_rms": res}), "ok"
+
+
+def _border_channel(rgb: np.ndarray) -> np.ndarray:
+    """(R + B) / 2 - G: high on the magenta border, low on natural ground.  Linear in the colours,
+    so a blurred edge crosses its half level where the edge is (a chroma such as max - min is not
+    linear, and put the outline ~0.3 px inside the pad).  The yellow cue corner is dark here; its
+    sides are trimmed by :func:`refine_quad` and rejected as outliers."""
+    f = rgb.astype(np.float32)
+    return 0.5 * (f[..., 0] + f[..., 2]) - f[..., 1]
 
 
 def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
@@ -176,8 +185,10 @@ MARKER_AXES = {"Top": (-1, 1), "Right": (1, 1), "Bottom": (-1, -1)}
 
 
 def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
-                   method: str = "otsu") -> tuple:
-    """Finder markers -> all nested-square corners.  Returns ``(Detection | None, reason)``."""
+                   method: str = "otsu", rgb: np.ndarray | None = None) -> tuple:
+    """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
+    outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
+    Returns ``(Detection | None, reason)``."""
     x0, y0 = 0, 0
     img = gray
     if roi is not None:
@@ -236,9 +247,36 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
                 pts_P.append(P)
                 px.append(ref + [x0, y0])
         used.append(set_name)
+        if rgb is not None and set_name == "corner":
+            outer = _refine_outline_from(rgb, pad_geometry, H, x0, y0, camera)
+            if outer is not None:
+                pts_P.append(np.asarray(pad_geometry["outer_corners"], float))
+                px.append(outer)
     if not pts_P:
         return None, "markers found but no corner refined"
     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers", {"sets": used}), "ok"
+
+
+def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
+    """The pad's outer corners predicted by a marker homography and refined on the border channel."""
+    P = np.asarray(pad_geometry["outer_corners"], float)
+    guess = cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H_pad_to_roi)[:, 0, :] + [x0, y0]
+    h, w = rgb.shape[:2]
+    if guess.min() < 4 or guess[:, 0].max() > w - 5 or guess[:, 1].max() > h - 5:
+        return None
+    side_px = float(np.mean(np.linalg.norm(np.roll(guess, -1, axis=0) - guess, axis=1)))
+    hw = float(np.clip(side_px * pad_geometry["border"]["solid_band_m"] / pad_geometry["side_m"] * 0.9, 1.0, 3.0))
+    bx0, by0 = np.maximum(np.floor(guess.min(axis=0) - 6), 0).astype(int)
+    bx1, by1 = np.ceil(guess.max(axis=0) + 7).astype(int)
+    f = rgb[by0:by1, bx0:bx1]
+    chan = _border_channel(f)
+    ref, _ = refine_quad(chan, guess - [bx0, by0], half_width=hw, camera=_shifted(camera, bx0, by0))
+    if ref is None:
+        return None
+    ref = ref + [bx0, by0]
+    if np.max(np.linalg.norm(ref - guess, axis=1)) > max(2.0, 0.02 * side_px):
+        return None
+    return ref
 
 
 def _shifted(camera: Camera | None, x0: int, y0: int):
@@ -366,6 +404,75 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     mask[np.nonzero(ok)[0][inl]] = True
     res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad)
     return res, mask, "ok" if res is not None else "pose failed"
+
+
+class FlowTracker:
+    """Touchdown: features of a keyframe on the pad plane, tracked into every frame.
+
+    ``anchor`` sets a keyframe from a pad-anchored pose (markers, outline); ``track`` estimates
+    the pose of a new frame; ``accept`` tells the tracker the frame's pose was accepted, which
+    advances the tracks and renews the keyframe (chained, unanchored) when the view has changed
+    too much (scale, too few tracks).  Drift grows only at keyframe renewals.
+    """
+
+    def __init__(self, camera: Camera, reanchor_scale: float = 1.15, min_tracks: int = 30):
+        self.camera = camera
+        self.reanchor_scale = reanchor_scale
+        self.min_tracks = min_tracks
+        self.reset()
+
+    def reset(self) -> None:
+        self.kf: Keyframe | None = None
+        self.prev_gray = None
+        self.tracks = None
+        self.pending = None
+        self.frames_since_kf = 0
+
+    @property
+    def ready(self) -> bool:
+        return self.kf is not None and self.prev_gray is not None
+
+    def anchor(self, gray, cam2pad, anchored: bool = True) -> bool:
+        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored)
+        if kf is None:
+            return False
+        self.kf, self.tracks, self.prev_gray, self.frames_since_kf = kf, kf.px.copy(), kf.gray, 0
+        self.pending = None
+        return True
+
+    def track(self, gray, prior_cam2pad=None, up_C=None):
+        """``(PoseResult | None, n_inliers, reason)`` for ``gray``."""
+        if not self.ready:
+            return None, 0, "no keyframe"
+        px = track_to_keyframe(self.kf, self.prev_gray, self.tracks, gray)
+        self.pending = (gray, px)
+        res, inl, why = pose_from_tracks(self.camera, self.kf, px, prior_cam2pad, up_C)
+        return res, int(inl.sum()), why
+
+    def accept(self, cam2pad, rms_px: float = 0.0) -> None:
+        """The last tracked frame's pose was accepted: advance, and renew the keyframe (from this
+        frame and pose) while tracking is still good: when the scale or the heading has changed
+        enough that LK against the keyframe degrades, tracks were lost, or the fit loosens."""
+        if self.pending is None:
+            return
+        gray, px = self.pending
+        self.pending = None
+        self.frames_since_kf += 1
+        n_ok = int(np.isfinite(px).all(axis=1).sum())
+        scale = self.kf.cam2pad[2, 3] / max(cam2pad[2, 3], 1e-6)
+        turn = rotation_angle(self.kf.cam2pad[:3, :3], cam2pad[:3, :3])
+        if (n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not (1 / self.reanchor_scale < scale < self.reanchor_scale)
+                or turn > math.radians(8.0) or rms_px > 0.5):
+            if self.anchor(gray, cam2pad, anchored=False):
+                return
+        self.tracks, self.prev_gray = px, gray
+
+    def skip(self) -> None:
+        """The last tracked frame's pose was not accepted: keep its tracks (the next frame is
+        closer to it than to the older one), keep the keyframe."""
+        if self.pending is not None:
+            self.prev_gray, self.tracks = self.pending
+            self.pending = None
 
 
 def project_roi(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, margin: float, min_size: int = 32):

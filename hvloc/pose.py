@@ -143,6 +143,32 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
     return T
 
 
+def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy: np.ndarray | None = None) -> list:
+    """The (one or two) poses ``T_P_C`` that fit planar correspondences: IPPE's two solutions
+    (the flip ambiguity), or our DLT homography decomposition when IPPE fails."""
+    if xy is None:
+        xy = camera.normalized_from_pixels(px)
+    obj = np.ascontiguousarray(np.asarray(pts_P, np.float64)[:, :3])
+    try:
+        ok, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, np.ascontiguousarray(xy.reshape(-1, 1, 2)), np.eye(3), None,
+                                                  flags=cv2.SOLVEPNP_IPPE)
+    except cv2.error:
+        ok = 0
+    cands = []
+    if ok:
+        for rv, tv in zip(rvecs, tvecs):
+            R, _ = cv2.Rodrigues(rv)
+            T_C_P = make_transform(R, tv.ravel())
+            if T_C_P[2, 3] > 0:
+                cands.append(invert(T_C_P))
+    if not cands:
+        H = normalized_dlt_homography(obj[:, :2], xy)
+        T = pose_from_homography(H) if H is not None else None
+        if T is not None:
+            cands = [invert(T)]
+    return cands
+
+
 def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
                       gravity_sigma_deg: float | None = 0.5, sigma_px: float = 0.3) -> PoseResult | None:
@@ -159,25 +185,9 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         return None
     xy = camera.normalized_from_pixels(px)
     obj = np.ascontiguousarray(pts_P[:, :3])
-    try:
-        ok, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, np.ascontiguousarray(xy.reshape(-1, 1, 2)), np.eye(3), None,
-                                                     flags=cv2.SOLVEPNP_IPPE)
-    except cv2.error:
-        ok = 0
-    cands = []
-    if ok:
-        for rv, tv in zip(rvecs, tvecs):
-            R, _ = cv2.Rodrigues(rv)
-            T_C_P = make_transform(R, tv.ravel())
-            if T_C_P[2, 3] <= 0:
-                continue
-            cands.append(invert(T_C_P))
+    cands = planar_pose_candidates(camera, obj, px, xy)
     if not cands:
-        H = normalized_dlt_homography(obj[:, :2], xy)
-        T = pose_from_homography(H) if H is not None else None
-        if T is None:
-            return None
-        cands = [invert(T)]
+        return None
     rms = [reprojection_rms(camera, c, obj, px) for c in cands]
     choice = "single"
     best = int(np.argmin(rms))

@@ -26,31 +26,41 @@ def pad_plane_homography(camera: Camera, cam2pad: np.ndarray) -> np.ndarray:
 
 
 def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110, 70),
-                  levels: list | None = None) -> np.ndarray:
+                  levels: list | None = None, supersample: int = 3) -> np.ndarray:
     """RGB ``(H, W, 3)`` uint8 view of the pad (on a flat background colour) from pose ``cam2pad``.
 
-    Texture is taken from a pyramid level close to the image scale (no aliasing far away).
-    Lens distortion is applied exactly by remapping the ideal pinhole view.
+    Pixels integrate over their area like a camera's: the view is warped at ``supersample``
+    times the resolution (from a texture pyramid level with >= 4 texels per sample, so nothing
+    aliases) and box-averaged down.  Lens distortion is applied exactly by remapping the ideal
+    pinhole view.
     """
+    ss = max(1, int(supersample))
+    cam = camera.without_distortion()
+    cam_ss = cam.scaled(ss) if ss > 1 else cam
     tex = pad.texture_rgb
-    H = pad_plane_homography(camera, cam2pad)
-    # pixels per pad metre at the pad centre: choose a pyramid level at or above it
+    H = pad_plane_homography(cam_ss, cam2pad)
     T = invert(cam2pad)
     depth = max(float(T[2, 3]), 1e-3)
-    img_ppm = camera.fx / depth
-    level = 0
+    img_ppm = cam_ss.fx / depth  # samples per pad metre at the pad centre
     if levels is None:
         levels = [tex]
-    while img_ppm * 2 <= pad.ppm / (2 ** level) and tex.shape[0] // (2 ** (level + 1)) > 8:
+    level = 0
+    # the coarsest level that still has >= 4 texels per sample: bilinear interpolation of a
+    # coarser (sharper per sample) level biases axis-aligned edges by a phase-dependent ~0.1 px
+    while pad.ppm / (2 ** (level + 1)) >= 4 * img_ppm and tex.shape[0] // (2 ** (level + 1)) > 8:
         level += 1
         if level >= len(levels):
-            levels.append(cv2.pyrDown(levels[-1]))
+            # exact 2x2 box average (an odd last row/column is dropped, not stretched over)
+            prev = levels[-1]
+            h2, w2 = prev.shape[0] // 2, prev.shape[1] // 2
+            levels.append(cv2.resize(prev[:2 * h2, :2 * w2], (w2, h2), interpolation=cv2.INTER_AREA))
     src = levels[level]
-    ppm = src.shape[1] / pad.side_m
+    ppm = pad.ppm / (2 ** level)  # level texel i is centred on level-0 texels [i 2^l, (i+1) 2^l)
     Htot = H @ texture_to_pad(pad.side_m, ppm)
-    size = (camera.width, camera.height)
-    img = cv2.warpPerspective(src, Htot, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                              borderValue=tuple(int(c) for c in background))
+    img = cv2.warpPerspective(src, Htot, (cam_ss.width, cam_ss.height), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(c) for c in background))
+    if ss > 1:
+        img = cv2.resize(img, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
     if camera.has_distortion:
         img = apply_distortion(img, camera)
     return img
