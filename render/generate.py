@@ -129,6 +129,10 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
     corners_P = pad.outer_corners_P
 
     rows, gt, pending = [], [], []
+    from concurrent.futures import ThreadPoolExecutor
+
+    writer = ThreadPoolExecutor(max_workers=1)  # PNG encoding overlaps rendering (OpenCV drops the GIL)
+    writes = []
     try:
         for k, t in enumerate(times):
             subs = []
@@ -148,7 +152,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
                 a = invert(T_W_P[k]) @ traj.body_poses([t - exposure / 2])[0] @ T_B_C
                 b = invert(T_W_P[k]) @ traj.body_poses([t + exposure / 2])[0] @ T_B_C
                 pin = camera.without_distortion()
-                blur = float(np.nanmax(np.linalg.norm(pin.project_from(a, corners_P) - pin.project_from(b, corners_P), axis=1)))
+                d = np.linalg.norm(pin.project_from(a, corners_P) - pin.project_from(b, corners_P), axis=1)
+                blur = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
             else:
                 blur = 0.0
             pose7 = tum_from_transform(cam2pad)
@@ -159,11 +164,14 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
             if len(pending) == IMAGE_BATCH or k == len(times) - 1:
                 for j, img in enumerate(imaging.finish(pending)):
                     kk = k - len(pending) + 1 + j
-                    ds.write_image(tmp / f"images/{kk:06d}.png", img)
+                    writes.append(writer.submit(ds.write_image, tmp / f"images/{kk:06d}.png", img))
                 if progress:
                     progress(len(pending))
                 pending = []
+        for w in writes:
+            w.result()  # re-raise any write error
     finally:
+        writer.shutdown(wait=True)
         scene.close()
 
     ds.write_csv(tmp / "frames.csv", ds.FRAME_COLUMNS, rows)

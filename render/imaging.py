@@ -2,10 +2,10 @@
 
 Input: sub-frame renders (sRGB uint8, FLAT-shaded albedo of a fully sunlit horizontal surface
 = 1, at the render camera's resolution: supersampled, and widened when the lens distorts).
-Steps: average the sub-frames in linear light (motion blur over the exposure); in display space
-the lens distortion (remap at the supersampled resolution) and the box-average of the
-supersampling; then in linear light exposure gain, defocus (Gaussian), shot + read noise; tone
-curve, 8-bit quantisation, optional JPEG.
+Steps: per sub-frame, in display space, the lens distortion (remap at the supersampled
+resolution) and the box-average of the supersampling; the sub-frames averaged in linear light
+(motion blur over the exposure); then in linear light exposure gain, defocus (Gaussian), shot +
+read noise; tone curve, 8-bit quantisation, optional JPEG.
 """
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ import kornia
 from hvloc.geometry import Camera
 
 SRGB_GAMMA = 2.2
-WHITE_LEVEL = 0.85  # auto-exposure: a sunlit white horizontal surface lands here (linear)
+WHITE_LEVEL = 0.85
+SRGB_TO_LINEAR = ((np.arange(256, dtype=np.float32) / 255.0) ** SRGB_GAMMA).astype(np.float32)  # auto-exposure: a sunlit white horizontal surface lands here (linear)
 
 
 @dataclass
@@ -64,7 +65,13 @@ def render_camera_for(camera: Camera, supersample: int) -> tuple:
 
 
 class ImageFormation:
-    """Turns sub-frame renders into the camera's final 8-bit images, a batch at a time."""
+    """Turns sub-frame renders into the camera's final 8-bit images.
+
+    Per sub-frame (OpenCV, uint8, display space): lens remap at the supersampled resolution,
+    then the exact box average of the supersampling; then a lookup into linear light, where
+    sub-frames are averaged (motion blur).  Per batch of frames (torch/kornia): exposure,
+    defocus, noise, tone curve, quantisation.
+    """
 
     def __init__(self, camera: Camera, supersample: int, params: ImagingParams, irradiance_rel: float,
                  seed: int):
@@ -72,36 +79,39 @@ class ImageFormation:
         self.ss = supersample
         self.params = params
         self.render_camera, grid = render_camera_for(camera, supersample)
-        self.grid = None if grid is None else torch.from_numpy(grid)
+        self.map_x = None if grid is None else np.ascontiguousarray(grid[..., 0])
+        self.map_y = None if grid is None else np.ascontiguousarray(grid[..., 1])
         self.gen = torch.Generator().manual_seed(int(seed) % (2**63))
         self.gain = params.exposure_gain * WHITE_LEVEL * irradiance_rel
 
+    def to_pixels(self, render: np.ndarray) -> np.ndarray:
+        """One render (uint8 sRGB, render camera) -> uint8 sRGB at the camera's pixel grid.
+
+        Resampling happens in display space, like OpenGL's own texture filtering and edge
+        blending: every filter a sharp frame sees treats an edge alike, and a 50 % crossing stays
+        where the label says (the projection test).  Optical blur is applied in linear light."""
+        img = render
+        if self.map_x is not None:
+            img = cv2.remap(img, self.map_x, self.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        if self.ss > 1:
+            img = cv2.resize(img, (self.camera.width, self.camera.height), interpolation=cv2.INTER_AREA)
+        return img
+
     def linear_average(self, subframes: list) -> np.ndarray:
-        """Average sub-frames in linear light: ``(h, w, 3)`` float32."""
-        acc = None
+        """Sub-frame renders -> their average in linear light, ``(H, W, 3)`` float32."""
+        if len(subframes) == 1:
+            return cv2.LUT(self.to_pixels(subframes[0]), SRGB_TO_LINEAR)
+        acc = np.zeros((self.camera.height, self.camera.width, 3), np.float32)
         for img in subframes:
-            lin = (img.astype(np.float32) / 255.0) ** SRGB_GAMMA
-            acc = lin if acc is None else acc + lin
-        return acc / len(subframes)
+            acc += cv2.LUT(self.to_pixels(img), SRGB_TO_LINEAR)
+        acc *= 1.0 / len(subframes)
+        return acc
 
     def finish(self, linear_frames: list) -> list:
-        """Linear renders (render camera resolution) -> final uint8 RGB images."""
+        """Linear frames at the camera's resolution -> final uint8 RGB images."""
         if not linear_frames:
             return []
-        x = torch.from_numpy(np.stack(linear_frames)).permute(0, 3, 1, 2).contiguous()
-        if self.grid is not None or self.ss > 1:
-            # Resampling to the pixel grid happens in display (sRGB) space, like OpenGL's own
-            # texture filtering and edge blending: every filter a sharp frame sees then treats an
-            # edge alike, and a 50 % crossing stays where the label says (the projection test).
-            # Optical blur (motion, defocus) is in linear light, as a camera integrates it.
-            x = x.clamp(min=0) ** (1.0 / SRGB_GAMMA)
-            if self.grid is not None:
-                g = self.grid[None].expand(x.shape[0], -1, -1, -1)
-                x = kornia.geometry.transform.remap(x, g[..., 0], g[..., 1], mode="bilinear", padding_mode="border",
-                                                    align_corners=True, normalized_coordinates=False)
-            if self.ss > 1:
-                x = torch.nn.functional.avg_pool2d(x, self.ss)
-            x = x ** SRGB_GAMMA
+        x = torch.from_numpy(np.stack(linear_frames)).permute(0, 3, 1, 2)
         x = x * self.gain
         p = self.params
         if p.defocus_sigma_px > 0.05:

@@ -22,7 +22,7 @@ import numpy as np
 
 from hvloc.geometry import Camera, make_transform, rotation_z
 
-from .gl import import_pyrender
+from .gl import import_pyrender, render_color
 from .textures import aruco_image, finder_marker_image, ground_texture
 
 # OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
@@ -276,9 +276,9 @@ class LandingScene:
         self.scene.set_pose(self.drone_shadow, make_transform(rotation_z(yaw), (xy[0], xy[1], z)))
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
+        """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""
         self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
-        color, _ = self.renderer.render(self.scene, flags=self.pr.RenderFlags.FLAT)
-        return color
+        return render_color(self.renderer, self.scene, self.pr.RenderFlags.FLAT)
 
     def close(self) -> None:
         if self.renderer is not None:
