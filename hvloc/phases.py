@@ -41,7 +41,7 @@ def _hsv_mask(hsv: np.ndarray, rng: dict) -> np.ndarray:
 # ----------------------------------------------------------------------------- Approaching
 
 def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
-                   yaw_hint_corner0: np.ndarray | None = None) -> tuple:
+                   yaw_hint_corner0: np.ndarray | None = None, max_scale: int = 8) -> tuple:
     """The pad's outer corners (TL, TR, BR, BL) by colour segmentation.
 
     Returns ``(Detection | None, reason)``.  Decoys are rejected by shape (convex quad, side
@@ -59,7 +59,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     # segment on a smaller copy when the search area is large: the corners are refined at full
     # resolution afterwards, so this costs no accuracy
     scale = 1
-    while img.shape[1] // (2 * scale) >= 480 and img.shape[0] // (2 * scale) >= 270:
+    while scale < max_scale and img.shape[1] // (2 * scale) >= 480 and img.shape[0] // (2 * scale) >= 270:
         scale *= 2
     small = img if scale == 1 else cv2.resize(img, (img.shape[1] // scale, img.shape[0] // scale),
                                                 interpolation=cv2.INTER_AREA)
@@ -106,34 +106,50 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
         if score > best_score:
             best, best_score = quad, score
     if best is None:
+        if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
+            return detect_outline(rgb, pad_geometry, camera, roi, yaw_hint_corner0, max_scale=1)
         return None, "no pad-coloured quadrilateral"
     quad = best
+    if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
+        # small in the reduced copy: its corners would be too coarse to start from
+        return detect_outline(rgb, pad_geometry, camera, roi, yaw_hint_corner0, max_scale=1)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
-    # the cue: which corner region is yellow
-    centre = quad.mean(axis=0)
+    if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
+        sq, _ = refine_quad(_border_channel(small), quad, half_width=2.0)
+        if sq is not None and np.max(np.linalg.norm(sq - quad, axis=1)) < 2.5:
+            quad = sq
+    # the cue: which corner region is yellow (read at full resolution: far away the cue square is
+    # only a few pixels, and a downscaled copy blends it away)
+    quad_full = (quad + 0.5) * scale - 0.5
+    centre = quad_full.mean(axis=0)
     b_share = pad_geometry["border_m"] / side
     yellow = []
-    for q in quad:
+    for q in quad_full:
         p = q + (centre - q) * b_share  # middle of the border corner square (diagonal inset)
+        square_px = np.linalg.norm(q - centre) * math.sqrt(2) * b_share  # the corner square's side
+        r = max(1, int(round(0.35 * square_px)))
         u, v = int(round(p[0])), int(round(p[1]))
-        r = max(1, int(round(np.linalg.norm(q - centre) * b_share * 0.4)))
-        patch = cue_mask[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
-        yellow.append(float(patch.mean()) / 255.0 if patch.size else 0.0)
+        patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
+        if patch.size == 0:
+            yellow.append(0.0)
+            continue
+        m = _hsv_mask(cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_RGB2HSV), cue)
+        yellow.append(float(m.mean()) / 255.0)
     yellow = np.array(yellow)
     info_yellow = [round(float(y), 2) for y in yellow]
     order = None
     how = "cue"
-    if yellow.max() > 0.3 and np.sort(yellow)[-2] < 0.5 * yellow.max():
+    if yellow.max() >= 0.15 and np.sort(yellow)[-2] < 0.34 * yellow.max():
         k = int(np.argmax(yellow))  # the BR corner
         order = [(k + 2) % 4, (k + 3) % 4, k, (k + 1) % 4]
     elif yaw_hint_corner0 is not None:
-        k = int(np.argmin(np.linalg.norm((quad + 0.5) * scale - 0.5 + [x0, y0] - yaw_hint_corner0, axis=1)))
+        k = int(np.argmin(np.linalg.norm(quad_full + [x0, y0] - yaw_hint_corner0, axis=1)))
         order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
         how = "previous"
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
-    quad = (quad[order] + 0.5) * scale - 0.5 + [x0, y0]
+    quad = quad_full[order] + [x0, y0]
     # sub-pixel: edges on a channel linear in the colours, where the border is bright
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
     band_px = side_px * pad_geometry["border"]["solid_band_m"] / side

@@ -1,0 +1,163 @@
+"""Speed benchmarks: render frames/s and localizer ms/frame, each beside a reference measured in
+the same run (this machine is shared and noisy: read the ratios).
+
+    python -m benchmarks.speed [--out FILE.json] [--quick]
+
+Render: sim800 and field1080 cameras, motion blur off and on, full image formation (no disk),
+beside ``cv2.warpPerspective`` of the pad texture at the same resolution (the floor for a planar
+scene).  Localizer: ms per frame per phase at 800x800 and 1920x1080 on one core (OpenCV and
+torch limited to one thread), on views warped from the pad texture, beside a plain
+``cv2.cvtColor`` + ``cv2.GaussianBlur`` of the same frame.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _timeit(fn, n: int, warmup: int = 2) -> float:
+    for _ in range(warmup):
+        fn()
+    t = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return (time.perf_counter() - t) / n
+
+
+def render_speed(spec_path: str, blur: bool, n: int) -> dict:
+    import yaml
+
+    from render.generate import camera_from_spec, mount_from_spec, pad_for, plan_sequence
+    from render.imaging import ImageFormation
+    from render.planar import warp_pad_view
+    from render.scene import LandingScene
+    from render.spec import DatasetSpec
+
+    d = yaml.safe_load(Path(spec_path).read_text())
+    d.setdefault("degradations", {})["motion_blur"] = blur
+    spec = DatasetSpec.model_validate(d)
+    plan = plan_sequence(spec, 0)
+    pad = pad_for(spec)
+    cam = camera_from_spec(spec.camera)
+    T_B_C = mount_from_spec(spec.camera.mount)
+    img_form = ImageFormation(cam, spec.camera.supersample, plan.imaging, 1.0, plan.seed)
+    scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m, img_form.render_camera,
+                         pad.spec.border_color, np.random.default_rng(0), shadows=spec.environment.shadows)
+    nsub = spec.degradations.blur_subframes if blur else 1
+    times = np.linspace(plan.frame_times[-1] * 0.3, plan.frame_times[-1] * 0.9, n)
+    poses = plan.trajectory.body_poses(times)
+    k = [0]
+
+    def one_frame():
+        T = poses[k[0] % n]
+        k[0] += 1
+        subs = []
+        for _ in range(nsub):
+            scene.set_drone(T)
+            subs.append(scene.render(T @ T_B_C))
+        return img_form.finish([img_form.linear_average(subs)])
+
+    t_frame = _timeit(one_frame, n)
+    k[0] = 0
+    t_raster = _timeit(lambda: scene.render(poses[0] @ T_B_C), n)
+    scene.close()
+    from hvloc.geometry import invert
+
+    cam2pad = invert(plan.trajectory.pad_poses([times[0]])[0]) @ poses[0] @ T_B_C
+    levels = [pad.texture_rgb]
+    t_warp = _timeit(lambda: warp_pad_view(pad, cam, cam2pad, supersample=1, levels=levels), n)
+    return {"spec": spec.name, "resolution": f"{cam.width}x{cam.height}", "supersample": spec.camera.supersample,
+            "subframes": nsub, "fps": 1.0 / t_frame, "ms_per_frame": 1000 * t_frame,
+            "ms_per_raster": 1000 * t_raster, "ref_warp_ms": 1000 * t_warp, "ratio_to_warp": t_frame / t_warp}
+
+
+def localizer_speed(width: int, height: int, hfov_deg: float, n: int) -> list:
+    import cv2
+
+    from hvloc.config import LocalizerConfig
+    from hvloc.geometry import Camera, so3_exp
+    from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer
+    from pad_design import make_pad
+    from render.planar import nadir_cam2pad, warp_pad_view
+
+    pad = make_pad()
+    cam = Camera.from_hfov(width, height, math.radians(hfov_deg))
+    out = []
+    # heights inside each phase for this camera: far (outline), middle (markers), low (flow)
+    f = cam.fx
+    h_far = min(20.0, pad.side_m * f / 30.0)
+    for phase, h0, h1 in (("approaching", h_far, h_far * 0.9), ("adjustment", 2.5, 2.2), ("touchdown", 0.30, 0.26)):
+        views = []
+        for i in range(n + 3):
+            s = i / (n + 2)
+            T = nadir_cam2pad(0.05 + 0.02 * s, -0.03, h0 + (h1 - h0) * s, 0.3 + 0.05 * s)
+            T[:3, :3] = T[:3, :3] @ so3_exp([0.02, -0.01, 0.0])
+            views.append((warp_pad_view(pad, cam, T, (80, 110, 60)), T))
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig())
+        if phase == "touchdown":  # anchor the tracker as the descent would have
+            loc.flow.anchor(cv2.cvtColor(views[0][0], cv2.COLOR_RGB2GRAY), views[0][1])
+            loc.phase = "touchdown"
+            loc.config = LocalizerConfig(use_markers=False, use_outline=False)
+            loc.last = None
+        ms, methods, ok = [], [], 0
+        for i, (img, T) in enumerate(views[1:]):
+            up = (T[:3, :3] @ DEFAULT_T_B_C[:3, :3].T)
+            e = loc.process(img, 0.02 * i, up)
+            if phase == "touchdown" and loc.last is None and e.ok:
+                loc.last = e
+            if i >= 2:
+                ms.append(e.ms)
+                methods.append(e.method)
+                ok += e.ok
+        ref = _timeit(lambda: cv2.GaussianBlur(cv2.cvtColor(views[1][0], cv2.COLOR_RGB2GRAY), (5, 5), 0), n)
+        out.append({"resolution": f"{width}x{height}", "phase": phase, "height_m": round(h0, 2),
+                    "ms_p50": float(np.percentile(ms, 50)), "ms_p95": float(np.percentile(ms, 95)),
+                    "ok": f"{ok}/{len(ms)}", "methods": sorted(set(methods)), "ref_gray_blur_ms": 1000 * ref,
+                    "ratio_to_ref": float(np.percentile(ms, 50)) / (1000 * ref)})
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", default="out/speed.json")
+    p.add_argument("--quick", action="store_true", help="fewer frames (a smoke run)")
+    p.add_argument("--skip-render", action="store_true")
+    a = p.parse_args(argv)
+    import cv2
+    import torch
+
+    cv2.setNumThreads(1)
+    torch.set_num_threads(1)
+    from benchmarks.suite import REPO, provenance
+
+    n = 5 if a.quick else 20
+    res = {"provenance": provenance(), "threads": 1, "render": [], "localizer": []}
+    if not a.skip_render:
+        for spec in ("sim800", "field1080"):
+            for blur in (False, True):
+                r = render_speed(str(REPO / "data_specs" / f"{spec}.yaml"), blur, max(3, n // 2))
+                res["render"].append(r)
+                print(f"render {r['spec']:10s} {r['resolution']:>9s} ss{r['supersample']} sub{r['subframes']}: "
+                      f"{r['fps']:6.2f} frames/s ({r['ms_per_frame']:7.1f} ms; raster {r['ms_per_raster']:6.1f} ms)  "
+                      f"warpPerspective {r['ref_warp_ms']:6.2f} ms  ratio {r['ratio_to_warp']:6.1f}x", flush=True)
+    for w, h, fov in ((800, 800, 60.0), (1920, 1080, 94.0)):
+        for r in localizer_speed(w, h, fov, n):
+            res["localizer"].append(r)
+            print(f"localize {r['resolution']:>9s} {r['phase']:11s} (h {r['height_m']:5.2f} m, {','.join(r['methods'])}, "
+                  f"ok {r['ok']}): p50 {r['ms_p50']:6.2f} ms  p95 {r['ms_p95']:6.2f} ms  "
+                  f"gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1) + "\n")
+    print(f"written {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
