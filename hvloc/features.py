@@ -14,114 +14,133 @@ import numpy as np
 from .geometry import Camera
 
 
-def _line_fit(pts: np.ndarray):
-    """Total-least-squares line through points: (point, unit direction, rms residual)."""
-    c = pts.mean(axis=0)
-    u, s, vt = np.linalg.svd(pts - c, full_matrices=False)
-    d = vt[0]
-    resid = (pts - c) @ vt[1]
-    return c, d, float(np.sqrt(np.mean(resid * resid)))
-
-
-def _intersect(p1, d1, p2, d2):
-    A = np.column_stack([d1, -d2])
-    if abs(np.linalg.det(A)) < 1e-9:
-        return None
-    s = np.linalg.solve(A, p2 - p1)
-    return p1 + s[0] * d1
-
-
 def _distort_px(camera: Camera, px_und: np.ndarray) -> np.ndarray:
     xy = np.column_stack([(px_und[:, 0] - camera.cx) / camera.fx, (px_und[:, 1] - camera.cy) / camera.fy])
     xy = camera.distort_normalized(xy)
     return np.column_stack([xy[:, 0] * camera.fx + camera.cx, xy[:, 1] * camera.fy + camera.cy])
 
 
-def side_samples(a, b, camera: Camera | None = None, n_max: int = 40, trim: float = 0.2):
-    """Sample points and unit normals along the image of the straight segment a->b (pixels).
-
-    Without distortion that is the segment itself; with it, the curve the straight 3D edge
-    makes: points are spaced along the undistorted segment and mapped through the lens."""
-    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    L = float(np.linalg.norm(b - a))
-    if not np.isfinite(L) or L < 3:
-        return np.zeros((0, 2)), np.zeros((0, 2))
-    m = int(np.clip(L * (1 - 2 * trim), 2, n_max))
-    s = np.linspace(trim, 1 - trim, m)[:, None]
-    if camera is None or not camera.has_distortion:
-        d = (b - a) / L
-        return a + s * (b - a), np.tile([-d[1], d[0]], (m, 1))
-    ua, ub = camera.undistort_pixels(np.stack([a, b]))
-    p = ua + s * (ub - ua)
-    eps = 0.5 * (ub - ua) / max(np.linalg.norm(ub - ua), 1e-9)
-    pts, p1, p0 = _distort_px(camera, p), _distort_px(camera, p + eps), _distort_px(camera, p - eps)
-    d = p1 - p0
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return pts, np.column_stack([-d[:, 1], d[:, 0]])
-
-
-def edge_points(gray: np.ndarray, pts: np.ndarray, normals: np.ndarray, half_width: float,
-                step: float = 0.25) -> np.ndarray:
-    """Sub-pixel edge points near ``pts`` along ``normals``: where each intensity profile crosses
-    halfway between its two plateaus (the crossing nearest the start).  ``(M, 2)``, may be empty."""
-    if len(pts) == 0:
-        return np.zeros((0, 2))
-    r = np.arange(-half_width, half_width + 1e-9, step)
-    P = pts[:, None, :] + r[None, :, None] * normals[:, None, :]
-    prof = cv2.remap(gray, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
-    k = max(1, len(r) // 6)
-    lo = prof[:, :k].mean(axis=1)
-    hi = prof[:, -k:].mean(axis=1)
-    contrast = hi - lo
-    mid = 0.5 * (lo + hi)
-    thr = max(4.0, 0.25 * float(np.median(np.abs(contrast))))
-    v = (prof - mid[:, None]) * np.sign(contrast)[:, None]
-    # upward crossings of the mid level; keep the one nearest the profile's centre
-    cross = (v[:, :-1] < 0) & (v[:, 1:] >= 0) & (np.abs(contrast) >= thr)[:, None]
-    if not cross.any():
-        return np.zeros((0, 2))
-    dist = np.where(cross, np.abs(r[:-1])[None, :], np.inf)
-    j = np.argmin(dist, axis=1)
-    rows = np.nonzero(np.isfinite(dist[np.arange(len(j)), j]))[0]
-    j = j[rows]
-    a, b = v[rows, j], v[rows, j + 1]
-    frac = a / (a - b)
-    off = r[j] + frac * step
-    return pts[rows] + off[:, None] * normals[rows]
-
-
-def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None,
-                min_points: int = 4):
+def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None):
     """Refine 4 corners (in order around the quad) of a quadrilateral seen in ``gray``.
 
     Returns ``(corners (4, 2) float64, rms line residual px)`` or ``(None, inf)`` when a side
     has too few edge points.  With ``camera``, lines are fitted in undistorted pixels and the
-    intersections mapped back, so corners stay exact under lens distortion.
+    intersections mapped back, so corners stay exact under lens distortion.  (One quad of
+    :func:`refine_quads`.)
     """
-    g = gray.astype(np.float32) if gray.dtype != np.float32 else gray
-    q = np.asarray(quad_px, np.float64).reshape(4, 2)
-    lines, res = [], []
-    for i in range(4):
-        pts = edge_points(g, *side_samples(q[i], q[(i + 1) % 4], camera), half_width)
-        if len(pts) < min_points:
-            return None, float("inf")
-        if camera is not None and camera.has_distortion:
-            pts = camera.undistort_pixels(pts)
-        # reject outliers (a texture edge crossing the profile) by one re-fit
-        c, d, r = _line_fit(pts)
-        dist = np.abs((pts - c) @ np.array([-d[1], d[0]]))
-        keep = dist < max(3 * np.median(dist) + 1e-3, 0.3)
-        if keep.sum() >= min_points:
-            c, d, r = _line_fit(pts[keep])
-        lines.append((c, d))
-        res.append(r)
-    out = np.zeros((4, 2))
-    for i in range(4):
-        p = _intersect(*lines[(i - 1) % 4], *lines[i])
-        if p is None:
-            return None, float("inf")
-        out[i] = p
+    out, rms = refine_quads(gray, np.asarray(quad_px, np.float64).reshape(1, 4, 2), half_width, camera)
+    if not np.isfinite(out[0]).all():
+        return None, float("inf")
+    return out[0], float(rms[0])
+
+
+def _side_points_batch(starts: np.ndarray, ends: np.ndarray, m: int, trim: float, camera: Camera | None):
+    """Sample points ``(S, m, 2)`` and unit normals ``(S, m, 2)`` along S segments (images of
+    straight 3D edges: through the lens when ``camera`` distorts)."""
+    s = np.linspace(trim, 1 - trim, m)[None, :, None]
+    if camera is None or not camera.has_distortion:
+        d = ends - starts
+        d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+        pts = starts[:, None, :] + s * (ends - starts)[:, None, :]
+        nrm = np.broadcast_to(np.stack([-d[:, 1], d[:, 0]], axis=1)[:, None, :], pts.shape)
+        return pts, np.ascontiguousarray(nrm)
+    S = len(starts)
+    und = camera.undistort_pixels(np.concatenate([starts, ends]))
+    ua, ub = und[:S], und[S:]
+    p = ua[:, None, :] + s * (ub - ua)[:, None, :]
+    eps = 0.5 * (ub - ua) / np.maximum(np.linalg.norm(ub - ua, axis=1, keepdims=True), 1e-9)
+    flat = np.concatenate([p.reshape(-1, 2), (p + eps[:, None, :]).reshape(-1, 2), (p - eps[:, None, :]).reshape(-1, 2)])
+    dist = _distort_px(camera, flat).reshape(3, S, m, 2)
+    d = dist[1] - dist[2]
+    d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-12)
+    return dist[0], np.stack([-d[..., 1], d[..., 0]], axis=2)
+
+
+def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None = None, m: int | None = None,
+                 trim: float = 0.2, step: float = 0.25):
+    """Vectorised :func:`refine_quad` for many quadrilaterals at once (one remap, no Python loop
+    over sides): ``(corners (Q, 4, 2) with NaN rows where a quad failed, rms (Q,))``."""
+    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+    q = np.asarray(quads_px, np.float64).reshape(-1, 4, 2)
+    Q = len(q)
+    if Q == 0:
+        return np.zeros((0, 4, 2)), np.zeros(0)
+    hw = np.broadcast_to(np.asarray(half_widths, np.float64), (Q,)).repeat(4)  # per side
+    starts = q.reshape(-1, 2)
+    ends = np.roll(q, -1, axis=1).reshape(-1, 2)
+    S = len(starts)
+    if m is None:  # about one profile per pixel of the longest side's used part, 8 to 40
+        longest = float(np.nanmax(np.linalg.norm(ends - starts, axis=1))) if S else 0.0
+        m = int(np.clip(longest * (1 - 2 * trim), 8, 40)) if np.isfinite(longest) else 8
+    pts, nrm = _side_points_batch(starts, ends, m, trim, camera)
+    nr = int(round(2 * float(hw.max()) / step)) + 1
+    u = np.linspace(-1.0, 1.0, nr)
+    r = u[None, :] * hw[:, None]                                    # (S, R) offsets per side
+    P = pts[:, :, None, :] + r[:, None, :, None] * nrm[:, :, None, :]  # (S, m, R, 2)
+    prof = cv2.remap(g, P[..., 0].reshape(S * m, nr).astype(np.float32), P[..., 1].reshape(S * m, nr).astype(np.float32),
+                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    k = max(1, nr // 6)
+    lo = prof[:, :k].mean(axis=1)
+    hi = prof[:, -k:].mean(axis=1)
+    contrast = hi - lo
+    med = np.median(np.abs(contrast).reshape(S, m), axis=1).repeat(m)
+    strong = np.abs(contrast) >= np.maximum(4.0, 0.25 * med)
+    v = (prof - 0.5 * (lo + hi)[:, None]) * np.sign(contrast)[:, None]
+    cross = (v[:, :-1] < 0) & (v[:, 1:] >= 0) & strong[:, None]
+    dist = np.where(cross, np.abs(u[:-1])[None, :], np.inf)
+    j = np.argmin(dist, axis=1)
+    rows = np.arange(len(j))
+    valid = np.isfinite(dist[rows, j])
+    a, b = v[rows, j], v[rows, j + 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(valid, a / (a - b), 0.0)
+    rr = r.repeat(m, axis=0)
+    off = rr[rows, j] + frac * (rr[rows, 1] - rr[rows, 0])
+    edge = pts.reshape(-1, 2) + off[:, None] * nrm.reshape(-1, 2)
     if camera is not None and camera.has_distortion:
-        out = _distort_px(camera, out)
-    return out, float(np.sqrt(np.mean(np.square(res))))
+        edge = camera.undistort_pixels(edge)
+    edge = edge.reshape(S, m, 2)
+    w = valid.reshape(S, m).astype(np.float64)
+
+    def fit(w):
+        n = w.sum(axis=1)
+        c = (edge * w[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
+        d = edge - c[:, None, :]
+        sxx = (w * d[..., 0] ** 2).sum(1)
+        syy = (w * d[..., 1] ** 2).sum(1)
+        sxy = (w * d[..., 0] * d[..., 1]).sum(1)
+        ang = 0.5 * np.arctan2(2 * sxy, sxx - syy)  # direction of the principal axis
+        dirv = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+        resid = np.abs(d[..., 0] * -dirv[:, None, 1] + d[..., 1] * dirv[:, None, 0])
+        return c, dirv, resid, n
+
+    c, dirv, resid, n = fit(w)
+    rm = np.where(w > 0, resid, np.nan)
+    with np.errstate(all="ignore"):
+        thr = np.maximum(3 * np.nanmedian(rm, axis=1) + 1e-3, 0.3)
+    w2 = w * (resid < thr[:, None])
+    use2 = w2.sum(axis=1) >= 4
+    w = np.where(use2[:, None], w2, w)
+    c, dirv, resid, n = fit(w)
+    rms_side = np.sqrt((w * resid**2).sum(1) / np.maximum(n, 1))
+    ok_side = n >= 4
+    c = c.reshape(Q, 4, 2)
+    dirv = dirv.reshape(Q, 4, 2)
+    # corner i = intersection of side i-1 and side i
+    p1, d1 = np.roll(c, 1, axis=1), np.roll(dirv, 1, axis=1)
+    p2, d2 = c, dirv
+    det = d1[..., 0] * (-d2[..., 1]) - d1[..., 1] * (-d2[..., 0])
+    rhs = p2 - p1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (rhs[..., 0] * (-d2[..., 1]) - rhs[..., 1] * (-d2[..., 0])) / det
+    out = p1 + t1[..., None] * d1
+    good = ok_side.reshape(Q, 4).all(axis=1) & np.all(np.abs(det) > 1e-9, axis=1) & np.isfinite(out).all(axis=(1, 2))
+    if camera is not None and camera.has_distortion:
+        flat = out.reshape(-1, 2)
+        fin = np.isfinite(flat).all(axis=1)
+        flat[fin] = _distort_px(camera, flat[fin])
+        out = flat.reshape(Q, 4, 2)
+    out[~good] = np.nan
+    rms = np.sqrt(np.mean(rms_side.reshape(Q, 4) ** 2, axis=1))
+    rms[~good] = np.inf
+    return out, rms

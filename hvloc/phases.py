@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from . import markers as mk
-from .features import refine_quad
+from .features import refine_quad, refine_quads
 from .geometry import Camera, invert, rotation_angle, transform_points
 
 
@@ -253,15 +253,14 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
             continue
         module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
         hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
-        for name in ("Top", "Right", "Bottom"):
-            for sq in ms[name]["squares"]:
-                P = np.asarray(sq["corners"], float)
-                guess = cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :]
-                ref, _ = refine_quad(g, guess, half_width=hw, camera=_shifted(camera, x0, y0))
-                if ref is None or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
-                    continue
-                pts_P.append(P)
-                px.append(ref + [x0, y0])
+        squares = [np.asarray(sq["corners"], float) for name in ("Top", "Right", "Bottom") for sq in ms[name]["squares"]]
+        guesses = np.stack([cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :] for P in squares])
+        refined, _ = refine_quads(g, guesses, hw, camera=_shifted(camera, x0, y0))
+        for P, guess, ref in zip(squares, guesses, refined):
+            if not np.isfinite(ref).all() or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
+                continue
+            pts_P.append(P)
+            px.append(ref + [x0, y0])
         used.append(set_name)
         if rgb is not None and set_name == "corner":
             outer = _refine_outline_from(rgb, pad_geometry, H, x0, y0, camera)
