@@ -51,18 +51,12 @@ def _stats(x: np.ndarray, prefix: str) -> dict:
 
 
 def longest_gap_s(t: np.ndarray, ok: np.ndarray) -> float:
-    """Longest time without an accepted pose (from the last ok frame, or the start)."""
+    """Longest time without an accepted pose: between consecutive ok frames, and from the first
+    frame / to the last frame (the whole span when nothing was ok)."""
     if t.size == 0:
         return 0.0
-    last = t[0]
-    gap = 0.0
-    seen = False
-    for ti, o in zip(t, ok):
-        if o:
-            gap = max(gap, ti - last) if seen or ti > t[0] else gap
-            last, seen = ti, True
-    gap = max(gap, t[-1] - last) if seen else t[-1] - t[0]
-    return float(gap)
+    marks = np.concatenate([[t[0]], t[ok], [t[-1]]])
+    return float(np.max(np.diff(marks)))
 
 
 def score(fe: dict, mask: np.ndarray | None = None) -> dict:

@@ -1,0 +1,130 @@
+"""Benchmark suite: metrics against independent computations, the smoke regression against its
+committed baseline, result and leaderboard schemas, compare's exit codes."""
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).parent.parent
+BASELINE = REPO / "benchmarks" / "baselines" / "smoke.json"
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory):
+    from benchmarks.suite import run_suite
+
+    out = tmp_path_factory.mktemp("smoke")
+    res = run_suite(REPO / "data_specs" / "suites" / "smoke.yaml", out, show_progress=False)
+    return out, res
+
+
+def _read_tum(p):
+    rows = [ln.split() for ln in Path(p).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
+    return np.array(rows, float)
+
+
+def test_position_rmse_matches_an_independent_computation_from_tum_files(smoke):
+    out, res = smoke
+    ds = next((out / "datasets").iterdir())
+    for seq_dir in sorted(p for p in ds.iterdir() if p.name.startswith("seq_")):
+        gt = _read_tum(seq_dir / "groundtruth.tum")
+        est = _read_tum(out / "estimates" / "hierarchical" / ds.name / seq_dir.name / "estimates.tum")
+        gt_by_t = {round(r[0], 6): r for r in gt}
+        d = [np.linalg.norm(r[1:4] - gt_by_t[round(r[0], 6)][1:4]) for r in est]
+        rmse = math.sqrt(np.mean(np.square(d)))
+        ours = res["sequences"][f"hierarchical/tiny/{seq_dir.name}"]["all"]["pos_err_m_rmse"]
+        assert rmse == pytest.approx(ours, rel=1e-9, abs=1e-12)
+
+
+def test_results_schema_and_provenance(smoke):
+    out, res = smoke
+    r = json.loads((out / "results.json").read_text())
+    assert r["schema"] == "hvloc-results/1" and len(r["suite_sha256"]) == 64
+    assert set(r["provenance"]) >= {"commit", "machine", "versions", "date"}
+    s = r["summary"]["hierarchical"]
+    for scope in ("all", "gt:approaching", "gt:adjustment", "gt:touchdown"):
+        assert {"frames", "availability", "pos_err_m_rmse", "rot_err_deg_rmse", "false_accepts"} <= set(s[scope])
+    assert (out / "report.md").exists() and list((out / "plots").glob("*.png"))
+    csv_head = (out / "results.csv").read_text().splitlines()[0]
+    assert csv_head.startswith("localizer,dataset,sequence,frame,t,height_m,phase_gt,phase_est,status")
+
+
+def test_smoke_suite_is_no_worse_than_its_committed_baseline(smoke):
+    """The regression test: changing a baseline number is a commit that says why."""
+    from benchmarks.suite import compare, load_results
+
+    out, res = smoke
+    base = load_results(BASELINE)
+    assert base["suite_sha256"] == res["suite_sha256"], "the smoke suite changed: regenerate its baseline"
+    worse = compare(res, base)
+    assert not worse, "worse than benchmarks/baselines/smoke.json:\n" + "\n".join(map(str, worse))
+
+
+def test_compare_cli_exits_1_on_worse_and_2_on_other_schema(smoke, tmp_path):
+    out, res = smoke
+    worse = json.loads(json.dumps(res))
+    worse["summary"]["hierarchical"]["all"]["availability"] -= 0.2
+    worse["summary"]["hierarchical"]["gt:adjustment"]["pos_err_m_rmse"] = (
+        (worse["summary"]["hierarchical"]["gt:adjustment"]["pos_err_m_rmse"] or 0) + 0.05)
+    p = tmp_path / "worse.json"
+    p.write_text(json.dumps(worse))
+    cmd = [sys.executable, "-m", "hvloc.cli", "bench", "compare"]
+    r = subprocess.run(cmd + [str(p), str(out)], capture_output=True, text=True)
+    assert r.returncode == 1 and "availability" in r.stdout and "pos_err_m_rmse" in r.stdout
+    r = subprocess.run(cmd + [str(out), str(out)], capture_output=True, text=True)
+    assert r.returncode == 0
+    worse["schema"] = "hvloc-results/0"
+    p.write_text(json.dumps(worse))
+    r = subprocess.run(cmd + [str(p), str(out)], capture_output=True, text=True)
+    assert r.returncode == 2 and "schema" in r.stderr
+
+
+def test_bad_suite_exits_2(tmp_path):
+    s = tmp_path / "s.yaml"
+    s.write_text("name: x\ndatasets: [{spec: data_specs/nope.yaml}]\nlocalizers: [{name: h}]\n")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 2 and "nope.yaml" in r.stderr
+    s.write_text("name: x\ndatasets: [{spec: data_specs/tiny.yaml}]\nlocalizers: [{name: h, config: {flux: 1}}]\n")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 2 and "flux: unknown key" in r.stderr
+
+
+def test_metrics_on_a_hand_made_case():
+    from benchmarks import metrics as M
+
+    n = 6
+    gt = {"frame": np.arange(n, dtype=float), "t": np.arange(n) * 0.5, "tx": np.zeros(n), "ty": np.zeros(n),
+          "tz": np.array([10, 8, 6, 4, 2, 1.0]), "qx": np.ones(n), "qy": np.zeros(n), "qz": np.zeros(n),
+          "qw": np.zeros(n), "phase_gt": np.array(["approaching"] * 3 + ["adjustment"] * 2 + ["touchdown"])}
+    est = {k: v.copy() for k, v in gt.items() if k != "phase_gt"}
+    est["tx"] = np.array([0.1, 0.0, 0.0, 0.0, 0.5, 0.0])  # frame 4: 0.5 m off at 2 m = a false accept
+    est["status"] = np.array(["ok", "lost", "ok", "ok", "ok", "rejected"], dtype=object)
+    est["phase"] = np.array(["approaching", "approaching", "adjustment", "adjustment", "adjustment", "touchdown"],
+                            dtype=object)
+    est["ms"] = np.array([1, 2, 3, 4, 5, 6.0])
+    fe = M.frame_errors(gt, est)
+    s = M.score(fe)
+    assert s["availability"] == pytest.approx(4 / 6)
+    assert s["false_accepts"] == 1 and s["rejections_wrong"] == 1 and s["rejections_right"] == 0
+    assert s["pos_err_m_rmse"] == pytest.approx(math.sqrt((0.01 + 0.25) / 4))
+    assert s["longest_gap_s"] == pytest.approx(1.0)  # frame 0 -> frame 2
+    assert s["wrong_phase_frames"] == 1  # frame 2: adjustment while the truth says approaching
+    assert M.switch_heights(fe) == [("approaching", "adjustment", 6.0)]
+
+
+def test_committed_leaderboard_schema():
+    lb = json.loads((REPO / "benchmarks" / "leaderboard.json").read_text())
+    assert lb["schema"] == "hvloc-leaderboard/1" and lb["suite"] == "bench_v1"
+    assert lb["provenance"]["commit"] and lb["provenance"]["versions"]["hvloc"]
+    names = {e["localizer"] for e in lb["entries"]}
+    assert {"hierarchical", "outline_only", "markers_only", "no_false_pose_detection"} <= names
+    from benchmarks.suite import load_suite
+
+    _, _, _, h = load_suite(REPO / "data_specs" / "suites" / "bench_v1.yaml")
+    assert lb["suite_sha256"] == h, "bench_v1 changed after the leaderboard was made: it is frozen"
