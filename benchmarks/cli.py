@@ -15,6 +15,14 @@ def main(argv: list) -> int:
     r.add_argument("--out", required=True)
     r.add_argument("--workers", type=int, default=1)
     r.add_argument("--quiet", action="store_true")
+    w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
+    w.add_argument("suite")
+    w.add_argument("--adjust-heights", type=float, nargs="+", default=[3.0, 5.0, 7.0, 9.0, 12.0])
+    w.add_argument("--touchdown-heights", type=float, nargs="+", default=[0.4, 0.7, 1.0, 1.5, 2.0])
+    w.add_argument("--max-pos-err-pct", type=float, default=2.0, help="error bound for the recommendation")
+    w.add_argument("--out", required=True)
+    w.add_argument("--workers", type=int, default=1)
+    w.add_argument("--quiet", action="store_true")
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")
     c.add_argument("baseline", help="results.json (or its folder)")
@@ -28,6 +36,10 @@ def main(argv: list) -> int:
         print(phase_table(res["summary"]))
         print(f"\nreport: {a.out}/report.md (plots in {a.out}/plots/); results: {a.out}/results.json")
         return 0
+    if a.action == "sweep":
+        from .sweep_run import run_sweep
+
+        return run_sweep(a)
     new, base = load_results(a.new), load_results(a.baseline)
     if new.get("suite_sha256") != base.get("suite_sha256"):
         raise InputError("results are of different suites (suite_sha256 differs); nothing to compare")

@@ -25,6 +25,48 @@ METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touc
 DEFAULT_T_B_C = make_transform(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]), (0.0, 0.0, -0.05))
 
 
+# which methods each phase tries, in order (the first that gives a pose wins)
+METHOD_ORDER = {"approaching": ("outline", "markers"),
+                "adjustment": ("markers", "outline", "flow"),
+                "touchdown": ("markers", "flow", "outline")}
+
+
+def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
+    """The switching policy: thresholds with hysteresis on the last accepted height ``h``.
+    A plain function so that the benchmark's sweep replays exactly this policy."""
+    if h is None:
+        return phase
+    hy = cfg.hysteresis_m
+    if phase == "approaching" and h < cfg.adjust_height_m - hy:
+        return "adjustment"
+    if phase == "adjustment":
+        if h > cfg.adjust_height_m + hy:
+            return "approaching"
+        if h < cfg.touchdown_height_m and last_method != "markers":
+            return "touchdown"
+    if phase == "touchdown" and h > cfg.touchdown_height_m + hy:
+        return "adjustment"
+    return phase
+
+
+def method_allowed(method: str, h: float | None, cfg: LocalizerConfig) -> bool:
+    """Markers are not tried far above the adjustment height."""
+    return not (method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m)
+
+
+def motion_gate(cam2pad: np.ndarray, t: float, last_cam2pad: np.ndarray | None, last_t: float,
+                cfg: LocalizerConfig) -> str:
+    """Reprojection-independent physical gate: no faster motion than ``max_speed_mps``."""
+    if cam2pad[2, 3] <= 0:
+        return "camera below the pad plane"
+    if last_cam2pad is None:
+        return ""
+    dt = max(t - last_t, 1e-3)
+    jump = float(np.linalg.norm(cam2pad[:3, 3] - last_cam2pad[:3, 3]))
+    allowed = cfg.max_speed_mps * dt + 0.05 + 0.05 * float(last_cam2pad[2, 3])
+    return f"moved {jump:.2f} m in {dt:.3f} s (> {allowed:.2f} m possible)" if jump > allowed else ""
+
+
 @dataclass
 class Estimate:
     t: float
@@ -136,16 +178,14 @@ class HierarchicalLocalizer:
         cfg = self.config
         h = self.last.height if self.last is not None else None
         self._update_phase(h)
-        order = {"approaching": ["outline", "markers"],
-                 "adjustment": ["markers", "outline", "flow"],
-                 "touchdown": ["markers", "flow", "outline"]}[self.phase]
+        order = METHOD_ORDER[self.phase]
         enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}
         reasons = []
         result = None
         for method in order:
             if not enabled[method]:
                 continue
-            if method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m:
+            if not method_allowed(method, h, cfg):
                 continue
             if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")
@@ -171,19 +211,7 @@ class HierarchicalLocalizer:
         return est
 
     def _update_phase(self, h) -> None:
-        cfg = self.config
-        if h is None:
-            return
-        hy = cfg.hysteresis_m
-        if self.phase == "approaching" and h < cfg.adjust_height_m - hy:
-            self.phase = "adjustment"
-        elif self.phase == "adjustment":
-            if h > cfg.adjust_height_m + hy:
-                self.phase = "approaching"
-            elif h < cfg.touchdown_height_m and self.last is not None and self.last.method != "markers":
-                self.phase = "touchdown"
-        elif self.phase == "touchdown" and h > cfg.touchdown_height_m + hy:
-            self.phase = "adjustment"
+        self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)
 
     def _prior(self):
         return self.last.cam2pad if self.last is not None else None
@@ -221,14 +249,10 @@ class HierarchicalLocalizer:
             return ""
         if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
             return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
-        if est.cam2pad[2, 3] <= 0:
-            return "camera below the pad plane"
-        if self.last is not None:
-            dt = max(est.t - self.last.t, 1e-3)
-            jump = float(np.linalg.norm(est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]))
-            allowed = cfg.max_speed_mps * dt + 0.05 + 0.05 * self.last.height
-            if jump > allowed:
-                return f"moved {jump:.2f} m in {dt:.3f} s (> {allowed:.2f} m possible)"
+        why = motion_gate(est.cam2pad, est.t, self.last.cam2pad if self.last else None,
+                          self.last.t if self.last else 0.0, cfg)
+        if why:
+            return why
         if R_W_B is not None:
             R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
             if self.R_W_P is None:
