@@ -75,6 +75,25 @@ def _residuals(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.nd
     return (camera.project_from(cam2pad, pts_P) - px).ravel()
 
 
+def _perturbed(cam2pad: np.ndarray, eps: float) -> np.ndarray:
+    """``(7, 4, 4)``: the pose, then +eps on each of (position xyz, rotation vector) in turn."""
+    Ts = np.repeat(cam2pad[None], 7, axis=0)
+    for i in range(3):
+        Ts[1 + i, i, 3] += eps
+        d = np.zeros(3)
+        d[i] = eps
+        Ts[4 + i, :3, :3] = cam2pad[:3, :3] @ so3_exp(d)
+    return Ts
+
+
+def _project_poses(camera: Camera, Ts: np.ndarray, pts_P: np.ndarray) -> np.ndarray:
+    """Pixels ``(k, n, 2)`` of ``pts_P`` seen from ``k`` poses ``T_P_C`` in one vectorised pass."""
+    R = Ts[:, :3, :3]
+    t = Ts[:, :3, 3]
+    Pc = np.einsum("kji,knj->kni", R, pts_P[None, :, :] - t[:, None, :])  # R^T (P - t)
+    return camera.project(Pc.reshape(-1, 3)).reshape(len(Ts), -1, 2)
+
+
 def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> float:
     r = _residuals(camera, cam2pad, pts_P, px)
     return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
@@ -83,16 +102,10 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector) from the reprojection Jacobian,
     scaled by the residual variance (at least (0.1 px)^2)."""
-    r0 = _residuals(camera, cam2pad, pts_P, px)
-    J = np.zeros((r0.size, 6))
     eps = 1e-6
-    for i in range(6):
-        d = np.zeros(6)
-        d[i] = eps
-        T = cam2pad.copy()
-        T[:3, 3] += d[:3]
-        T[:3, :3] = T[:3, :3] @ so3_exp(d[3:])
-        J[:, i] = (_residuals(camera, T, pts_P, px) - r0) / eps
+    proj = _project_poses(camera, _perturbed(cam2pad, eps), pts_P)
+    r0 = (proj[0] - px).ravel()
+    J = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T
     dof = max(r0.size - 6, 1)
     sigma2 = max(float(r0 @ r0) / dof, 0.01)
     try:
@@ -111,22 +124,19 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
     """
     T = cam2pad.copy()
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
+    z = np.array([0.0, 0.0, 1.0])
+    eps = 1e-6
 
-    def residual(T):
-        r = _residuals(camera, T, pts_P, px) / sigma_px
-        n_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # pad normal in the camera frame
-        return np.concatenate([r, (n_C - up) / sigma_up_rad])
+    def system(T):
+        Ts = _perturbed(T, eps)
+        proj = _project_poses(camera, Ts, pts_P)
+        pr = (np.einsum("kji,j->ki", Ts[:, :3, :3], z) - up) / sigma_up_rad  # pad normal in C minus up
+        r = np.concatenate([((proj[0] - px) / sigma_px).ravel(), pr[0]])
+        J = np.concatenate([((proj[1:] - proj[0]).reshape(6, -1) / sigma_px).T, (pr[1:] - pr[0]).T], axis=0) / eps
+        return r, J
 
-    r0 = residual(T)
+    r0, J = system(T)
     for _ in range(iterations):
-        J = np.zeros((r0.size, 6))
-        for i in range(6):
-            d = np.zeros(6)
-            d[i] = 1e-6
-            Ti = T.copy()
-            Ti[:3, 3] += d[:3]
-            Ti[:3, :3] = Ti[:3, :3] @ so3_exp(d[3:])
-            J[:, i] = (residual(Ti) - r0) / 1e-6
         try:
             step = -np.linalg.solve(J.T @ J + 1e-9 * np.eye(6), J.T @ r0)
         except np.linalg.LinAlgError:
@@ -134,10 +144,10 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
         Tn = T.copy()
         Tn[:3, 3] += step[:3]
         Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:])
-        rn = residual(Tn)
+        rn, Jn = system(Tn)
         if rn @ rn >= r0 @ r0:
             break
-        T, r0 = Tn, rn
+        T, r0, J = Tn, rn, Jn
         if np.abs(step).max() < 1e-9:
             break
     return T
