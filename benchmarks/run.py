@@ -28,13 +28,20 @@ def imu_at(imu: np.ndarray, t: float):
 
 
 def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None) -> list:
-    loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
-    imu = seq.imu if use_imu else None
-    out = []
+    return localize_sequence_many(seq, [(config, use_imu)], progress)[0]
+
+
+def localize_sequence_many(seq, setups: list, progress=None) -> list:
+    """Several localizers ``[(config, use_imu), ...]`` over one sequence, each image read once."""
+    locs = [HierarchicalLocalizer(seq.pad, seq.camera, cfg, T_B_C=seq.T_B_C) for cfg, _ in setups]
+    imu = seq.imu
+    out = [[] for _ in setups]
     for k in range(len(seq)):
         t = float(seq.t[k])
-        est = loc.process(seq.image(k), t, imu_at(imu, t) if imu is not None else None)
-        out.append(est)
+        img = seq.image(k)
+        sample = imu_at(imu, t)
+        for i, (loc, (_, use_imu)) in enumerate(zip(locs, setups)):
+            out[i].append(loc.process(img, t, sample if use_imu else None))
         if progress:
             progress(1)
     return out

@@ -101,7 +101,7 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     from render.dataset import Dataset, verify_dataset
     from render.generate import generate
 
-    from .run import localize_dataset, read_estimates
+    from .run import localize_sequence_many, read_estimates, write_estimates
 
     suite, specs, configs, suite_hash = load_suite(suite_path)
     out = Path(out)
@@ -118,11 +118,22 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
         if problems:
             raise InputError(f"{droot}: dataset does not verify: {problems[0]}")
         ds = Dataset(droot)
+        t0 = time.time()
+        bar = None
+        if show_progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(configs)} {spec.name}")
+        for seq in ds:  # every localizer on each image as it is read
+            ests = localize_sequence_many(seq, [(cfg, loc.use_imu) for loc, cfg in configs],
+                                          progress=bar.update if bar else None)
+            for (loc, cfg), est in zip(configs, ests):
+                write_estimates(out / "estimates" / loc.name / droot.name / seq.id, est)
+        if bar:
+            bar.close()
+        timing[f"localize:{spec.name}"] = time.time() - t0
         for loc, cfg in configs:
             rdir = out / "estimates" / loc.name / droot.name
-            t0 = time.time()
-            localize_dataset(droot, rdir, cfg, use_imu=loc.use_imu, show_progress=show_progress)
-            timing[f"localize:{loc.name}:{spec.name}"] = time.time() - t0
             for seq in ds:
                 est = read_estimates(rdir / seq.id / "estimates.csv")
                 fe = M.frame_errors(seq.columns, est)

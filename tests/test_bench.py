@@ -128,3 +128,22 @@ def test_committed_leaderboard_schema():
 
     _, _, _, h = load_suite(REPO / "data_specs" / "suites" / "bench_v1.yaml")
     assert lb["suite_sha256"] == h, "bench_v1 changed after the leaderboard was made: it is frozen"
+
+
+def test_sweep_replays_the_live_policy_at_about_one_pass(smoke, tmp_path):
+    """The sweep's replay at the base thresholds agrees with a live run, and the whole grid costs
+    a small multiple of one plain localizer run (not one run per grid point)."""
+    import shutil
+
+    out, _ = smoke
+    shutil.copytree(out / "datasets", tmp_path / "datasets")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "sweep", "smoke", "--out", str(tmp_path),
+                        "--adjust-heights", "3", "6", "--touchdown-heights", "0.5", "1.0", "--quiet"],
+                       capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "sweep.json").read_text())
+    assert len(doc["grid"]) == 4 and doc["recommended"] is not None
+    live, rep = doc["check_at_base_thresholds"]["live"], doc["check_at_base_thresholds"]["replay"]
+    assert abs(live["availability"] - rep["availability"]) < 0.05
+    assert doc["cost_s"]["sweep_over_plain_run"] < 4.0  # 4 grid points for less than 4 runs
+    assert (tmp_path / "sweep_heatmaps.png").exists()

@@ -233,3 +233,22 @@ def test_bad_localizer_config_exits_2(tmp_path):
     r = subprocess.run([sys.executable, "-m", "hvloc.cli", "localize", str(ds), "--out", str(tmp_path / "o"),
                         "--config", str(cfg)], capture_output=True, text=True)
     assert r.returncode == 2 and "adjust_hieght_m: unknown key" in r.stderr, r.stderr
+
+
+def test_nested_variant_gives_both_marker_sets(pad):
+    from pad_design import make_pad
+
+    nested = make_pad({"variant": "nested"}, ppm=2000)
+    G = tilted(0.05, -0.02, 1.6, 0.8, 0.02, 0.01)
+    img = warp_pad_view(nested, CAM, G, GROUND)
+    det, why = detect_markers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), nested.geometry, CAM)
+    assert det is not None, why
+    assert set(det.info["sets"]) == {"corner", "centre"} and len(det.pts_P) == 72
+    assert np.abs(det.px - CAM.project_from(G, det.pts_P)).max() < 0.5
+    # low over the centre, only the small set is in view, and it alone gives the pose
+    G = tilted(0.0, 0.0, 0.25, 0.3)
+    img = warp_pad_view(nested, CAM, G, GROUND)
+    det, why = detect_markers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), nested.geometry, CAM)
+    assert det is not None and det.info["sets"] == ["centre"], why
+    res = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up_in_camera(G))
+    assert pose_error(res.cam2pad, G)[0] < 0.002
