@@ -29,6 +29,14 @@ def _signed_area(q: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+def _crop(img: np.ndarray, roi):
+    """``(view, x0, y0)``: the region of interest (x0, y0, x1, y1), or the whole image."""
+    if roi is None:
+        return img, 0, 0
+    x0, y0, x1, y1 = roi
+    return img[y0:y1, x0:x1], x0, y0
+
+
 def _hsv_mask(hsv: np.ndarray, rng: dict) -> np.ndarray:
     lo, hi = np.array(rng["lo"], float), np.array(rng["hi"], float)
     if rng.get("hue_wraps"):
@@ -49,11 +57,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     and the corner order comes from the yellow cue corner (bottom-right), or, when the cue cannot
     be read, from ``yaw_hint_corner0``: the predicted pixel of the TL corner.
     """
-    x0, y0 = 0, 0
-    img = rgb
-    if roi is not None:
-        x0, y0, x1, y1 = roi
-        img = rgb[y0:y1, x0:x1]
+    img, x0, y0 = _crop(rgb, roi)
     if img.shape[0] < 8 or img.shape[1] < 8:
         return None, "image too small"
     # segment on a smaller copy when the search area is large: the corners are refined at full
@@ -197,19 +201,12 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 
 # ----------------------------------------------------------------------------- Adjustment
 
-MARKER_AXES = {"Top": (-1, 1), "Right": (1, 1), "Bottom": (-1, -1)}
-
-
 def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
                    method: str = "otsu", rgb: np.ndarray | None = None) -> tuple:
     """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
     Returns ``(Detection | None, reason)``."""
-    x0, y0 = 0, 0
-    img = gray
-    if roi is not None:
-        x0, y0, x1, y1 = roi
-        img = gray[y0:y1, x0:x1]
+    img, x0, y0 = _crop(gray, roi)
     if img.shape[0] < 16 or img.shape[1] < 16:
         return None, "image too small"
     triples, nests = [], []

@@ -14,6 +14,7 @@ from hvloc.geometry import Camera
 from pad_design import PadSpec, make_pad, write_pad
 from pad_design.pdf import A4_M, tile_grid
 from render.planar import nadir_cam2pad, warp_pad_view
+from tests.conftest import assert_input_error, run_cli
 
 
 def listed_corners(geometry):
@@ -180,11 +181,7 @@ def test_bad_spec_exits_2_naming_the_field_and_writes_nothing(tmp_path, text, na
     spec = tmp_path / "bad.yaml"
     spec.write_text(text)
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "pad", "make", "--spec", str(spec), "--out", str(out)],
-                       capture_output=True, text=True)
-    assert r.returncode == 2
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and names in lines[0], r.stderr
+    assert_input_error(run_cli("pad", "make", "--spec", spec, "--out", out), names)
     assert not out.exists()
 
 

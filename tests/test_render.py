@@ -16,6 +16,7 @@ from hvloc.geometry import invert, rotation_angle, so3_exp, transform_points
 from render.dataset import Dataset, read_tum, verify_dataset
 from render.generate import generate, plan_sequence
 from render.spec import DatasetSpec, load_dataset_spec
+from tests.conftest import assert_input_error, run_cli
 
 SPECS = Path(__file__).parent / "specs"
 REPO = Path(__file__).parent.parent
@@ -237,11 +238,7 @@ def test_bad_dataset_spec_exits_2_naming_the_field(tmp_path, text, names):
     p = tmp_path / "bad.yaml"
     p.write_text(text)
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "generate", str(p), "--out", str(out)],
-                       capture_output=True, text=True)
-    assert r.returncode == 2, r.stderr
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and names in lines[0], r.stderr
+    assert_input_error(run_cli("generate", p, "--out", out), names)
     assert not out.exists()
 
 
