@@ -108,8 +108,10 @@ def trajectory_plot(seq, est: dict, path: Path, title: str) -> None:
     ok = np.array([s == "ok" for s in est["status"]])
 
     def rpy(T):
+        # roll in [0, 360): a downward camera sits near 180, where (-180, 180] would wrap
         R = T[:3, :3]
-        return np.degrees([np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(np.clip(R[2, 0], -1, 1)), np.arctan2(R[1, 0], R[0, 0])])
+        return np.degrees([np.arctan2(R[2, 1], R[2, 2]) % (2 * np.pi), -np.arcsin(np.clip(R[2, 0], -1, 1)),
+                           np.arctan2(R[1, 0], R[0, 0])])
 
     E = [transform_from_tum([est[k][i] for k in keys]) if ok[i] else None for i in range(len(t))]
     fig, ax = plt.subplots(2, 3, figsize=(15, 6), sharex=True)
