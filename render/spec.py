@@ -66,6 +66,20 @@ class CameraSpec(_Model):
     def _exposure(self):
         if self.exposure_s > 1.0 / self.fps:
             raise ValueError(f"exposure_s: {self.exposure_s} s is longer than a frame (1/fps = {1 / self.fps:.4f} s)")
+        # the radial distortion must be invertible out to the image corners, or some pixels see no ray
+        k1, k2, _, _, k3 = self.dist
+        f = (self.width / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
+        r_corner = math.hypot(self.width / 2.0, self.height / 2.0) / f * max(1.0, 1.0 / self.fy_over_fx)
+        r = [i * 0.01 for i in range(1, 1000)]
+        r_d = [x * (1 + k1 * x**2 + k2 * x**4 + k3 * x**6) for x in r]
+        reach = 0.0
+        for a, b in zip(r_d, r_d[1:]):
+            if b <= a:
+                break
+            reach = b
+        if reach < r_corner * 1.02:
+            raise ValueError(f"dist: radial distortion {list(self.dist[:2]) + [self.dist[4]]} folds back before the "
+                             f"image corners (reaches r = {reach:.2f}, corners need {r_corner:.2f}): not a real lens")
         return self
 
 

@@ -254,3 +254,12 @@ def test_shipped_specs_validate_and_schemas_are_current():
             committed = REPO / "data_specs" / "schema" / new.name
             assert committed.exists() and committed.read_text() == new.read_text(), \
                 f"{committed} is stale: run python -m render.spec"
+
+
+def test_a_lens_that_folds_back_before_the_corners_is_refused():
+    from pad_design.errors import InputError
+    from pad_design.errors import validate_model
+
+    d = {"camera": {"hfov_deg": 94, "dist": [-0.28, 0.09, 0.0008, -0.0005, -0.012]}}
+    with pytest.raises(InputError, match="camera: dist: radial distortion"):
+        validate_model(DatasetSpec, d)
