@@ -8,6 +8,8 @@ straight 3D edges stay straight under lens distortion), and intersects neighbour
 """
 from __future__ import annotations
 
+import warnings
+
 import cv2
 import numpy as np
 
@@ -116,7 +118,8 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
 
     c, dirv, resid, n = fit(w)
     rm = np.where(w > 0, resid, np.nan)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # sides without edge points: NaN, handled below
         thr = np.maximum(3 * np.nanmedian(rm, axis=1) + 1e-3, 0.3)
     w2 = w * (resid < thr[:, None])
     use2 = w2.sum(axis=1) >= 4
