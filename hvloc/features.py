@@ -136,7 +136,7 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     rhs = p2 - p1
     with np.errstate(divide="ignore", invalid="ignore"):
         t1 = (rhs[..., 0] * (-d2[..., 1]) - rhs[..., 1] * (-d2[..., 0])) / det
-    out = p1 + t1[..., None] * d1
+        out = p1 + t1[..., None] * d1  # parallel sides give inf/NaN: marked failed below
     good = ok_side.reshape(Q, 4).all(axis=1) & np.all(np.abs(det) > 1e-9, axis=1) & np.isfinite(out).all(axis=(1, 2))
     if camera is not None and camera.has_distortion:
         flat = out.reshape(-1, 2)
