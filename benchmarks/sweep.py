@@ -24,7 +24,8 @@ import numpy as np
 from hvloc import phases as ph
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import invert, make_transform
-from hvloc.localizer import METHOD_ORDER, METHOD_PHASE, check_image, imu_rotation, method_allowed, motion_gate, next_phase
+from hvloc.localizer import (METHOD_ORDER, METHOD_PHASE, check_image, imu_rotation, method_allowed, motion_gate,
+                             next_phase, policy_height)
 from hvloc.pose import pose_from_homography, solve_planar_pose
 
 from . import metrics as M
@@ -102,7 +103,7 @@ def replay(cache: FrameCache, cfg: LocalizerConfig) -> dict:
     for k in range(n):
         if anchor_H is not None:
             anchor_H = cache.h_step[k] @ anchor_H if cache.h_step[k] is not None else None
-        h = float(last[2, 3]) if last is not None else None
+        h = policy_height(float(last[2, 3]) if last is not None else None, last_t, float(cache.t[k]), cfg)
         phase = next_phase(phase, h, last_method, cfg)
         phase_est[k] = phase
         for method in METHOD_ORDER[phase]:

@@ -16,6 +16,8 @@ class LocalizerConfig(BaseModel):
     touchdown_height_m: float = Field(1.0, gt=0.0, description="below this, the flow tracker takes over "
                                       "when markers are lost")
     hysteresis_m: float = Field(0.3, ge=0.0, description="margin before switching back")
+    prior_timeout_s: float = Field(1.0, gt=0.0, description="an accepted pose older than this no longer "
+                                   "steers the phase choice (every method is tried again)")
     use_outline: bool = True
     use_markers: bool = True
     use_flow: bool = True

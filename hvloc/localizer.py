@@ -49,6 +49,14 @@ def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConf
     return phase
 
 
+def policy_height(last_height: float | None, last_t: float, t: float, cfg: LocalizerConfig) -> float | None:
+    """The height the switching policy may use: the last accepted one, unless it is stale (then
+    ``None``: without it a localizer whose only method is gated by height could never recover)."""
+    if last_height is None or t - last_t > cfg.prior_timeout_s:
+        return None
+    return last_height
+
+
 def method_allowed(method: str, h: float | None, cfg: LocalizerConfig) -> bool:
     """Markers are not tried far above the adjustment height."""
     return not (method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m)
@@ -176,7 +184,7 @@ class HierarchicalLocalizer:
             R_W_C = R_W_B @ self.T_B_C[:3, :3]
             up_C = R_W_C.T @ np.array([0.0, 0.0, 1.0])
         cfg = self.config
-        h = self.last.height if self.last is not None else None
+        h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
         order = METHOD_ORDER[self.phase]
         enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}

@@ -252,3 +252,15 @@ def test_nested_variant_gives_both_marker_sets(pad):
     assert det is not None and det.info["sets"] == ["centre"], why
     res = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up_in_camera(G))
     assert pose_error(res.cam2pad, G)[0] < 0.002
+
+
+def test_a_stale_height_does_not_lock_out_the_only_method(pad):
+    """markers only: one far detection must not keep markers from being tried later."""
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_outline=False, use_flow=False, adjust_height_m=5.0))
+    far = tilted(0.0, 0.0, 9.0, 0.2)
+    loc.last = type("E", (), {"height": 9.0, "t": 0.0, "cam2pad": far, "method": "markers"})()
+    G = tilted(0.0, 0.0, 2.5, 0.2)
+    e = loc.process(warp_pad_view(pad, CAM, G, GROUND), 0.1, _imu_from(G))
+    assert e.status == "lost"  # a fresh 9 m prior: markers are not tried
+    e = loc.process(warp_pad_view(pad, CAM, G, GROUND), 3.0, _imu_from(G))
+    assert e.status == "ok" and e.method == "markers", e.reason  # the prior went stale
