@@ -80,3 +80,15 @@ def render_color(offscreen, scene, flags):
     color = np.ascontiguousarray(r.read_color_buf())
     plat.make_uncurrent()
     return color
+
+
+def translucent_texture(texture):
+    """Mark a texture with an alpha channel as translucent.
+
+    pyrender caches ``Texture.is_transparent`` as False before the source is set, so a mesh whose
+    transparency comes from its texture's alpha is sorted with the opaque meshes.  It is still
+    blended (that follows ``alphaMode``), but it may be drawn *before* the ground behind it, and
+    its transparent texels then write depth: the ground disappears there (the sky colour shows).
+    Translucent meshes must be drawn after every opaque one."""
+    texture._is_transparent = True
+    return texture

@@ -22,7 +22,7 @@ import numpy as np
 
 from hvloc.geometry import Camera, make_transform, rotation_z
 
-from .gl import import_pyrender, render_color
+from .gl import import_pyrender, render_color, translucent_texture
 from .textures import aruco_image, finder_marker_image, ground_texture
 
 # OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
@@ -141,6 +141,8 @@ class LandingScene:
                 rgba[:m, :, 3] = rgba[-m:, :, 3] = 0
                 rgba[:, :m, 3] = rgba[:, -m:, 3] = 0
             tex = pr.Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA", sampler=sampler)
+            if soft_edge_px:
+                translucent_texture(tex)
             mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
                                                alphaMode="BLEND" if soft_edge_px else "OPAQUE")
             hx, hy = sx / 2, sy / 2
@@ -246,9 +248,9 @@ class LandingScene:
         rgba[..., 3] = (alpha.astype(np.float32) * self.shadow_alpha).astype(np.uint8)
         from OpenGL.GL import GL_CLAMP_TO_EDGE, GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR
 
-        tex = pr.Texture(source=rgba, source_channels="RGBA",
-                         sampler=pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
-                                            wrapS=GL_CLAMP_TO_EDGE, wrapT=GL_CLAMP_TO_EDGE))
+        tex = translucent_texture(pr.Texture(source=rgba, source_channels="RGBA",
+                                             sampler=pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
+                                                                wrapS=GL_CLAMP_TO_EDGE, wrapT=GL_CLAMP_TO_EDGE)))
         mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
                                            alphaMode="BLEND")
         sx, sy = w * m_per_px, h * m_per_px

@@ -263,3 +263,28 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     d = {"camera": {"hfov_deg": 94, "dist": [-0.28, 0.09, 0.0008, -0.0005, -0.012]}}
     with pytest.raises(InputError, match="camera: dist: radial distortion"):
         validate_model(DatasetSpec, d)
+
+
+def test_translucent_meshes_never_hide_the_ground():
+    """Shadows and the soft-edged pad are drawn after every opaque mesh: the sky colour never
+    shows through the ground (it did where a shadow texture was drawn before the ground)."""
+    spec = load_dataset_spec(REPO / "data_specs" / "sim800.yaml")
+    spec = DatasetSpec.model_validate({**spec.model_dump(mode="json"), "camera": {
+        **spec.model_dump(mode="json")["camera"], "width": 200, "height": 200, "supersample": 1}})
+    from render.generate import camera_from_spec, mount_from_spec, pad_for
+    from render.scene import LandingScene
+
+    pad = pad_for(spec)
+    cam = camera_from_spec(spec.camera)
+    for index in range(4):
+        plan = plan_sequence(spec, index)
+        sc = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m, cam,
+                          pad.spec.border_color, np.random.default_rng(0), shadows=True)
+        try:
+            transparent = {n.name.split("_")[0] for n in sc.scene.mesh_nodes if n.mesh.is_transparent}
+            assert "shadow" in transparent
+            img = sc.render(plan.trajectory.body_poses([0.0])[0] @ mount_from_spec(spec.camera.mount))
+        finally:
+            sc.close()
+        sky = np.all(np.abs(img.astype(int) - [153, 178, 217]) <= 3, axis=2).mean()
+        assert sky < 0.01, f"sequence {index}: {100 * sky:.1f} % of a nadir view at 20 m is sky"
