@@ -1,6 +1,7 @@
 """The committed leaderboard: one entry per localizer config on ``bench_v1``, with provenance.
 
-    python -m benchmarks.leaderboard RESULTS_DIR   # (re)write benchmarks/leaderboard.json + LEADERBOARD.md
+    python -m benchmarks.leaderboard RESULTS_DIR [--note TEXT ...]
+        (re)write benchmarks/leaderboard.json + LEADERBOARD.md; notes are caveats shown with the table
 """
 from __future__ import annotations
 
@@ -23,13 +24,13 @@ COLUMNS = [("all", "availability", "avail %", 100, "{:.1f}"),
            ("all", "ms_p50", "ms p50", 1, "{:.1f}")]
 
 
-def build(results: dict) -> dict:
+def build(results: dict, notes: list | None = None) -> dict:
     entries = []
     for name, s in results["summary"].items():
         entries.append({"localizer": name, "config": results["localizers"].get(name), "summary": s,
                         "contact_pos_err_m_max": s.get("contact_pos_err_m_max")})
     return {"schema": SCHEMA, "suite": results["suite"], "suite_sha256": results["suite_sha256"],
-            "provenance": results["provenance"], "entries": entries}
+            "provenance": results["provenance"], "notes": list(notes or []), "entries": entries}
 
 
 def markdown(lb: dict) -> str:
@@ -39,6 +40,7 @@ def markdown(lb: dict) -> str:
              f"`{p.get('commit')}`{' (dirty tree)' if p.get('dirty') else ''} on {p['machine']['platform']} "
              f"({p['machine']['cpus']} CPUs), {p['date']}.  Errors are in the pad frame, unaligned; a false accept "
              "is an `ok` pose off by > 10 % of height or 5 degrees.  Times are per frame on this shared machine.", "",
+             *[f"**Note:** {n}" for n in lb.get("notes", [])], "",
              "| localizer | " + " | ".join(c[2] for c in COLUMNS) + " |",
              "|---|" + "---|" * len(COLUMNS)]
     for e in sorted(lb["entries"], key=lambda e: -(e["summary"]["all"].get("availability") or 0)):
@@ -51,11 +53,13 @@ def markdown(lb: dict) -> str:
 
 
 def main(argv=None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 1:
-        print(__doc__)
-        return 2
-    lb = build(load_results(argv[0]))
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m benchmarks.leaderboard", description=__doc__)
+    p.add_argument("results")
+    p.add_argument("--note", action="append", default=[])
+    a = p.parse_args(sys.argv[1:] if argv is None else argv)
+    lb = build(load_results(a.results), a.note)
     LEADERBOARD_JSON.write_text(json.dumps(lb, indent=1) + "\n")
     LEADERBOARD_MD.write_text(markdown(lb))
     print(LEADERBOARD_JSON)
