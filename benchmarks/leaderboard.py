@@ -40,7 +40,7 @@ def markdown(lb: dict) -> str:
              f"`{p.get('commit')}`{' (dirty tree)' if p.get('dirty') else ''} on {p['machine']['platform']} "
              f"({p['machine']['cpus']} CPUs), {p['date']}.  Errors are in the pad frame, unaligned; a false accept "
              "is an `ok` pose off by > 10 % of height or 5 degrees.  Times are per frame on this shared machine.", "",
-             *[f"**Note:** {n}" for n in lb.get("notes", [])], "",
+             *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
              "| localizer | " + " | ".join(c[2] for c in COLUMNS) + " |",
              "|---|" + "---|" * len(COLUMNS)]
     for e in sorted(lb["entries"], key=lambda e: -(e["summary"]["all"].get("availability") or 0)):
