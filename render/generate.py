@@ -123,7 +123,10 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
     times = plan.frame_times
     sub_t = (times[:, None] + offsets[None, :]).ravel()
     T_W_B_sub = traj.body_poses(sub_t)
-    T_W_P_sub = traj.pad_poses(sub_t)
+    # shutter open and close poses for every frame, for the blur_px label (computed once, not per frame)
+    T_W_B_open = traj.body_poses(times - exposure / 2) if exposure > 0 else None
+    T_W_B_close = traj.body_poses(times + exposure / 2) if exposure > 0 else None
+    pin = camera.without_distortion()
     T_W_B = traj.body_poses(times)
     T_W_P = traj.pad_poses(times)
     corners_P = pad.outer_corners_P
@@ -149,9 +152,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
             px[~camera.in_image(px)] = np.nan
             # blur: image motion of the pad corners over the exposure (ideal pinhole, any visibility)
             if exposure > 0:
-                a = invert(T_W_P[k]) @ traj.body_poses([t - exposure / 2])[0] @ T_B_C
-                b = invert(T_W_P[k]) @ traj.body_poses([t + exposure / 2])[0] @ T_B_C
-                pin = camera.without_distortion()
+                a = invert(T_W_P[k]) @ T_W_B_open[k] @ T_B_C
+                b = invert(T_W_P[k]) @ T_W_B_close[k] @ T_B_C
                 d = np.linalg.norm(pin.project_from(a, corners_P) - pin.project_from(b, corners_P), axis=1)
                 blur = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
             else:
