@@ -21,6 +21,9 @@ class LocalizerConfig(BaseModel):
     use_outline: bool = True
     use_markers: bool = True
     use_flow: bool = True
+    anchor_once: bool = Field(False, description="the flow-only ablation: the pad detectors run only until "
+                              "the flow tracker has its first keyframe (from a pad pose); from then on only "
+                              "the flow tracker, at every height, never re-anchored")
     # detection
     binarization: Literal["otsu", "adaptive"] = "otsu"
     roi_margin: float = Field(0.6, ge=0.0, description="ROI around the predicted pad, relative to its size")
@@ -41,6 +44,8 @@ class LocalizerConfig(BaseModel):
             raise ValueError("touchdown_height_m: must be below adjust_height_m")
         if not (self.use_outline or self.use_markers or self.use_flow):
             raise ValueError("use_outline: at least one of use_outline, use_markers, use_flow must be on")
+        if self.anchor_once and not self.use_flow:
+            raise ValueError("anchor_once: needs use_flow (after the anchor only the flow tracker runs)")
         return self
 
 

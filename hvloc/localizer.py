@@ -187,6 +187,8 @@ class HierarchicalLocalizer:
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
         order = METHOD_ORDER[self.phase]
+        if cfg.anchor_once and self.flow.kf is not None:  # flow-only ablation: anchored once, then flow alone
+            order = ("flow",)
         enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}
         reasons = []
         result = None
@@ -283,7 +285,7 @@ class HierarchicalLocalizer:
         outline) pose, renewed when the view has changed enough; flow poses advance the tracks."""
         cfg = self.config
         h = est.height
-        if not cfg.use_flow or h > cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m:
+        if not cfg.use_flow or (not cfg.anchor_once and h > cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m):
             self.flow.reset()
             return
         if method == "flow":
