@@ -264,3 +264,24 @@ def test_a_stale_height_does_not_lock_out_the_only_method(pad):
     assert e.status == "lost"  # a fresh 9 m prior: markers are not tried
     e = loc.process(warp_pad_view(pad, CAM, G, GROUND), 3.0, _imu_from(G))
     assert e.status == "ok" and e.method == "markers", e.reason  # the prior went stale
+
+
+def test_flow_only_ablation_anchors_once_then_tracks_at_any_height(pad):
+    """``anchor_once``: a pad detector gives the first pose; every later one is the flow tracker's,
+    here at 3 m (far above the touchdown height, where the full localizer uses markers)."""
+    views = _views(pad, 12)
+    flow_only = HierarchicalLocalizer(pad, CAM, LocalizerConfig(anchor_once=True))
+    full = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    for k, (img, G) in enumerate(views):
+        e = flow_only.process(img, 0.05 * k, _imu_from(G))
+        f = full.process(img, 0.05 * k, _imu_from(G))
+        assert e.status == "ok" and f.status == "ok", (e.reason, f.reason)
+        assert f.method in ("outline", "markers")
+        assert e.method == (f.method if k == 0 else "flow"), (k, e.method)
+        dp, da = pose_error(e.cam2pad, G)
+        assert dp < 0.02 and da < 0.5, f"frame {k}: {dp * 1000:.1f} mm, {da:.2f} deg"
+
+
+def test_flow_only_needs_flow():
+    with pytest.raises(ValueError, match="anchor_once"):
+        LocalizerConfig(anchor_once=True, use_flow=False)
