@@ -13,7 +13,7 @@ def main(argv: list) -> int:
     r = sub.add_parser("run", help="generate/reuse a suite's datasets, localize, score, report")
     r.add_argument("suite", help="suite YAML, or a name in data_specs/suites/")
     r.add_argument("--out", required=True)
-    r.add_argument("--workers", type=int, default=1)
+    r.add_argument("--workers", type=int, default=1, help="processes that render, then localize (one sequence each)")
     r.add_argument("--quiet", action="store_true")
     w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
     w.add_argument("suite")

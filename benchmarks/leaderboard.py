@@ -41,15 +41,33 @@ def markdown(lb: dict) -> str:
              f"({p['machine']['cpus']} CPUs), {p['date']}.  Errors are in the pad frame, unaligned; a false accept "
              "is an `ok` pose off by > 10 % of height or 5 degrees.  Times are per frame on this shared machine.", "",
              *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
-             "| localizer | " + " | ".join(c[2] for c in COLUMNS) + " |",
-             "|---|" + "---|" * len(COLUMNS)]
-    for e in sorted(lb["entries"], key=lambda e: -(e["summary"]["all"].get("availability") or 0)):
-        cells = []
-        for scope, key, _, scale, fmt in COLUMNS:
-            v = e["summary"].get(scope, {}).get(key)
-            cells.append("-" if v is None else fmt.format(v * scale))
-        lines.append(f"| {e['localizer']} | " + " | ".join(cells) + " |")
+             "| localizer | datasets | " + " | ".join(c[2] for c in COLUMNS) + " |",
+             "|---|---|" + "---|" * len(COLUMNS)]
+    entries = sorted(lb["entries"], key=lambda e: -(e["summary"]["all"].get("availability") or 0))
+    for e in entries:
+        lines.append(f"| {e['localizer']} | {', '.join(e['summary'].get('datasets', []))} | "
+                     + " | ".join(_cells(e["summary"], "")) + " |")
+    datasets = sorted({d for e in entries for d in e["summary"].get("datasets", [])})
+    if len(datasets) > 1:
+        lines += ["", "## Per dataset", "",
+                  "The same columns on each dataset alone.  Two datasets of one spec and seed that differ only in "
+                  "the pad variant hold the very same descents (trajectories, scenes, lighting, degradations), so "
+                  "a peer on its own pad meets hvloc on equal terms.", "",
+                  "| dataset | localizer | " + " | ".join(c[2] for c in COLUMNS) + " |",
+                  "|---|---|" + "---|" * len(COLUMNS)]
+        for d in datasets:
+            for e in entries:
+                if d in e["summary"].get("datasets", []):
+                    lines.append(f"| {d} | {e['localizer']} | " + " | ".join(_cells(e["summary"], d + "/")) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _cells(summary: dict, prefix: str) -> list:
+    cells = []
+    for scope, key, _, scale, fmt in COLUMNS:
+        v = summary.get(prefix + scope, {}).get(key)
+        cells.append("-" if v is None else fmt.format(v * scale))
+    return cells
 
 
 def main(argv=None) -> int:

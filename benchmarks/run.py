@@ -27,20 +27,35 @@ def imu_at(imu: np.ndarray, t: float):
     return imu[max(j, 0)]
 
 
-def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None) -> list:
-    return localize_sequence_many(seq, [(config, use_imu)], progress)[0]
+KINDS = ("hierarchical", "aruco")
+PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",)}  # what each runs on by default
+
+
+def make_localizer(kind: str, seq, config: LocalizerConfig):
+    """hvloc's localizer, or a peer from ``benchmarks.peers``, for one sequence's pad and camera."""
+    if kind == "hierarchical":
+        return HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+    from .peers import LOCALIZERS
+
+    return LOCALIZERS[kind](seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+
+
+def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None,
+                      kind: str = "hierarchical") -> list:
+    return localize_sequence_many(seq, [(config, use_imu, kind)], progress)[0]
 
 
 def localize_sequence_many(seq, setups: list, progress=None) -> list:
-    """Several localizers ``[(config, use_imu), ...]`` over one sequence, each image read once."""
-    locs = [HierarchicalLocalizer(seq.pad, seq.camera, cfg, T_B_C=seq.T_B_C) for cfg, _ in setups]
+    """Several localizers ``[(config, use_imu[, kind]), ...]`` over one sequence, each image read once."""
+    setups = [(s[0], s[1], s[2] if len(s) > 2 else "hierarchical") for s in setups]
+    locs = [make_localizer(kind, seq, cfg) for cfg, _, kind in setups]
     imu = seq.imu
     out = [[] for _ in setups]
     for k in range(len(seq)):
         t = float(seq.t[k])
         img = seq.image(k)
         sample = imu_at(imu, t)
-        for i, (loc, (_, use_imu)) in enumerate(zip(locs, setups)):
+        for i, (loc, (_, use_imu, _)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))
         if progress:
             progress(1)
@@ -68,7 +83,7 @@ def write_estimates(seq_out: Path, estimates: list) -> None:
 
 
 def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: bool = True,
-                     show_progress: bool = True) -> dict:
+                     show_progress: bool = True, kind: str = "hierarchical") -> dict:
     """Localize every sequence of a dataset; writes ``OUT/<seq>/estimates.{csv,tum}``."""
     from render.dataset import Dataset
 
@@ -86,7 +101,7 @@ def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: 
     results = {}
     try:
         for seq in ds:
-            est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None)
+            est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None, kind=kind)
             write_estimates(out / seq.id, est)
             results[seq.id] = est
     finally:
@@ -108,12 +123,22 @@ def localize_main(argv: list) -> int:
     p.add_argument("--out", required=True, help="results folder: <seq>/estimates.csv and estimates.tum")
     p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
+    p.add_argument("--localizer", choices=KINDS, default="hierarchical",
+                   help="hvloc's hierarchical localizer, or the ArUco peer (needs the aruco pad variant)")
     p.add_argument("--quiet", action="store_true")
     a = p.parse_args(argv)
     cfg = load_config(a.config) if a.config else LocalizerConfig()
     if not Path(a.dataset).is_dir():
         raise InputError(f"{a.dataset}: no such dataset folder")
-    res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet)
+    if a.localizer != "hierarchical":
+        from render.dataset import Dataset
+
+        variant = next(iter(Dataset(a.dataset))).pad.geometry.get("variant")
+        if variant != "aruco":
+            raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the aruco pad variant, "
+                             f"this one has the {variant!r} pad")
+    res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
+                           kind=a.localizer)
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)
     print(f"{a.out}: {len(res['sequences'])} sequence(s), {res['frames']} frames, {n_ok} poses ok "
           f"({res['seconds']:.1f} s)")

@@ -7,6 +7,7 @@ import platform
 import subprocess
 import time
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import yaml
@@ -16,6 +17,7 @@ from hvloc.config import LocalizerConfig
 from pad_design.errors import InputError, load_yaml_model, validate_model
 
 from . import metrics as M
+from .run import KINDS, PAD_VARIANTS
 
 RESULTS_SCHEMA = "hvloc-results/1"
 REPO = Path(__file__).resolve().parent.parent
@@ -32,8 +34,11 @@ class DatasetEntry(BaseModel):
 class LocalizerEntry(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
     name: str
+    kind: Literal[KINDS] = Field("hierarchical", description="hvloc's localizer, or a peer (benchmarks/peers.py)")
     config: dict = Field(default_factory=dict, description="fields of hvloc's LocalizerConfig")
     use_imu: bool = True
+    datasets: list[str] | None = Field(None, description="names of the suite's datasets it runs on (default: all "
+                                       "of the pad variant it needs)")
 
 
 class Suite(BaseModel):
@@ -72,11 +77,29 @@ def load_suite(path) -> tuple:
             raw["seed"] = d.seed
         specs.append(validate_model(DatasetSpec, raw, f"{path}: datasets.{i} ({d.spec})"))
     configs = []
+    names = [s.name for s in specs]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: datasets: two datasets are named alike ({', '.join(names)}); "
+                         "give one another name with overrides: {{name: ...}}")
     for i, loc in enumerate(suite.localizers):
         configs.append((loc, validate_model(LocalizerConfig, loc.config, f"{path}: localizers.{i}.config")))
+        for n in loc.datasets or []:
+            if n not in names:
+                raise InputError(f"{path}: localizers.{i}.datasets: no dataset named {n!r} (the suite has "
+                                 f"{', '.join(names)})")
+        if not any(runs_on(loc, s) for s in specs):
+            raise InputError(f"{path}: localizers.{i} ({loc.name}): no dataset of the pad variant it needs "
+                             f"({', '.join(PAD_VARIANTS[loc.kind])})")
     h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [c.model_dump_json() for _, c in configs]
                                   + [l.model_dump_json() for l, _ in configs]).encode()).hexdigest()
     return suite, specs, configs, h
+
+
+def runs_on(loc: LocalizerEntry, spec) -> bool:
+    """Whether a suite's localizer runs on a dataset: the ones it names, else those of its pad variant."""
+    if loc.datasets is not None:
+        return spec.name in loc.datasets
+    return spec.pad.variant in PAD_VARIANTS[loc.kind]
 
 
 def provenance() -> dict:
@@ -107,7 +130,7 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     data_root = out / "datasets"
-    rows, per_seq, fes_by_loc = [], {}, {}
+    rows, per_seq, fes_by_loc, fes_by_ds = [], {}, {}, {}
     timing = {}
     for spec in specs:
         droot = data_root / f"{spec.name}-{spec.sha256()[:10]}"
@@ -118,21 +141,34 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
         if problems:
             raise InputError(f"{droot}: dataset does not verify: {problems[0]}")
         ds = Dataset(droot)
+        here = [(loc, cfg) for loc, cfg in configs if runs_on(loc, spec)]
+        if not here:
+            continue
         t0 = time.time()
         bar = None
         if show_progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(configs)} {spec.name}")
-        for seq in ds:  # every localizer on each image as it is read
-            ests = localize_sequence_many(seq, [(cfg, loc.use_imu) for loc, cfg in configs],
-                                          progress=bar.update if bar else None)
-            for (loc, cfg), est in zip(configs, ests):
-                write_estimates(out / "estimates" / loc.name / droot.name / seq.id, est)
+            bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(here)} {spec.name}")
+        setups = [(cfg, loc.use_imu, loc.kind) for loc, cfg in here]
+        jobs = [(str(droot), seq.id, [(c.model_dump(), u, k) for c, u, k in setups],
+                 [str(out / "estimates" / loc.name / droot.name / seq.id) for loc, _ in here]) for seq in ds]
+        if workers <= 1 or len(jobs) <= 1:
+            for seq, job in zip(ds, jobs):  # every localizer on each image as it is read
+                ests = localize_sequence_many(seq, setups, progress=bar.update if bar else None)
+                for d, est in zip(job[3], ests):
+                    write_estimates(Path(d), est)
+        else:  # one sequence per process; the bar moves when a sequence is done
+            import multiprocessing as mp
+
+            with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
+                for n in pool.imap_unordered(_localize_job, jobs):
+                    if bar:
+                        bar.update(n)
         if bar:
             bar.close()
         timing[f"localize:{spec.name}"] = time.time() - t0
-        for loc, cfg in configs:
+        for loc, cfg in here:
             rdir = out / "estimates" / loc.name / droot.name
             for seq in ds:
                 est = read_estimates(rdir / seq.id / "estimates.csv")
@@ -141,6 +177,7 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
                 per_seq[key] = M.score_sequence(fe)
                 per_seq[key]["family"] = seq.meta.get("family")
                 fes_by_loc.setdefault(loc.name, []).append(fe)
+                fes_by_ds.setdefault((loc.name, spec.name), []).append(fe)
                 for k in range(len(fe["status"])):
                     rows.append([loc.name, spec.name, seq.id, k, float(fe["t_s"][k]), float(fe["height_m"][k]),
                                  str(fe["phase_gt"][k]), str(fe["phase_est"][k]), str(fe["status"][k]),
@@ -148,13 +185,19 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     summary = {}
     for name, fes in fes_by_loc.items():
         fe = M.concat(fes)
-        summary[name] = {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
+        summary[name] = _scopes(fe)
+        summary[name]["datasets"] = [d for (n, d) in fes_by_ds if n == name]
+        for (n, d), dfes in fes_by_ds.items():  # per dataset, e.g. to set a peer beside hvloc on the same descents
+            if n == name:
+                summary[name].update({f"{d}/{k}": v for k, v in _scopes(M.concat(dfes)).items()})
         contact = [per_seq[k]["contact_pos_err_m"] for k in per_seq if k.startswith(name + "/")]
         contact = [c for c in contact if c is not None]
         summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None
     results = {"schema": RESULTS_SCHEMA, "suite": suite.name, "suite_sha256": suite_hash,
                "provenance": provenance(), "summary": summary, "sequences": per_seq, "timing_s": timing,
-               "localizers": {l.name: c.model_dump() for l, c in configs}}
+               "localizers": {l.name: c.model_dump() for l, c in configs},
+               "localizer_setup": {l.name: {"kind": l.kind, "use_imu": l.use_imu,
+                                            "datasets": [s.name for s in specs if runs_on(l, s)]} for l, _ in configs}}
     from render.dataset import atomic_write_text, write_csv
 
     atomic_write_text(out / "results.json", json.dumps(_clean(results), indent=1) + "\n")
@@ -164,6 +207,27 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
 
     write_report(out, results, fes_by_loc, data_root)
     return results
+
+
+def _localize_job(job) -> int:
+    """Worker: every setup over one sequence, estimates written; returns the frame count."""
+    import cv2
+
+    from render.dataset import Dataset
+
+    from .run import localize_sequence_many, write_estimates
+
+    cv2.setNumThreads(1)
+    droot, seq_id, setups, dirs = job
+    seq = Dataset(droot)[seq_id]
+    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups])
+    for d, est in zip(dirs, ests):
+        write_estimates(Path(d), est)
+    return len(seq)
+
+
+def _scopes(fe: dict) -> dict:
+    return {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
 
 
 def _clean(o):

@@ -18,7 +18,7 @@ def run_sweep(a) -> int:
 
     from . import metrics as M
     from .run import localize_sequence
-    from .suite import _clean, load_suite, provenance
+    from .suite import _clean, load_suite, provenance, runs_on
     from .sweep import recommend, replay, replay_errors, sweep, write_heatmaps
 
     suite, specs, configs, suite_hash = load_suite(a.suite)
@@ -26,9 +26,13 @@ def run_sweep(a) -> int:
         raise InputError("--adjust-heights/--touchdown-heights: heights must be positive")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    loc, base_cfg = configs[0]
+    # the suite's first hvloc localizer: its switching heights are what the sweep varies
+    hier = [(l, c) for l, c in configs if l.kind == "hierarchical"]
+    if not hier:
+        raise InputError(f"{a.suite}: no hierarchical localizer to sweep (peers have no switching heights)")
+    loc, base_cfg = hier[0]
     sequences = []
-    for spec in specs:
+    for spec in [s for s in specs if runs_on(loc, s)]:
         droot = out / "datasets" / f"{spec.name}-{spec.sha256()[:10]}"
         generate(spec, droot, workers=a.workers, show_progress=not a.quiet)
         sequences += list(Dataset(droot))

@@ -18,7 +18,8 @@ def smoke(tmp_path_factory):
     from benchmarks.suite import run_suite
 
     out = tmp_path_factory.mktemp("smoke")
-    res = run_suite(REPO / "data_specs" / "suites" / "smoke.yaml", out, show_progress=False)
+    # two processes: the baseline was made with one, so the comparison also proves they agree
+    res = run_suite(REPO / "data_specs" / "suites" / "smoke.yaml", out, workers=2, show_progress=False)
     return out, res
 
 
@@ -49,6 +50,11 @@ def test_results_schema_and_provenance(smoke):
     for scope in ("all", "gt:approaching", "gt:adjustment", "gt:touchdown"):
         assert {"frames", "availability", "pos_err_m_rmse", "rot_err_deg_rmse", "false_accepts"} <= set(s[scope])
     assert (out / "report.md").exists() and list((out / "plots").glob("*.png"))
+    # each localizer ran on the pad it needs; the peer's numbers stand beside hvloc's per dataset
+    setup = r["localizer_setup"]
+    assert setup["hierarchical"]["datasets"] == ["tiny"] and setup["aruco_solvepnp"]["datasets"] == ["tiny_aruco"]
+    assert r["summary"]["aruco_solvepnp"]["tiny_aruco/all"] == r["summary"]["aruco_solvepnp"]["all"]
+    assert r["summary"]["aruco_solvepnp"]["all"]["availability"] > 0.3
     csv_head = (out / "results.csv").read_text().splitlines()[0]
     assert csv_head.startswith("localizer,dataset,sequence,frame,t,height_m,phase_gt,phase_est,status")
 
@@ -93,6 +99,14 @@ def test_bad_suite_exits_2(tmp_path):
     r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True, cwd=REPO)
     assert r.returncode == 2 and "flux: unknown key" in r.stderr
+    for localizer, says in (("{name: h, datasets: [tinyy]}", "no dataset named 'tinyy'"),
+                            ("{name: p, kind: aruco}", "no dataset of the pad variant it needs (aruco)"),
+                            ("{name: p, kind: apriltag}", "kind")):
+        s.write_text(f"name: x\ndatasets: [{{spec: data_specs/tiny.yaml}}]\nlocalizers: [{localizer}]\n")
+        r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
+                           capture_output=True, text=True, cwd=REPO)
+        assert r.returncode == 2 and says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert not (tmp_path / "o").exists()
 
 
 def test_metrics_on_a_hand_made_case():
@@ -123,7 +137,8 @@ def test_committed_leaderboard_schema():
     assert lb["schema"] == "hvloc-leaderboard/1" and lb["suite"] == "bench_v1"
     assert lb["provenance"]["commit"] and lb["provenance"]["versions"]["hvloc"]
     names = {e["localizer"] for e in lb["entries"]}
-    assert {"hierarchical", "outline_only", "markers_only", "no_false_pose_detection"} <= names
+    assert {"hierarchical", "outline_only", "markers_only", "flow_only", "no_false_pose_detection", "no_imu",
+            "aruco_solvepnp"} <= names
     from benchmarks.suite import load_suite
 
     _, _, _, h = load_suite(REPO / "data_specs" / "suites" / "bench_v1.yaml")
