@@ -116,11 +116,27 @@ def localizer_speed(width: int, height: int, hfov_deg: float, n: int) -> list:
                 methods.append(e.method)
                 ok += e.ok
         ref = _timeit(lambda: cv2.GaussianBlur(cv2.cvtColor(views[1][0], cv2.COLOR_RGB2GRAY), (5, 5), 0), n)
-        out.append({"resolution": f"{width}x{height}", "phase": phase, "height_m": round(h0, 2),
-                    "ms_p50": float(np.percentile(ms, 50)), "ms_p95": float(np.percentile(ms, 95)),
-                    "ok": f"{ok}/{len(ms)}", "methods": sorted(set(methods)), "ref_gray_blur_ms": 1000 * ref,
-                    "ratio_to_ref": float(np.percentile(ms, 50)) / (1000 * ref)})
+        out.append(_speed_row(width, height, phase, h0, ms, ok, methods, ref))
+        if phase == "adjustment":  # the peer at the same poses, on its own pad
+            from .peers import ArucoLocalizer
+
+            apad = make_pad({"variant": "aruco"})
+            peer = ArucoLocalizer(apad, cam)
+            ms, methods, ok = [], [], 0
+            for img in [warp_pad_view(apad, cam, T, (80, 110, 60)) for _, T in views[3:]]:
+                e = peer.process(img, 0.0)
+                ms.append(e.ms)
+                methods.append(e.method)
+                ok += e.ok
+            out.append(_speed_row(width, height, "adjustment (aruco peer)", h0, ms, ok, methods, ref))
     return out
+
+
+def _speed_row(width, height, phase, h, ms, ok, methods, ref) -> dict:
+    return {"resolution": f"{width}x{height}", "phase": phase, "height_m": round(h, 2),
+            "ms_p50": float(np.percentile(ms, 50)), "ms_p95": float(np.percentile(ms, 95)),
+            "ok": f"{ok}/{len(ms)}", "methods": sorted(set(methods)), "ref_gray_blur_ms": 1000 * ref,
+            "ratio_to_ref": float(np.percentile(ms, 50)) / (1000 * ref)}
 
 
 def main(argv=None) -> int:
@@ -150,7 +166,7 @@ def main(argv=None) -> int:
     for w, h, fov in ((800, 800, 60.0), (1920, 1080, 94.0)):
         for r in localizer_speed(w, h, fov, n):
             res["localizer"].append(r)
-            print(f"localize {r['resolution']:>9s} {r['phase']:11s} (h {r['height_m']:5.2f} m, {','.join(r['methods'])}, "
+            print(f"localize {r['resolution']:>9s} {r['phase']:23s} (h {r['height_m']:5.2f} m, {','.join(r['methods'])}, "
                   f"ok {r['ok']}): p50 {r['ms_p50']:6.2f} ms  p95 {r['ms_p95']:6.2f} ms  "
                   f"gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
     out = Path(a.out)
