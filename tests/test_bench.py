@@ -162,3 +162,22 @@ def test_sweep_replays_the_live_policy_at_about_one_pass(smoke, tmp_path):
     assert abs(live["availability"] - rep["availability"]) < 0.05
     assert doc["cost_s"]["sweep_over_plain_run"] < 4.0  # 4 grid points for less than 4 runs
     assert (tmp_path / "sweep_heatmaps.png").exists()
+
+
+def test_localize_cli_runs_the_peer_on_its_pad_only(smoke, tmp_path):
+    from tests.conftest import run_cli
+
+    from render.dataset import Dataset
+
+    out, res = smoke
+    paper = next((out / "datasets").glob("tiny-*"))
+    aruco = next((out / "datasets").glob("tiny_aruco-*"))
+    r = run_cli("localize", str(paper), "--localizer", "aruco", "--out", str(tmp_path / "p"), "--quiet")
+    assert r.returncode == 2 and "aruco pad variant" in r.stderr and not (tmp_path / "p").exists(), r.stderr
+    r = run_cli("localize", str(aruco), "--localizer", "aruco", "--out", str(tmp_path / "a"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    rows = (tmp_path / "a" / "seq_0000" / "estimates.csv").read_text().splitlines()[1:]
+    n = len(next(iter(Dataset(aruco))))
+    s = res["summary"]["aruco_solvepnp"]["all"]
+    assert len(rows) == n == s["frames"]  # the CLI and the suite: the same peer, the same poses
+    assert sum(",ok," in r for r in rows) == round(s["availability"] * n) > 0
