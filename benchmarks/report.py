@@ -15,13 +15,15 @@ def _f(v, scale=1.0, fmt="{:.1f}"):
     return "-" if v is None else fmt.format(v * scale)
 
 
-def phase_table(summary: dict) -> str:
+def phase_table(summary: dict, dataset: str | None = None) -> str:
+    """Markdown rows per localizer and ground-truth phase; ``dataset``: that dataset's scopes only."""
+    pre = f"{dataset}/" if dataset else ""
     lines = ["| localizer | phase (ground truth) | frames | availability | pos RMSE mm | pos p95 mm | "
              "pos median % h | rot RMSE deg | yaw median deg | false accepts | ms p50 | ms p95 |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for loc, s in summary.items():
         for scope in ["gt:approaching", "gt:adjustment", "gt:touchdown", "all"]:
-            m = s.get(scope, {})
+            m = s.get(pre + scope, {})
             if not m.get("frames"):
                 continue
             lines.append("| " + " | ".join([
@@ -47,6 +49,11 @@ def write_report(out: Path, results: dict, fes_by_loc: dict, data_root: Path) ->
           f"{results['provenance']['date']}", "", "## Per landing phase", "", phase_table(results["summary"]), "",
           "Position errors are in the pad frame, without alignment. A false accept is an `ok` pose off by more "
           "than 10 % of the height or 5 degrees. Availability is the share of frames with `status=ok`.", ""]
+    datasets = sorted({d for s in results["summary"].values() for d in s.get("datasets", [])})
+    if len(datasets) > 1:
+        md += ["## Per dataset", ""]
+        for d in datasets:
+            md += [f"### `{d}`", "", phase_table(results["summary"], d), ""]
     # error vs height and availability per phase, one figure per localizer
     for loc, fes in fes_by_loc.items():
         fe = M.concat(fes)

@@ -55,6 +55,8 @@ def test_results_schema_and_provenance(smoke):
     assert setup["hierarchical"]["datasets"] == ["tiny"] and setup["aruco_solvepnp"]["datasets"] == ["tiny_aruco"]
     assert r["summary"]["aruco_solvepnp"]["tiny_aruco/all"] == r["summary"]["aruco_solvepnp"]["all"]
     assert r["summary"]["aruco_solvepnp"]["all"]["availability"] > 0.3
+    report = (out / "report.md").read_text()
+    assert "### `tiny_aruco`\n\n| localizer" in report and "| aruco_solvepnp | touchdown |" in report
     csv_head = (out / "results.csv").read_text().splitlines()[0]
     assert csv_head.startswith("localizer,dataset,sequence,frame,t,height_m,phase_gt,phase_est,status")
 
