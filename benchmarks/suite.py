@@ -161,6 +161,8 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
         else:  # one sequence per process; the bar moves when a sequence is done
             import multiprocessing as mp
 
+            lengths = {seq.id: len(seq) for seq in ds}  # longest first: the pool's tail stays short
+            jobs.sort(key=lambda j: -lengths[j[1]])
             with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
                 for n in pool.imap_unordered(_localize_job, jobs):
                     if bar:
