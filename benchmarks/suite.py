@@ -196,7 +196,8 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
         contact = [c for c in contact if c is not None]
         summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None
     results = {"schema": RESULTS_SCHEMA, "suite": suite.name, "suite_sha256": suite_hash,
-               "provenance": provenance(), "workers": workers, "summary": summary, "sequences": per_seq, "timing_s": timing,
+               "provenance": provenance(), "workers": workers, "summary": summary, "sequences": per_seq,
+               "timing_s": timing,
                "localizers": {l.name: c.model_dump() for l, c in configs},
                "localizer_setup": {l.name: {"kind": l.kind, "use_imu": l.use_imu,
                                             "datasets": [s.name for s in specs if runs_on(l, s)]} for l, _ in configs}}
