@@ -41,11 +41,14 @@ def markdown(lb: dict) -> str:
              f"`{p.get('commit')}`{' (dirty tree)' if p.get('dirty') else ''} on {p['machine']['platform']} "
              f"({p['machine']['cpus']} CPUs), {p['date']}.  Errors are in the pad frame, unaligned; a false accept "
              "is an `ok` pose off by > 10 % of height or 5 degrees.  Times are per frame on this shared machine, "
-             f"with {lb.get('workers') or 1} localizer process(es) at once.", "",
+             f"with {lb.get('workers') or 1} localizer process(es) at once.  Ranked by false accepts, then availability.",
+             "",
              *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
              "| localizer | datasets | " + " | ".join(c[2] for c in COLUMNS) + " |",
              "|---|---|" + "---|" * len(COLUMNS)]
-    entries = sorted(lb["entries"], key=lambda e: -(e["summary"]["all"].get("availability") or 0))
+    # ranked by safety first (false accepts), then by availability
+    entries = sorted(lb["entries"], key=lambda e: (e["summary"]["all"].get("false_accepts") or 0,
+                                                   -(e["summary"]["all"].get("availability") or 0)))
     for e in entries:
         lines.append(f"| {e['localizer']} | {', '.join(e['summary'].get('datasets', []))} | "
                      + " | ".join(_cells(e["summary"], "")) + " |")
