@@ -134,9 +134,9 @@ def localize_main(argv: list) -> int:
         from render.dataset import Dataset
 
         variant = next(iter(Dataset(a.dataset))).pad.geometry.get("variant")
-        if variant != "aruco":
-            raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the aruco pad variant, "
-                             f"this one has the {variant!r} pad")
+        if variant not in PAD_VARIANTS[a.localizer]:
+            raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the "
+                             f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
                            kind=a.localizer)
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)

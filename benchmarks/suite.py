@@ -80,7 +80,7 @@ def load_suite(path) -> tuple:
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         raise InputError(f"{path}: datasets: two datasets are named alike ({', '.join(names)}); "
-                         "give one another name with overrides: {{name: ...}}")
+                         "give one another name with overrides: {name: ...}")
     for i, loc in enumerate(suite.localizers):
         configs.append((loc, validate_model(LocalizerConfig, loc.config, f"{path}: localizers.{i}.config")))
         for n in loc.datasets or []:

@@ -108,6 +108,11 @@ def test_bad_suite_exits_2(tmp_path):
         r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
                            capture_output=True, text=True, cwd=REPO)
         assert r.returncode == 2 and says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    s.write_text("name: x\ndatasets: [{spec: data_specs/tiny.yaml}, {spec: data_specs/tiny.yaml, seed: 2}]\n"
+                 "localizers: [{name: h}]\n")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 2 and "overrides: {name: ...}" in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
 
 
