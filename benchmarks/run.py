@@ -46,8 +46,7 @@ def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progre
 
 
 def localize_sequence_many(seq, setups: list, progress=None) -> list:
-    """Several localizers ``[(config, use_imu[, kind]), ...]`` over one sequence, each image read once."""
-    setups = [(s[0], s[1], s[2] if len(s) > 2 else "hierarchical") for s in setups]
+    """Several localizers ``[(config, use_imu, kind), ...]`` over one sequence, each image read once."""
     locs = [make_localizer(kind, seq, cfg) for cfg, _, kind in setups]
     imu = seq.imu
     out = [[] for _ in setups]

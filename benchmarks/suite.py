@@ -124,7 +124,7 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     from render.dataset import Dataset, verify_dataset
     from render.generate import generate
 
-    from .run import localize_sequence_many, read_estimates, write_estimates
+    from .run import read_estimates
 
     suite, specs, configs, suite_hash = load_suite(suite_path)
     out = Path(out)
@@ -150,14 +150,12 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
             from tqdm import tqdm
 
             bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(here)} {spec.name}")
-        setups = [(cfg, loc.use_imu, loc.kind) for loc, cfg in here]
-        jobs = [(str(droot), seq.id, [(c.model_dump(), u, k) for c, u, k in setups],
+        setups = [(cfg.model_dump(), loc.use_imu, loc.kind) for loc, cfg in here]
+        jobs = [(str(droot), seq.id, setups,
                  [str(out / "estimates" / loc.name / droot.name / seq.id) for loc, _ in here]) for seq in ds]
         if workers <= 1 or len(jobs) <= 1:
-            for seq, job in zip(ds, jobs):  # every localizer on each image as it is read
-                ests = localize_sequence_many(seq, setups, progress=bar.update if bar else None)
-                for d, est in zip(job[3], ests):
-                    write_estimates(Path(d), est)
+            for job in jobs:  # every localizer on each image as it is read
+                _localize_job(job, progress=bar.update if bar else None)
         else:  # one sequence per process; the bar moves when a sequence is done
             import multiprocessing as mp
 
@@ -212,18 +210,22 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     return results
 
 
-def _localize_job(job) -> int:
-    """Worker: every setup over one sequence, estimates written; returns the frame count."""
-    import cv2
+def _localize_job(job, progress=None) -> int:
+    """Every setup over one sequence, estimates written; returns the frame count.  Runs in the
+    suite's process, or in a pool worker (then with one OpenCV thread: the pool is the parallelism)."""
+    import multiprocessing as mp
 
     from render.dataset import Dataset
 
     from .run import localize_sequence_many, write_estimates
 
-    cv2.setNumThreads(1)
+    if mp.parent_process() is not None:
+        import cv2
+
+        cv2.setNumThreads(1)
     droot, seq_id, setups, dirs = job
     seq = Dataset(droot)[seq_id]
-    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups])
+    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups], progress)
     for d, est in zip(dirs, ests):
         write_estimates(Path(d), est)
     return len(seq)
