@@ -1,19 +1,18 @@
 """``hvloc bench run|compare``."""
 from __future__ import annotations
 
-import argparse
 import json
 
-from pad_design.errors import InputError
+from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, workers_arg
 
 
 def main(argv: list) -> int:
-    p = argparse.ArgumentParser(prog="hvloc bench", description="Score localizers per landing phase.")
+    p = ArgumentParser(prog="hvloc bench", description="Score localizers per landing phase.")
     sub = p.add_subparsers(dest="action", required=True)
     r = sub.add_parser("run", help="generate/reuse a suite's datasets, localize, score, report")
     r.add_argument("suite", help="suite YAML, or a name in data_specs/suites/")
     r.add_argument("--out", required=True)
-    r.add_argument("--workers", type=int, default=1, help="processes that render, then localize (one sequence each)")
+    r.add_argument("--workers", type=workers_arg, default=1, help="processes that render, then localize (one sequence each)")
     r.add_argument("--quiet", action="store_true")
     w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
     w.add_argument("suite")
@@ -21,7 +20,8 @@ def main(argv: list) -> int:
     w.add_argument("--touchdown-heights", type=float, nargs="+", default=[0.4, 0.7, 1.0, 1.5, 2.0])
     w.add_argument("--max-pos-err-pct", type=float, default=2.0, help="error bound for the recommendation")
     w.add_argument("--out", required=True)
-    w.add_argument("--workers", type=int, default=1)
+    w.add_argument("--workers", type=workers_arg, default=1,
+                   help="processes that render the suite's datasets")
     w.add_argument("--quiet", action="store_true")
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")
@@ -29,6 +29,8 @@ def main(argv: list) -> int:
     a = p.parse_args(argv)
     from .suite import compare, load_results, run_suite
 
+    if a.action in ("run", "sweep"):
+        prepare_out_dir(a.out)
     if a.action == "run":
         res = run_suite(a.suite, a.out, workers=a.workers, show_progress=not a.quiet)
         from .report import phase_table

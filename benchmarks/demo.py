@@ -2,16 +2,17 @@
 the tiny landing sequences, localize them, score per phase, print the table and the report path."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 
 def main(argv: list) -> int:
-    p = argparse.ArgumentParser(prog="hvloc demo", description=__doc__)
+    from pad_design.errors import ArgumentParser, prepare_out_dir
+
+    p = ArgumentParser(prog="hvloc demo", description=__doc__)
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     args = p.parse_args(argv)
-    out = Path(args.out)
+    out = prepare_out_dir(args.out)
     from pad_design import make_pad, write_pad
 
     files = write_pad(make_pad(), out / "pad")

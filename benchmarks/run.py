@@ -5,7 +5,6 @@ localizer package (``hvloc``) may import only ``pad_design`` (DESIGN.md, layout)
 """
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -15,7 +14,7 @@ import numpy as np
 from hvloc.config import LocalizerConfig, load_config
 from hvloc.geometry import tum_from_transform
 from hvloc.localizer import Estimate, HierarchicalLocalizer
-from pad_design.errors import InputError, validate_model
+from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, validate_model
 
 ESTIMATE_COLUMNS = ["frame", "t", "phase", "status", "tx", "ty", "tz", "qx", "qy", "qz", "qw", "ms",
                     "method", "n_corr", "rms_px", "reason"]
@@ -117,7 +116,7 @@ def read_estimates(path) -> dict:
 
 
 def localize_main(argv: list) -> int:
-    p = argparse.ArgumentParser(prog="hvloc localize", description="Run the hierarchical localizer over a dataset.")
+    p = ArgumentParser(prog="hvloc localize", description="Run the hierarchical localizer over a dataset.")
     p.add_argument("dataset")
     p.add_argument("--out", required=True, help="results folder: <seq>/estimates.csv and estimates.tum")
     p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
@@ -132,10 +131,14 @@ def localize_main(argv: list) -> int:
     if a.localizer != "hierarchical":
         from render.dataset import Dataset
 
-        variant = next(iter(Dataset(a.dataset))).pad.geometry.get("variant")
+        ds = Dataset(a.dataset)
+        if len(ds) == 0:
+            raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
+        variant = ds[0].pad.geometry.get("variant")
         if variant not in PAD_VARIANTS[a.localizer]:
             raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the "
                              f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")
+    prepare_out_dir(a.out)
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
                            kind=a.localizer)
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)

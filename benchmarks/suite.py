@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 class DatasetEntry(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     spec: str = Field(description="dataset spec YAML, relative to the suite file or the repository")
     sequences: int | None = Field(None, ge=1)
     seed: int | None = Field(None, ge=0)
@@ -32,7 +32,7 @@ class DatasetEntry(BaseModel):
 
 
 class LocalizerEntry(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     name: str
     kind: Literal[KINDS] = Field("hierarchical", description="hvloc's localizer, or a peer (benchmarks/peers.py)")
     config: dict = Field(default_factory=dict, description="fields of hvloc's LocalizerConfig")
@@ -42,7 +42,7 @@ class LocalizerEntry(BaseModel):
 
 
 class Suite(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     name: str
     datasets: list[DatasetEntry] = Field(min_length=1)
     localizers: list[LocalizerEntry] = Field(min_length=1)

@@ -47,6 +47,10 @@ def main(argv: list | None = None) -> int:
     except InputError as err:
         print(f"hvloc {name}: error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:  # the file system said no (disk full, permissions): one line, not a traceback
+        where = f": {err.filename}" if getattr(err, "filename", None) else ""
+        print(f"hvloc {name}: error: {err.strerror or err}{where}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print(f"hvloc {name}: interrupted", file=sys.stderr)
         return 130

@@ -9,7 +9,7 @@ from pad_design.errors import load_yaml_model
 
 
 class LocalizerConfig(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
     # phase switching (heights above the pad, metres)
     adjust_height_m: float = Field(8.0, gt=0.0, description="below this, finder markers are tried")

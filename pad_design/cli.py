@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import argparse
 
-from .errors import InputError, load_yaml_model, validate_model
+from .errors import ArgumentParser, InputError, load_yaml_model, prepare_out_dir, validate_model
 from .pad import DEFAULT_PPM, make_pad, write_pad
 from .spec import PadSpec
 
 
 def build_parser(prog: str = "hvloc pad") -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description="Design a landing pad.")
+    p = ArgumentParser(prog=prog, description="Design a landing pad.")
     sub = p.add_subparsers(dest="action", required=True)
     mk = sub.add_parser("make", help="write pad.png, pad.json, pad.pdf and pad_a4_tiles.pdf")
     mk.add_argument("--spec", help="pad spec YAML (default: the paper's 0.85 m pad)")
@@ -35,6 +35,7 @@ def main(argv: list) -> int:
         spec = validate_model(PadSpec, {**spec.model_dump(), "variant": args.variant}, "--variant")
     if not 0 < args.ppm <= 20000:
         raise InputError(f"--ppm: {args.ppm} is out of range (0, 20000]")
+    prepare_out_dir(args.out)
     pad = make_pad(spec, args.ppm)
     files = write_pad(pad, args.out, pdf=not args.no_pdf)
     print(f"pad ({spec.variant}, {spec.side_m * 1000:.0f} mm, {pad.ppm:.0f} px/m) written:")

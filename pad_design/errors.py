@@ -5,6 +5,8 @@ CLI front door turns it into one line on stderr and exit code 2.  Nothing else p
 """
 from __future__ import annotations
 
+import argparse
+import os
 from pathlib import Path
 
 import yaml
@@ -46,11 +48,52 @@ def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
     """Read a YAML file into a validated pydantic model; every failure is an :class:`InputError`."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except OSError as err:
         raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (YAML must be UTF-8 text)") from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as err:
         raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    if data is None:
+        raise InputError(f"{path}: the file is empty (write at least one field; every field has a default)")
     return validate_model(model, data, str(path))
+
+
+# ----------------------------------------------------------------------------- command lines
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse with hvloc's error contract: a bad command line is one line on stderr and exit 2
+    (argparse itself prints the usage first; ``--help`` still shows it)."""
+
+    def error(self, message):  # noqa: D401  (argparse's hook)
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def workers_arg(text: str) -> int:
+    """argparse ``type`` for ``--workers``: an integer >= 1, the same on every command."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
+
+
+def prepare_out_dir(path, flag: str = "--out") -> Path:
+    """Create the output folder ``path`` (and its parents), or raise :class:`InputError` saying why
+    it cannot be one: it exists and is not a folder, a parent is a file, no permission, a
+    read-only file system.  Call it before anything is written."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{flag} {p}: exists and is not a folder")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{flag} {p}: cannot create this folder ({err.strerror or err})") from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise InputError(f"{flag} {p}: the folder is not writable")
+    return p

@@ -37,7 +37,7 @@ NATURAL_GROUND_HUES_DEG = (15.0, 170.0)
 class PadSpec(BaseModel):
     """Everything that defines a pad.  Lengths in metres, colours as '#rrggbb' or [r, g, b]."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
     variant: Literal["paper", "nested", "aruco"] = Field(
         "paper", description="paper: three corner finder markers; nested: plus a small set in the centre "

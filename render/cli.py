@@ -1,19 +1,18 @@
 """``hvloc generate`` and ``hvloc dataset verify|show``."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from pad_design.errors import InputError, validate_model
+from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, validate_model, workers_arg
 
 
 def generate_main(argv: list) -> int:
-    p = argparse.ArgumentParser(prog="hvloc generate", description="Render labelled landing sequences.")
+    p = ArgumentParser(prog="hvloc generate", description="Render labelled landing sequences.")
     p.add_argument("spec", help="dataset spec YAML (see data_specs/)")
     p.add_argument("--out", required=True, help="dataset folder (a second run resumes)")
     p.add_argument("--sequences", type=int, help="override the spec's number of sequences")
     p.add_argument("--seed", type=int, help="override the spec's dataset seed")
-    p.add_argument("--workers", type=int, default=1, help="parallel render processes (one OSMesa context each)")
+    p.add_argument("--workers", type=workers_arg, default=1, help="parallel render processes (one OSMesa context each)")
     p.add_argument("--overwrite", action="store_true", help="replace a dataset of another spec in --out")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
@@ -28,8 +27,7 @@ def generate_main(argv: list) -> int:
         over["seed"] = a.seed
     if over:
         spec = validate_model(DatasetSpec, {**spec.model_dump(mode="json"), **over}, "command line")
-    if a.workers < 1:
-        raise InputError("--workers: must be at least 1")
+    prepare_out_dir(a.out)
     res = generate(spec, a.out, workers=a.workers, overwrite=a.overwrite, show_progress=not a.quiet)
     fps = res.frames / res.seconds if res.seconds > 0 else float("nan")
     print(f"{res.root}: {len(res.rendered)} sequence(s) rendered ({res.frames} frames, {res.seconds:.1f} s, "
@@ -38,7 +36,7 @@ def generate_main(argv: list) -> int:
 
 
 def dataset_main(argv: list) -> int:
-    p = argparse.ArgumentParser(prog="hvloc dataset", description="Verify or look at a dataset.")
+    p = ArgumentParser(prog="hvloc dataset", description="Verify or look at a dataset.")
     sub = p.add_subparsers(dest="action", required=True)
     v = sub.add_parser("verify", help="checksums, completeness, label sanity (exit 1 if anything is wrong)")
     v.add_argument("dir")

@@ -39,7 +39,7 @@ IntRange = Annotated[tuple[int, int], AfterValidator(lambda v: tuple(int(x) for 
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
 
 class MountSpec(_Model):
