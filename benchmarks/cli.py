@@ -27,9 +27,10 @@ def main(argv: list) -> int:
     c.add_argument("new", help="results.json (or its folder)")
     c.add_argument("baseline", help="results.json (or its folder)")
     a = p.parse_args(argv)
-    from .suite import compare, load_results, run_suite
+    from .suite import compare, load_results, load_suite, run_suite
 
     if a.action in ("run", "sweep"):
+        load_suite(a.suite)  # a bad suite is refused before anything is written
         prepare_out_dir(a.out)
     if a.action == "run":
         res = run_suite(a.suite, a.out, workers=a.workers, show_progress=not a.quiet)

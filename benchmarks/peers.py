@@ -27,13 +27,13 @@ PHASE = "adjustment"  # it is a marker method: reported in the markers' phase
 class ArucoLocalizer:
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
         geometry = pad.geometry if hasattr(pad, "geometry") else pad
-        markers = [m for m in geometry["markers"] if m.get("kind") == "aruco"]
+        markers = geometry.markers_in(kind="aruco")
         if not markers:
-            raise ValueError(f"the ArUco peer needs the 'aruco' pad variant; this pad is {geometry.get('variant')!r}")
+            raise ValueError(f"the ArUco peer needs the 'aruco' pad variant; this pad is {geometry.variant!r}")
         self.camera = camera
         self.config = config or LocalizerConfig()
-        self.corners_P = {int(m["aruco_id"]): np.asarray(m["squares"][0]["corners"], np.float64) for m in markers}
-        name = geometry["spec"]["aruco_dictionary"]
+        self.corners_P = {m.aruco_id: m.outer_corners for m in markers}
+        name = geometry.spec["aruco_dictionary"]
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
         self.detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params)

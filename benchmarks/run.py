@@ -134,7 +134,7 @@ def localize_main(argv: list) -> int:
         ds = Dataset(a.dataset)
         if len(ds) == 0:
             raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
-        variant = ds[0].pad.geometry.get("variant")
+        variant = ds[0].pad.geometry.variant
         if variant not in PAD_VARIANTS[a.localizer]:
             raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the "
                              f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")

@@ -36,6 +36,8 @@ __all__ = [
     "transform_points",
     "look_at_cam2world",
     "rotation_z",
+    "focal_from_hfov",
+    "continuous_quaternions",
 ]
 
 
@@ -162,6 +164,26 @@ def matrix_from_quat_xyzw(q) -> np.ndarray:
     ])
 
 
+def continuous_quaternions(q_xyzw) -> np.ndarray:
+    """``(N, 4)`` quaternions with each row's sign chosen to stay in the hemisphere of the last
+    finite row before it (``q`` and ``-q`` are one rotation; trajectories and filters want no sign
+    jumps).  Rows with NaN are left as they are."""
+    q = np.array(q_xyzw, dtype=np.float64).reshape(-1, 4)
+    prev = None
+    for k in range(len(q)):
+        if not np.all(np.isfinite(q[k])):
+            continue
+        if prev is not None and float(q[k] @ prev) < 0:
+            q[k] = -q[k]
+        prev = q[k]
+    return q
+
+
+def focal_from_hfov(width: float, hfov_rad: float) -> float:
+    """Focal length in pixels of a pinhole whose horizontal field of view across ``width`` px is ``hfov_rad``."""
+    return (width / 2.0) / math.tan(hfov_rad / 2.0)
+
+
 def transform_from_tum(row) -> np.ndarray:
     """``(tx, ty, tz, qx, qy, qz, qw)`` -> 4x4."""
     r = np.asarray(row, dtype=np.float64).reshape(7)
@@ -216,7 +238,7 @@ class Camera:
     @classmethod
     def from_hfov(cls, width: int, height: int, hfov_rad: float, dist=(0, 0, 0, 0, 0)) -> "Camera":
         """Square pixels, principal point at the image centre, horizontal field of view given."""
-        f = (width / 2.0) / math.tan(hfov_rad / 2.0)
+        f = focal_from_hfov(width, hfov_rad)
         return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0, tuple(dist))
 
     def to_dict(self) -> dict:

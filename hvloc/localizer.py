@@ -148,7 +148,7 @@ class HierarchicalLocalizer:
         self.camera = camera
         self.config = config or LocalizerConfig()
         self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
-        self.outer_P = np.asarray(self.geometry["outer_corners"], np.float64)
+        self.outer_P = self.geometry.outer_corners
         self.reset()
 
     def reset(self) -> None:

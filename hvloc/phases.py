@@ -11,6 +11,8 @@ import numpy as np
 
 from . import markers as mk
 from .features import refine_quad, refine_quads
+from pad_design.geometry import PadGeometry
+
 from .geometry import Camera, invert, rotation_angle, transform_points
 
 
@@ -37,9 +39,9 @@ def _crop(img: np.ndarray, roi):
     return img[y0:y1, x0:x1], x0, y0
 
 
-def _hsv_mask(hsv: np.ndarray, rng: dict) -> np.ndarray:
-    lo, hi = np.array(rng["lo"], float), np.array(rng["hi"], float)
-    if rng.get("hue_wraps"):
+def _hsv_mask(hsv: np.ndarray, rng) -> np.ndarray:
+    lo, hi = rng.lo, rng.hi
+    if rng.hue_wraps:
         a = cv2.inRange(hsv, np.array([lo[0], lo[1], lo[2]]), np.array([180, hi[1], hi[2]]))
         b = cv2.inRange(hsv, np.array([0, lo[1], lo[2]]), np.array([hi[0], hi[1], hi[2]]))
         return a | b
@@ -48,7 +50,7 @@ def _hsv_mask(hsv: np.ndarray, rng: dict) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- Approaching
 
-def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
+def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    yaw_hint_corner0: np.ndarray | None = None, max_scale: int = 8) -> tuple:
     """The pad's outer corners (TL, TR, BR, BL) by colour segmentation.
 
@@ -68,8 +70,8 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     small = img if scale == 1 else cv2.resize(img, (img.shape[1] // scale, img.shape[0] // scale),
                                                 interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
-    border = pad_geometry["border"]["segmentation_hsv"]
-    cue = pad_geometry["cue"]["segmentation_hsv"]
+    border = pad_geometry.border.segmentation_hsv
+    cue = pad_geometry.cue.segmentation_hsv
     mask = _hsv_mask(hsv, border)
     cue_mask = _hsv_mask(hsv, cue)
     # the cue square belongs to the pad: add every cue-coloured blob that touches the border colour
@@ -81,8 +83,8 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
         cue_part = np.zeros_like(mask)
     full = cv2.morphologyEx(mask | cue_part, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    side = pad_geometry["side_m"]
-    field_side = pad_geometry["field_side_m"]
+    side = pad_geometry.side_m
+    field_side = pad_geometry.field_side_m
     ring_share = 1.0 - (field_side / side) ** 2  # expected border share of the pad's area
     best, best_score = None, -1.0
     for c in contours:
@@ -127,7 +129,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     # only a few pixels, and a downscaled copy blends it away)
     quad_full = (quad + 0.5) * scale - 0.5
     centre = quad_full.mean(axis=0)
-    b_share = pad_geometry["border_m"] / side
+    b_share = pad_geometry.border_m / side
     yellow = []
     for q in quad_full:
         p = q + (centre - q) * b_share  # middle of the border corner square (diagonal inset)
@@ -156,7 +158,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
     quad = quad_full[order] + [x0, y0]
     # sub-pixel: edges on a channel linear in the colours, where the border is bright
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
-    band_px = side_px * pad_geometry["border"]["solid_band_m"] / side
+    band_px = side_px * pad_geometry.border.solid_band_m / side
     hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
     # only the quad's neighbourhood is converted (a full 1080p frame costs milliseconds)
     bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
@@ -173,7 +175,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: dict, camera: Camera | None = 
         refined = refined + [bx0, by0]
     if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
         refined = quad
-    pts = np.asarray(pad_geometry["outer_corners"], float)
+    pts = pad_geometry.outer_corners
     return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": side_px, "line_rms": res}), "ok"
 
 
@@ -201,7 +203,7 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 
 # ----------------------------------------------------------------------------- Adjustment
 
-def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None = None, roi=None,
+def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    method: str = "otsu", rgb: np.ndarray | None = None) -> tuple:
     """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
@@ -220,10 +222,9 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
     if not triples:
         return None, f"{len(nests)} finder nests, no marker layout"
     sets = {}
-    for m in pad_geometry["markers"]:
-        if m["kind"] == "finder":
-            sets.setdefault(m["set"], {})[m["name"]] = m
-    expect = {s: ms["Top"]["size_m"] / (2 * abs(ms["Top"]["center"][0])) for s, ms in sets.items() if "Top" in ms}
+    for m in pad_geometry.markers_in(kind="finder"):
+        sets.setdefault(m.set, {})[m.name] = m
+    expect = {s: ms["Top"].size_m / (2 * abs(ms["Top"].center[0])) for s, ms in sets.items() if "Top" in ms}
     pts_P, px = [], []
     used = []
     g = img.astype(np.float32)
@@ -239,7 +240,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
             quad = _contour_quad(nest.outline)
             if quad is None:
                 break
-            corners = np.asarray(ms[name]["squares"][0]["corners"], float)[:, :2]
+            corners = ms[name].outer_corners[:, :2]
             quad = _order_like(quad, corners, t)
             src.append(corners)
             dst.append(quad)
@@ -250,7 +251,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
             continue
         module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
         hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
-        squares = [np.asarray(sq["corners"], float) for name in ("Top", "Right", "Bottom") for sq in ms[name]["squares"]]
+        squares = [sq.corners for name in ("Top", "Right", "Bottom") for sq in ms[name].squares]
         guesses = np.stack([cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :] for P in squares])
         refined, _ = refine_quads(g, guesses, hw, camera=_shifted(camera, x0, y0))
         for P, guess, ref in zip(squares, guesses, refined):
@@ -262,7 +263,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
         if rgb is not None and set_name == "corner":
             outer = _refine_outline_from(rgb, pad_geometry, H, x0, y0, camera)
             if outer is not None:
-                pts_P.append(np.asarray(pad_geometry["outer_corners"], float))
+                pts_P.append(pad_geometry.outer_corners)
                 px.append(outer)
     if not pts_P:
         return None, "markers found but no corner refined"
@@ -271,13 +272,13 @@ def detect_markers(gray: np.ndarray, pad_geometry: dict, camera: Camera | None =
 
 def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
     """The pad's outer corners predicted by a marker homography and refined on the border channel."""
-    P = np.asarray(pad_geometry["outer_corners"], float)
+    P = pad_geometry.outer_corners
     guess = cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H_pad_to_roi)[:, 0, :] + [x0, y0]
     h, w = rgb.shape[:2]
     if guess.min() < 4 or guess[:, 0].max() > w - 5 or guess[:, 1].max() > h - 5:
         return None
     side_px = float(np.mean(np.linalg.norm(np.roll(guess, -1, axis=0) - guess, axis=1)))
-    hw = float(np.clip(side_px * pad_geometry["border"]["solid_band_m"] / pad_geometry["side_m"] * 0.9, 1.0, 3.0))
+    hw = float(np.clip(side_px * pad_geometry.border.solid_band_m / pad_geometry.side_m * 0.9, 1.0, 3.0))
     bx0, by0 = np.maximum(np.floor(guess.min(axis=0) - 6), 0).astype(int)
     bx1, by1 = np.ceil(guess.max(axis=0) + 7).astype(int)
     f = rgb[by0:by1, bx0:bx1]

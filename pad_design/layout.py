@@ -7,10 +7,10 @@ which is also OpenCV ArUco's corner order and the ``c0..c3`` order of ``frames.c
 """
 from __future__ import annotations
 
+from .geometry import MARKER_NAMES, PadGeometry
 from .spec import PadSpec, hsv_of
 
 PAD_JSON_VERSION = 1
-MARKER_NAMES = ("Top", "Right", "Bottom")
 # Where each marker sits, as (sign x, sign y): Top is the right-angle corner (top-left as printed).
 MARKER_SIGNS = {"Top": (-1, 1), "Right": (1, 1), "Bottom": (-1, -1)}
 # A finder marker's nested squares, as (name, side in modules, colour inside the square).
@@ -56,8 +56,8 @@ def segmentation_range(rgb, hue_halfwidth_deg: float = 20.0, s_min: float = 0.45
             "hi": [round(hi_h, 2), 255, 255], "hue_wraps": bool(lo_h > hi_h)}
 
 
-def build_geometry(spec: PadSpec) -> dict:
-    """The pad's features in the pad frame, as the ``pad.json`` document (without texture info)."""
+def build_geometry(spec: PadSpec) -> PadGeometry:
+    """The pad's features in the pad frame (the ``pad.json`` document, without texture info, validated)."""
     h = spec.side_m / 2.0
     f = h - spec.border_m
     size = spec.marker_size_m
@@ -78,7 +78,7 @@ def build_geometry(spec: PadSpec) -> dict:
            "segmentation_hsv": segmentation_range(spec.cue_color, 20.0, 0.45, 0.25),
            "note": "The bottom-right border square (the corner without a marker) has the cue colour; "
                    "the other three border corners have the border colour, so the outline alone tells yaw."}
-    return {
+    return PadGeometry.from_document({
         "version": PAD_JSON_VERSION,
         "frame": "P: origin at pad centre on its surface, x to the right edge, y to the top edge, z up; metres",
         "corner_order": "TL, TR, BR, BL as printed: (-x,+y), (+x,+y), (+x,-y), (-x,-y)",
@@ -95,4 +95,4 @@ def build_geometry(spec: PadSpec) -> dict:
         "cue": cue,
         "markers": markers,
         "spec": spec.to_jsonable(),
-    }
+    }, "pad layout")

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError, validate_model
+from .geometry import PadGeometry
 from .layout import build_geometry
 from .spec import PadSpec
 from .texture import pad_to_pixels, render_texture
@@ -30,42 +31,38 @@ def texture_sha256(rgb: np.ndarray) -> str:
 
 @dataclass
 class Pad:
-    """A landing pad: ``geometry`` is the ``pad.json`` document; ``texture_rgb`` is ``(n, n, 3)`` uint8."""
+    """A landing pad: its spec, its validated geometry and its texture ``(n, n, 3)`` uint8 RGB."""
 
     spec: PadSpec
-    geometry: dict
+    geometry: PadGeometry
     texture_rgb: np.ndarray = field(repr=False)
     ppm: float
 
     # -- features, as float64 arrays in the pad frame (metres)
     @property
     def side_m(self) -> float:
-        return float(self.geometry["side_m"])
+        return self.geometry.side_m
 
     @property
     def outer_corners_P(self) -> np.ndarray:
         """``(4, 3)``: TL, TR, BR, BL."""
-        return np.asarray(self.geometry["outer_corners"], np.float64)
+        return self.geometry.outer_corners
 
     def markers(self, set_name: str | None = None, kind: str | None = None) -> list:
-        return [m for m in self.geometry["markers"]
-                if (set_name is None or m["set"] == set_name) and (kind is None or m["kind"] == kind)]
+        return self.geometry.markers_in(set_name, kind)
 
     def marker_points_P(self, name: str, set_name: str = "corner") -> np.ndarray:
         """``(4 * n_squares, 3)`` corners of one marker's nested squares, square by square."""
-        for m in self.markers(set_name):
-            if m["name"] == name:
-                return np.asarray([c for sq in m["squares"] for c in sq["corners"]], np.float64)
-        raise KeyError(f"no marker {name!r} in set {set_name!r}")
+        return self.geometry.marker(name, set_name).points
 
     def to_texture_px(self, points_P) -> np.ndarray:
         return pad_to_pixels(np.asarray(points_P, np.float64)[:, :2], self.side_m, self.ppm)
 
     # -- io
-    def document(self) -> dict:
-        """``pad.json``: geometry plus the texture's resolution and hash."""
-        doc = dict(self.geometry)
-        doc["texture"] = {"file": "pad.png", "ppm": self.ppm, "width_px": int(self.texture_rgb.shape[1]),
+    def document(self, texture_file: str = "pad.png") -> dict:
+        """``pad.json``: geometry plus the texture's file (relative to pad.json), resolution and hash."""
+        doc = self.geometry.to_document()
+        doc["texture"] = {"file": texture_file, "ppm": self.ppm, "width_px": int(self.texture_rgb.shape[1]),
                           "height_px": int(self.texture_rgb.shape[0]),
                           "pixel_convention": "OpenCV: centre of the top-left pixel at (0,0); pixel (j, i) "
                                               "centre at x = (j+0.5)/ppm - side/2, y = side/2 - (i+0.5)/ppm",
@@ -74,27 +71,33 @@ class Pad:
 
     @classmethod
     def load(cls, pad_json) -> "Pad":
-        """Load ``pad.json``; the texture comes from ``pad.png`` beside it, else is re-made from the spec."""
+        """Load ``pad.json`` and the texture it names (``texture.file``, relative to pad.json).
+
+        The texture is read, never re-rasterised: a pad must look exactly as it did when its
+        images were made, whatever OpenCV draws today.  Its pixels must match the hash."""
         path = Path(pad_json)
         try:
             doc = json.loads(path.read_text())
         except (OSError, ValueError) as err:
             raise InputError(f"{path}: cannot read pad.json ({err})") from None
+        if not isinstance(doc, dict):
+            raise InputError(f"{path}: not a pad.json document")
         spec = validate_model(PadSpec, doc.get("spec"), f"{path}: spec")
-        tex_info = doc.get("texture", {})
-        ppm = float(tex_info.get("ppm", DEFAULT_PPM))
-        png = path.with_name(tex_info.get("file", "pad.png"))
-        rgb = None
-        if png.exists():
-            bgr = cv2.imread(str(png), cv2.IMREAD_COLOR)
-            if bgr is not None:
-                rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-        if rgb is None:
-            rgb = render_texture(spec, build_geometry(spec), ppm)
+        geometry = PadGeometry.from_document(doc, str(path))
+        tex_info = doc.get("texture")
+        if not isinstance(tex_info, dict) or not isinstance(tex_info.get("file"), str):
+            raise InputError(f"{path}: texture.file: missing (which image is this pad's texture?)")
+        png = (path.parent / tex_info["file"]).resolve()
+        bgr = cv2.imread(str(png), cv2.IMREAD_COLOR) if png.is_file() else None
+        if bgr is None:
+            raise InputError(f"{path}: its texture {tex_info['file']} is missing or not a readable image")
+        rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
         if "sha256" in tex_info and texture_sha256(rgb) != tex_info["sha256"]:
             raise InputError(f"{png}: texture does not match the sha256 in {path.name}")
-        geometry = {k: v for k, v in doc.items() if k != "texture"}
-        return cls(spec, geometry, rgb, ppm)
+        ppm = tex_info.get("ppm", rgb.shape[1] / geometry.side_m)
+        if isinstance(ppm, bool) or not isinstance(ppm, (int, float)) or not ppm > 0:
+            raise InputError(f"{path}: texture.ppm: expected a positive number, got {ppm!r}")
+        return cls(spec, geometry, rgb, float(ppm))
 
 
 def make_pad(spec: PadSpec | dict | None = None, ppm: float = DEFAULT_PPM) -> Pad:

@@ -15,6 +15,7 @@ import math
 import cv2
 import numpy as np
 
+from .geometry import Marker, PadGeometry
 from .spec import PadSpec
 
 WHITE = (255.0, 255.0, 255.0)
@@ -64,14 +65,14 @@ class _Canvas:
         self.img += a * np.asarray(color, np.float32)
 
 
-def _random_texture_alpha(spec: PadSpec, geometry: dict, canvas: _Canvas) -> np.ndarray:
+def _random_texture_alpha(spec: PadSpec, geometry: PadGeometry, canvas: _Canvas) -> np.ndarray:
     """Coverage (0-1) of the black field texture, on the canvas grid."""
     ss = TEXTURE_SUPERSAMPLE
     n = canvas.n * ss
     sppm = canvas.ppm * ss
     h = canvas.h
     rng = np.random.default_rng(spec.texture_seed)
-    f = geometry["field_side_m"] / 2.0
+    f = geometry.field_side_m / 2.0
     margin = spec.texture_min_feature_m
 
     def to_px(x, y):
@@ -80,9 +81,9 @@ def _random_texture_alpha(spec: PadSpec, geometry: dict, canvas: _Canvas) -> np.
     allowed = np.zeros((n, n), np.uint8)
     lo_px, hi_px = int(round((h - f + margin) * sppm)), int(round((h + f - margin) * sppm))
     allowed[lo_px:hi_px, lo_px:hi_px] = 1
-    for m in geometry["markers"]:
-        cx, cy = m["center"][:2]
-        half = m["size_m"] / 2 + m["quiet_zone_m"]
+    for m in geometry.markers:
+        cx, cy = m.center[:2]
+        half = m.size_m / 2 + m.quiet_zone_m
         (u0, v0), (u1, v1) = to_px(cx - half, cy + half), to_px(cx + half, cy - half)
         allowed[max(int(math.floor(v0)), 0):int(math.ceil(v1)), max(int(math.floor(u0)), 0):int(math.ceil(u1))] = 0
 
@@ -119,21 +120,21 @@ def _random_texture_alpha(spec: PadSpec, geometry: dict, canvas: _Canvas) -> np.
     return cv2.resize(mask.astype(np.float32) / 255.0, (canvas.n, canvas.n), interpolation=cv2.INTER_AREA)
 
 
-def _paint_finder(canvas: _Canvas, marker: dict) -> None:
-    cx, cy = marker["center"][:2]
-    canvas.square(cx, cy, marker["size_m"] + 2 * marker["quiet_zone_m"], WHITE)
-    for sq in marker["squares"]:
-        canvas.square(cx, cy, sq["side_m"], BLACK if sq["color_inside"] == "black" else WHITE)
+def _paint_finder(canvas: _Canvas, marker: Marker) -> None:
+    cx, cy = marker.center[:2]
+    canvas.square(cx, cy, marker.size_m + 2 * marker.quiet_zone_m, WHITE)
+    for sq in marker.squares:
+        canvas.square(cx, cy, sq.side_m, BLACK if sq.color_inside == "black" else WHITE)
 
 
-def _paint_aruco(canvas: _Canvas, marker: dict, dictionary: str) -> None:
+def _paint_aruco(canvas: _Canvas, marker: Marker, dictionary: str) -> None:
     d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
     nbits = d.markerSize + 2
-    bits = cv2.aruco.generateImageMarker(d, marker["aruco_id"], nbits, borderBits=1)
-    cx, cy = marker["center"][:2]
-    size = marker["size_m"]
+    bits = cv2.aruco.generateImageMarker(d, marker.aruco_id, nbits, borderBits=1)
+    cx, cy = marker.center[:2]
+    size = marker.size_m
     mod = size / nbits
-    canvas.square(cx, cy, size + 2 * marker["quiet_zone_m"], WHITE)
+    canvas.square(cx, cy, size + 2 * marker.quiet_zone_m, WHITE)
     canvas.square(cx, cy, size, BLACK)
     x0, y1 = cx - size / 2, cy + size / 2
     for r in range(nbits):
@@ -156,20 +157,20 @@ def _subtract(a, b) -> list:
     return [r for r in out if r[0] < r[2] and r[1] < r[3]]
 
 
-def render_texture(spec: PadSpec, geometry: dict, ppm: float) -> np.ndarray:
+def render_texture(spec: PadSpec, geometry: PadGeometry, ppm: float) -> np.ndarray:
     """The pad as an ``(n, n, 3)`` uint8 RGB image, ``n = round(side * ppm)``."""
     if not ppm > 0:
         raise ValueError(f"ppm must be positive, got {ppm}")
     cv = _Canvas(spec.side_m, ppm)
     h, b = cv.h, spec.border_m
-    border = geometry["border"]
-    light, dark = border["color_rgb"], border["dark_color_rgb"]
+    border = geometry.border
+    light, dark = border.color_rgb, border.dark_color_rgb
     cv.rect(-h, -h, h, h, light)
     cue = (h - b, -h, h, -h + b)  # the bottom-right border square
     cue_dark = [round(c * spec.border_dark_factor) for c in spec.cue_color]
     cv.rect(*cue, spec.cue_color)
     # checker in the inner three quarters of the border (and cue square); the outer band stays solid
-    band, cell = border["solid_band_m"], border["checker_m"]
+    band, cell = border.solid_band_m, border.checker_m
     inner = h - band
     ncell = int(math.floor((2 * inner) / cell + 1e-9))
     start = -ncell * cell / 2.0
@@ -190,8 +191,8 @@ def render_texture(spec: PadSpec, geometry: dict, ppm: float) -> np.ndarray:
                 cv.rect(*inside, cue_dark)
     cv.rect(-f, -f, f, f, WHITE)
     cv.blend(_random_texture_alpha(spec, geometry, cv), BLACK)
-    for m in geometry["markers"]:
-        if m["kind"] == "finder":
+    for m in geometry.markers:
+        if m.kind == "finder":
             _paint_finder(cv, m)
         else:
             _paint_aruco(cv, m, spec.aruco_dictionary)

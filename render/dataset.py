@@ -1,9 +1,14 @@
 """The dataset on disk (DESIGN.md, "Dataset on disk"): writer and reader side by side.
 
-Atomicity: a sequence is rendered into ``.tmp-<id>/`` and renamed to ``<id>/`` only when every
-file is written and checksummed; ``manifest.json`` is replaced atomically after each sequence.
-An interrupted run therefore leaves only ``.tmp-*`` folders, which no reader or ``verify``
-accepts and which the next run deletes and redoes.
+Ownership: one process writes a dataset folder at a time (:class:`FolderLock`, an advisory lock
+held for the whole run).  Atomicity: a sequence is written into ``.tmp-<id>/`` and renamed to
+``<id>/`` only when every file is written and checksummed; ``manifest.json`` is replaced
+atomically after each sequence.  An interrupted run leaves only ``.tmp-*`` folders, which no
+reader or ``verify`` accepts and which the next run deletes and redoes.
+
+Integrity: every file of the dataset is listed in the manifest with its SHA-256.  ``verify``
+reports any file that is missing, differs or is not listed; readers asked to verify check the
+checksums of what they read and refuse a dataset that differs.
 """
 from __future__ import annotations
 
@@ -13,6 +18,7 @@ import json
 import math
 import os
 import platform
+import re
 import shutil
 import sys
 from dataclasses import dataclass
@@ -24,15 +30,50 @@ import numpy as np
 from hvloc.geometry import Camera, transform_from_tum
 from pad_design.errors import InputError
 
+from .plan import sequence_seed  # noqa: F401  (re-exported: the seed rule belongs to the format)
+
 FORMAT = "hvloc-dataset"
-FORMAT_VERSION = 1
-FRAME_COLUMNS = ["frame", "t", "image", "tx", "ty", "tz", "qx", "qy", "qz", "qw", "height_above_pad", "phase_gt",
-                 "pad_fully_visible", "markers_visible", "module_px", "blur_px",
-                 "c0u", "c0v", "c1u", "c1v", "c2u", "c2v", "c3u", "c3v"]
+FORMAT_VERSION = 2
+POSE = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+LOCK_NAME = ".hvloc.lock"
 SEQUENCE_FILES = ("frames.csv", "groundtruth.tum", "imu.csv", "camera.json", "pad.json", "meta.json")
+PAD_TEXTURE = "pad.png"  # at the dataset's root: one copy per dataset, named by every pad.json
+
+# frames.csv: every column and what it holds (the README's table is made from this)
+COLUMN_DOCS = {
+    "frame": "frame index k (0, 1, ...)",
+    "t": "time of the frame, s from the start of the sequence (k / fps)",
+    "image": "image path relative to the sequence folder",
+    **{c: f"camera pose in the pad frame T_P_C: {'translation (m)' if c[1] != 'q' else 'quaternion'} {c}"
+       for c in POSE},
+    "height_above_pad": "camera height above the pad plane (m): tz",
+    "phase_gt": "ground-truth phase (approaching, adjustment, touchdown) by the rule of render/phase.py",
+    "pad_fully_visible": "1 if the whole pad (outline and area) is in the image and hidden by nothing",
+    "markers_visible": "how many of the three corner markers are wholly in the image and hidden by nothing",
+    "module_px": "smallest module (px) of the visible corner markers (0 if none)",
+    "blur_px": "largest image motion of a pad corner over the exposure (px, ideal pinhole)",
+    "blur_subframes": "samples over the exposure used for this frame's motion blur (1: none)",
+    **{f"c{i}{a}": f"pixel {a} of the pad's outer corner {i} (TL, TR, BR, BL); NaN when outside the image"
+       for i in range(4) for a in "uv"},
+    **{f"c{i}_visible": f"1 if outer corner {i} is in the image and hidden by nothing" for i in range(4)},
+    **{f"marker_{n}_visible": f"1 if the {n.capitalize()} corner marker is wholly in the image and hidden by nothing"
+       for n in ("top", "right", "bottom")},
+    "pad_visible_fraction": "share of the pad's area that is in the image and hidden by nothing",
+    **{f"pad2world_{c}": f"pad pose in the world T_W_P (ENU): {c}" for c in POSE},
+    **{f"body2world_{c}": f"body pose in the world T_W_B (FLU body, ENU world): {c}" for c in POSE},
+    **{f"body_vel_{c}": f"body velocity in the world frame (m/s): {c}" for c in "xyz"},
+    **{f"pad_vel_{c}": f"pad (platform) velocity in the world frame (m/s): {c}" for c in "xyz"},
+}
+FRAME_COLUMNS = list(COLUMN_DOCS)
+TEXT_COLUMNS = ("image", "phase_gt")
+PHASES = ("approaching", "adjustment", "touchdown")
 
 
 # ----------------------------------------------------------------------------- small io helpers
+
+def sha256_bytes(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
 
 def sha256_file(path) -> str:
     h = hashlib.sha256()
@@ -53,9 +94,7 @@ def sequence_id(index: int) -> str:
     return f"seq_{index:04d}"
 
 
-def sequence_seed(dataset_seed: int, index: int) -> int:
-    """Per-sequence seed derived from the dataset seed and the index alone (regenerable alone)."""
-    return int(np.random.SeedSequence([int(dataset_seed), int(index)]).generate_state(1, np.uint64)[0] % (2**63))
+SEQUENCE_ID = re.compile(r"^seq_\d{4,}$")
 
 
 def package_versions() -> dict:
@@ -80,28 +119,53 @@ def _fmt(v) -> str:
 
 
 def write_csv(path, columns, rows) -> None:
+    """``rows``: sequences in ``columns`` order, or dicts keyed by column."""
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(columns)
         for r in rows:
-            w.writerow([_fmt(v) for v in r])
+            w.writerow([_fmt(r[c]) for c in columns] if isinstance(r, dict) else [_fmt(v) for v in r])
 
 
-def read_csv_columns(path) -> dict:
-    """CSV -> {column: numpy array} (numbers as float64, others as str)."""
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
+def read_csv_columns(path, text_columns=None) -> dict:
+    """CSV -> {column: numpy array}.  With ``text_columns`` every other column must be numeric
+    (float64; ``nan`` allowed) and a value that is not is an :class:`InputError` naming it; without,
+    a column is numeric when every value parses."""
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise InputError(f"{path}: cannot read CSV ({err})") from None
     if not rows:
         raise InputError(f"{path}: empty CSV")
     head, body = rows[0], rows[1:]
+    if len(set(head)) != len(head):
+        raise InputError(f"{path}: repeated column names")
+    for i, r in enumerate(body):
+        if len(r) != len(head):
+            raise InputError(f"{path}: row {i + 2} has {len(r)} values, the header {len(head)}")
     cols = {}
     for i, name in enumerate(head):
-        vals = [r[i] if i < len(r) else "" for r in body]
+        vals = [r[i] for r in body]
+        if text_columns is not None and name in text_columns:
+            cols[name] = np.array(vals, dtype=object)
+            continue
         try:
             cols[name] = np.array([float(v) for v in vals], np.float64)
         except ValueError:
+            if text_columns is not None:
+                bad = next(v for v in vals if not _is_float(v))
+                raise InputError(f"{path}: column {name!r} holds {bad!r}, not a number") from None
             cols[name] = np.array(vals, dtype=object)
     return cols
+
+
+def _is_float(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
 
 
 def write_tum(path, t, poses7, header: str) -> None:
@@ -113,37 +177,131 @@ def write_tum(path, t, poses7, header: str) -> None:
 
 def read_tum(path) -> np.ndarray:
     """``(N, 8)``: t tx ty tz qx qy qz qw."""
-    rows = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
-    arr = np.array(rows, dtype=np.float64) if rows else np.zeros((0, 8))
-    if arr.ndim != 2 or arr.shape[1] != 8:
+    try:
+        lines = Path(path).read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: cannot read ({err})") from None
+    rows = [ln.split() for ln in lines if ln.strip() and not ln.startswith("#")]
+    if any(len(r) != 8 for r in rows):
         raise InputError(f"{path}: TUM rows need 8 values (t tx ty tz qx qy qz qw)")
-    return arr
+    try:
+        return np.array(rows, dtype=np.float64) if rows else np.zeros((0, 8))
+    except ValueError:
+        raise InputError(f"{path}: TUM rows must be numbers") from None
 
 
-def write_image(path, rgb: np.ndarray) -> None:
-    if not cv2.imwrite(str(path), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1]):
-        raise OSError(f"could not write {path}")
+def encode_png(rgb: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:
+        raise OSError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def write_image(path, rgb: np.ndarray) -> str:
+    """Write a PNG; returns the SHA-256 of the bytes written."""
+    data = encode_png(rgb)
+    Path(path).write_bytes(data)
+    return sha256_bytes(data)
+
+
+def decode_image(data: bytes, name) -> np.ndarray:
+    bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) if data else None
+    if bgr is None:
+        raise InputError(f"{name}: not a readable image")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def read_image(path) -> np.ndarray:
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if bgr is None:
-        raise InputError(f"{path}: not a readable image")
-    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    try:
+        data = Path(path).read_bytes()
+    except OSError as err:
+        raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
+    return decode_image(data, path)
+
+
+# ----------------------------------------------------------------------------- one writer at a time
+
+class FolderLock:
+    """An advisory lock on a folder (``<folder>/.hvloc.lock``) held from ``__enter__`` to ``__exit__``
+    (or the process's end, however it ends: the kernel drops it).  A second writer is refused
+    with an :class:`InputError` naming the holder."""
+
+    def __init__(self, folder, what: str = "writing"):
+        self.folder = Path(folder)
+        self.what = what
+        self._fd = None
+
+    def __enter__(self):
+        import fcntl
+
+        self.folder.mkdir(parents=True, exist_ok=True)
+        path = self.folder / LOCK_NAME
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise InputError(f"{self.folder}: another hvloc process (pid {holder}) is {self.what} this folder; "
+                             "wait for it or choose another --out") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._fd = fd
+        return self
+
+    def __exit__(self, *exc):
+        import fcntl
+
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+        return False
 
 
 # ----------------------------------------------------------------------------- manifest
 
+def manifest_problems(m) -> list:
+    """What is wrong with a manifest's structure (empty: it can be read)."""
+    if not isinstance(m, dict):
+        return ["manifest.json: not a JSON object"]
+    out = []
+    if m.get("format") != FORMAT:
+        return ["manifest.json: not an hvloc dataset manifest (format)"]
+    if m.get("version") != FORMAT_VERSION:
+        return [f"manifest.json: format version {m.get('version')!r}; this hvloc reads version {FORMAT_VERSION} "
+                "(regenerate the dataset from its spec)"]
+    seqs = m.get("sequences")
+    if not isinstance(seqs, list) or not all(isinstance(s, dict) and isinstance(s.get("id"), str)
+                                             and SEQUENCE_ID.match(s["id"]) and isinstance(s.get("index"), int)
+                                             for s in seqs):
+        out.append("manifest.json: sequences must be a list of {id: seq_NNNN, index: int, ...}")
+    elif len({s["id"] for s in seqs}) != len(seqs):
+        out.append("manifest.json: a sequence is listed twice")
+    files = m.get("files")
+    if not isinstance(files, dict) or not all(isinstance(k, str) and isinstance(v, str) and re.fullmatch(r"[0-9a-f]{64}", v)
+                                              for k, v in files.items()):
+        out.append("manifest.json: files must map each path to its SHA-256")
+    elif any(k.startswith("/") or ".." in Path(k).parts for k in files):
+        out.append("manifest.json: files must be paths inside the dataset")
+    planned = m.get("sequences_planned")
+    if not isinstance(planned, int) or isinstance(planned, bool) or planned < 0:
+        out.append("manifest.json: sequences_planned must be a non-negative integer")
+    return out
+
+
 def load_manifest(root) -> dict | None:
+    """The manifest of ``root`` (``None`` if there is none); an :class:`InputError` if it cannot be used."""
     p = Path(root) / "manifest.json"
     if not p.exists():
         return None
     try:
         m = json.loads(p.read_text())
-    except ValueError as err:
+    except (ValueError, OSError, UnicodeDecodeError) as err:
         raise InputError(f"{p}: not valid JSON ({err})") from None
-    if m.get("format") != FORMAT:
-        raise InputError(f"{p}: not an hvloc dataset manifest")
+    problems = manifest_problems(m)
+    if problems:
+        raise InputError(f"{root}: {problems[0]}")
     return m
 
 
@@ -160,20 +318,65 @@ def save_manifest(root, manifest: dict) -> None:
     atomic_write_text(Path(root) / "manifest.json", json.dumps(manifest, indent=1, sort_keys=False) + "\n")
 
 
-def finalize_sequence(tmp_dir: Path, final_dir: Path, meta: dict) -> dict:
-    """Checksum every file, write meta.json, and rename the folder into place.  Returns files."""
-    files = {}
-    for p in sorted(tmp_dir.rglob("*")):
-        if p.is_file() and p.name != "meta.json":
-            files[p.relative_to(tmp_dir).as_posix()] = sha256_file(p)
-    meta = dict(meta)
-    meta["files"] = files
-    (tmp_dir / "meta.json").write_text(json.dumps(meta, indent=1) + "\n")
-    files["meta.json"] = sha256_file(tmp_dir / "meta.json")
+def sequence_files(manifest: dict, sid: str) -> dict:
+    """``{path inside the sequence: sha256}`` of one listed sequence."""
+    pre = sid + "/"
+    return {k[len(pre):]: v for k, v in manifest["files"].items() if k.startswith(pre)}
+
+
+def files_differing(root: Path, files: dict) -> list:
+    """Paths (relative to ``root``) of ``files`` that are missing or whose checksum differs."""
+    return [rel for rel, digest in files.items() if not (root / rel).is_file() or sha256_file(root / rel) != digest]
+
+
+# ----------------------------------------------------------------------------- writer
+
+class SequenceWriter:
+    """Writes one sequence into a temporary folder; the renderer hands it named layers, and this
+    alone decides what goes to disk (images are encoded on a background thread)."""
+
+    def __init__(self, tmp_dir: Path):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.dir = Path(tmp_dir)
+        if self.dir.exists():
+            shutil.rmtree(self.dir)
+        (self.dir / "images").mkdir(parents=True)
+        self.rows: list = []
+        self._pool = ThreadPoolExecutor(max_workers=1)  # PNG encoding overlaps rendering (OpenCV drops the GIL)
+        self._writes: dict = {}
+
+    def add(self, layers) -> None:
+        row = layers.labels
+        self.rows.append(row)
+        self._writes[row["image"]] = self._pool.submit(write_image, self.dir / row["image"], layers.rgb)
+
+    def close(self, *, camera_info: dict, pad_document: dict, imu_columns, imu_rows, meta: dict) -> dict:
+        """Write the label files and meta.json; returns ``{path: sha256}`` of every file."""
+        try:
+            files = {rel: w.result() for rel, w in self._writes.items()}  # re-raises any write error
+        finally:
+            self._pool.shutdown(wait=True)
+        rows = sorted(self.rows, key=lambda r: r["frame"])
+        write_csv(self.dir / "frames.csv", FRAME_COLUMNS, rows)
+        write_tum(self.dir / "groundtruth.tum", [r["t"] for r in rows], [[r[c] for c in POSE] for r in rows],
+                  "t tx ty tz qx qy qz qw  (T_P_C: camera pose in the pad frame)")
+        write_csv(self.dir / "imu.csv", imu_columns, imu_rows)
+        (self.dir / "camera.json").write_text(json.dumps(camera_info, indent=1) + "\n")
+        (self.dir / "pad.json").write_text(json.dumps(pad_document, indent=1) + "\n")
+        for name in ("frames.csv", "groundtruth.tum", "imu.csv", "camera.json", "pad.json"):
+            files[name] = sha256_file(self.dir / name)
+        meta = dict(meta, files=dict(sorted(files.items())))
+        (self.dir / "meta.json").write_text(json.dumps(meta, indent=1) + "\n")
+        files["meta.json"] = sha256_file(self.dir / "meta.json")
+        return dict(sorted(files.items()))
+
+
+def finalize_sequence(tmp_dir: Path, final_dir: Path) -> None:
+    """Move a completely written sequence into place (replacing any leftover of the same id)."""
     if final_dir.exists():
         shutil.rmtree(final_dir)
     os.replace(tmp_dir, final_dir)
-    return files
 
 
 # ----------------------------------------------------------------------------- reader
@@ -188,7 +391,8 @@ class Frame:
     height_above_pad: float
     pad_fully_visible: bool
     markers_visible: int
-    corners_px: np.ndarray  # (4, 2), NaN where out of view
+    corners_px: np.ndarray       # (4, 2), NaN where out of view
+    corners_visible: np.ndarray  # (4,) bool: in view and hidden by nothing
 
     @property
     def rgb(self) -> np.ndarray:
@@ -196,21 +400,37 @@ class Frame:
 
 
 class Sequence:
-    """One sequence folder: labels, camera, IMU and pad, with lazy image loading."""
+    """One sequence folder: labels, camera, IMU and pad, with lazy image loading.
 
-    def __init__(self, root):
+    ``expected``: ``{path: sha256}`` of its files (from the manifest).  With it, every file is
+    checked against its checksum when it is read (labels on opening, each image when read), and
+    a file that differs is an :class:`InputError`."""
+
+    def __init__(self, root, expected: dict | None = None):
         self.root = Path(root)
         self.id = self.root.name
+        self.expected = expected
         for name in SEQUENCE_FILES:
-            if not (self.root / name).exists():
+            if not (self.root / name).is_file():
                 raise InputError(f"{self.root}: missing {name}")
-        self.columns = read_csv_columns(self.root / "frames.csv")
-        info = json.loads((self.root / "camera.json").read_text())
+        if expected is not None:
+            bad = files_differing(self.root, {n: expected.get(n, "") for n in SEQUENCE_FILES})
+            if bad:
+                raise InputError(f"{self.root / bad[0]}: differs from the checksum in manifest.json "
+                                 "(the dataset was changed or damaged; hvloc dataset verify lists everything)")
+        self.columns = read_csv_columns(self.root / "frames.csv", TEXT_COLUMNS)
+        missing = [c for c in FRAME_COLUMNS if c not in self.columns]
+        if missing:
+            raise InputError(f"{self.root / 'frames.csv'}: lacks columns {missing[:4]}")
+        try:
+            info = json.loads((self.root / "camera.json").read_text())
+            self.camera = Camera.from_dict(info)
+            self.fps = float(info["fps"])
+            self.T_B_C = np.asarray(info["T_B_C"], np.float64).reshape(4, 4)
+            self.meta = json.loads((self.root / "meta.json").read_text())
+        except (ValueError, KeyError, TypeError) as err:
+            raise InputError(f"{self.root}: camera.json or meta.json cannot be read ({err})") from None
         self.camera_info = info
-        self.camera = Camera.from_dict(info)
-        self.fps = float(info["fps"])
-        self.T_B_C = np.asarray(info["T_B_C"], np.float64)
-        self.meta = json.loads((self.root / "meta.json").read_text())
         self._imu = None
         self._pad = None
 
@@ -224,8 +444,7 @@ class Sequence:
     @property
     def cam2pad(self) -> np.ndarray:
         """``(N, 4, 4)`` labelled ``T_P_C``."""
-        c = self.columns
-        rows = np.column_stack([c[k] for k in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        rows = np.column_stack([self.columns[k] for k in POSE])
         return np.stack([transform_from_tum(r) for r in rows])
 
     @property
@@ -236,14 +455,18 @@ class Sequence:
     def imu(self) -> np.ndarray:
         """``(M, 11)``: t, gyro xyz, accel xyz, AHRS quaternion xyzw."""
         if self._imu is None:
-            cols = read_csv_columns(self.root / "imu.csv")
             from .imu import IMU_COLUMNS
 
+            cols = read_csv_columns(self.root / "imu.csv", ())
+            missing = [c for c in IMU_COLUMNS if c not in cols]
+            if missing:
+                raise InputError(f"{self.root / 'imu.csv'}: lacks columns {missing}")
             self._imu = np.column_stack([cols[k] for k in IMU_COLUMNS])
         return self._imu
 
     @property
     def pad(self):
+        """The pad, with its texture read from the dataset (never re-rasterised)."""
         if self._pad is None:
             from pad_design.pad import Pad
 
@@ -254,15 +477,24 @@ class Sequence:
         return self.root / str(self.columns["image"][k])
 
     def image(self, k: int) -> np.ndarray:
-        return read_image(self.image_path(k))
+        rel = str(self.columns["image"][k])
+        path = self.root / rel
+        try:
+            data = path.read_bytes()
+        except OSError as err:
+            raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
+        if self.expected is not None and sha256_bytes(data) != self.expected.get(rel):
+            raise InputError(f"{path}: differs from the checksum in manifest.json (the dataset was changed or damaged)")
+        return decode_image(data, path)
 
     def frame(self, k: int) -> Frame:
         c = self.columns
         corners = np.array([[c[f"c{i}u"][k], c[f"c{i}v"][k]] for i in range(4)])
+        vis = np.array([bool(c[f"c{i}_visible"][k]) for i in range(4)])
         return Frame(int(c["frame"][k]), float(c["t"][k]), self.image_path(k),
-                     transform_from_tum([c[n][k] for n in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")]),
+                     transform_from_tum([c[n][k] for n in POSE]),
                      str(c["phase_gt"][k]), float(c["height_above_pad"][k]), bool(c["pad_fully_visible"][k]),
-                     int(c["markers_visible"][k]), corners)
+                     int(c["markers_visible"][k]), corners, vis)
 
     def __iter__(self):
         for k in range(len(self)):
@@ -274,86 +506,147 @@ class Sequence:
 
 
 class Dataset:
-    """A generated dataset: its manifest and complete sequences (``.tmp-*`` folders are ignored)."""
+    """A generated dataset: its manifest and complete sequences (``.tmp-*`` folders are ignored).
 
-    def __init__(self, root):
+    ``verify=True`` (what ``localize`` and ``bench run`` use): the dataset must be complete (every
+    planned sequence listed, no unlisted sequence folder), the pad texture and every label file
+    must match their checksums when opened, and each image when it is read."""
+
+    def __init__(self, root, verify: bool = False):
         self.root = Path(root)
         m = load_manifest(self.root)
         if m is None:
             raise InputError(f"{self.root}: no manifest.json (not a generated dataset)")
         self.manifest = m
+        self.verify = verify
         self.sequence_ids = [s["id"] for s in m["sequences"]]
+        if verify:
+            listed = set(self.sequence_ids)
+            if len(listed) < m["sequences_planned"]:
+                raise InputError(f"{self.root}: incomplete: {len(listed)} of {m['sequences_planned']} planned sequences "
+                                 "(finish it with hvloc generate, or pass --no-verify)")
+            extra = sorted(p.name for p in self.root.glob("seq_*") if p.is_dir() and p.name not in listed)
+            if extra:
+                raise InputError(f"{self.root}: sequence folder {extra[0]} is not in manifest.json "
+                                 "(the dataset was changed or damaged; pass --no-verify to use it anyway)")
+            tex = m["files"].get(PAD_TEXTURE)
+            if tex is None or files_differing(self.root, {PAD_TEXTURE: tex}):
+                raise InputError(f"{self.root / PAD_TEXTURE}: missing or differs from the checksum in manifest.json")
 
     def __len__(self) -> int:
         return len(self.sequence_ids)
+
+    def _open(self, sid: str) -> Sequence:
+        return Sequence(self.root / sid, sequence_files(self.manifest, sid) if self.verify else None)
 
     def __getitem__(self, key) -> Sequence:
         sid = self.sequence_ids[key] if isinstance(key, int) else key
         if sid not in self.sequence_ids:
             raise KeyError(sid)
-        return Sequence(self.root / sid)
+        return self._open(sid)
 
     def __iter__(self):
         for sid in self.sequence_ids:
-            yield Sequence(self.root / sid)
+            yield self._open(sid)
 
 
-def frame_dataset(root):
-    """A ``torch.utils.data.Dataset`` over every frame: dicts with ``image`` (3, H, W) float32 in
-    [0, 1], ``cam2pad`` (4, 4) float64, ``t``, ``phase_gt``, ``sequence`` and ``frame``."""
-    import torch
-    from torch.utils.data import Dataset as TorchDataset
+class FrameDataset:
+    """A ``torch.utils.data.Dataset`` over every frame of a dataset (a module-level class: it
+    pickles under every DataLoader start method).
 
-    ds = Dataset(root)
-    index = [(sid, k) for sid in ds.sequence_ids for k in range(len(ds[sid]))]
-    cache = {}
+    Items are dicts: ``image`` (3, H, W) float32 in [0, 1]; ``cam2pad`` (4, 4) float64 ``T_P_C``;
+    ``K`` (3, 3) and ``dist`` (5,) float64; ``corners_px`` (4, 2) float64 (NaN outside the image)
+    and ``corners_visible`` (4,) bool; ``height_m``, ``t`` (float); ``phase_gt``, ``sequence``
+    (str); ``frame`` (int).  ``transform(item) -> item`` is applied last when given."""
 
-    class _Frames(TorchDataset):
-        def __len__(self):
-            return len(index)
+    def __init__(self, root, transform=None):
+        self.root = Path(root)
+        ds = Dataset(self.root)
+        self.index = [(sid, k) for sid in ds.sequence_ids for k in range(len(ds[sid]))]
+        self.transform = transform
+        self._open: dict = {}
 
-        def __getitem__(self, i):
-            sid, k = index[i]
-            if sid not in cache:
-                cache[sid] = ds[sid]
-            f = cache[sid].frame(k)
-            img = torch.from_numpy(f.rgb).permute(2, 0, 1).float() / 255.0
-            return {"image": img, "cam2pad": torch.from_numpy(f.cam2pad), "t": f.t, "phase_gt": f.phase_gt,
-                    "sequence": sid, "frame": k}
+    def __len__(self) -> int:
+        return len(self.index)
 
-    return _Frames()
+    def __getstate__(self):
+        return {"root": self.root, "index": self.index, "transform": self.transform, "_open": {}}
+
+    def __getitem__(self, i):
+        import torch
+
+        sid, k = self.index[i]
+        if sid not in self._open:
+            self._open[sid] = Sequence(self.root / sid)
+        seq = self._open[sid]
+        f = seq.frame(k)
+        item = {"image": torch.from_numpy(seq.image(k)).permute(2, 0, 1).float() / 255.0,
+                "cam2pad": torch.from_numpy(f.cam2pad), "K": torch.from_numpy(seq.camera.K),
+                "dist": torch.tensor(seq.camera.dist, dtype=torch.float64),
+                "corners_px": torch.from_numpy(f.corners_px), "corners_visible": torch.from_numpy(f.corners_visible),
+                "height_m": f.height_above_pad, "t": f.t, "phase_gt": f.phase_gt, "sequence": sid, "frame": k}
+        return self.transform(item) if self.transform is not None else item
+
+
+def frame_dataset(root, transform=None) -> FrameDataset:
+    """Every frame of the dataset at ``root`` as a torch Dataset (see :class:`FrameDataset`)."""
+    return FrameDataset(root, transform)
 
 
 # ----------------------------------------------------------------------------- verify
 
-def verify_dataset(root, check_labels: bool = True) -> list:
-    """Everything wrong with a dataset folder, as readable lines (empty: it verifies)."""
+def verify_dataset(root, check_labels: bool = True, check_images: bool = True) -> list:
+    """Everything wrong with a dataset folder, as readable lines (empty: it verifies).  Never
+    raises on a damaged dataset: every problem, structural or not, is a line."""
     root = Path(root)
-    problems = []
     try:
-        m = load_manifest(root)
-    except InputError as err:
-        return [str(err)]
-    if m is None:
+        m = json.loads((root / "manifest.json").read_text())
+    except FileNotFoundError:
         return [f"{root}: no manifest.json"]
+    except (ValueError, OSError, UnicodeDecodeError) as err:
+        return [f"manifest.json: not valid JSON ({err})"]
+    problems = manifest_problems(m)
+    if problems:
+        return problems
     ids = [s["id"] for s in m["sequences"]]
-    planned = [sequence_id(i) for i in range(int(m.get("sequences_planned", len(ids))))]
-    for sid in planned:
-        if sid not in ids:
-            problems.append(f"{sid}: missing (planned in the spec, not complete)")
-    for rel, digest in sorted(m.get("files", {}).items()):
+    planned = [sequence_id(i) for i in range(m["sequences_planned"])]
+    problems += [f"{sid}: missing (planned in the spec, not complete)" for sid in planned if sid not in ids]
+    files = m["files"]
+    for rel, digest in files.items():
         p = root / rel
-        if not p.exists():
+        if not p.is_file():
             problems.append(f"{rel}: listed in the manifest but missing")
         elif sha256_file(p) != digest:
             problems.append(f"{rel}: checksum differs from the manifest")
+    if PAD_TEXTURE not in files:
+        problems.append(f"{PAD_TEXTURE}: the pad texture is not listed in the manifest")
     leftovers = sorted(p.name for p in root.glob(".tmp-*"))
     if leftovers:
         problems.append(f"unfinished sequence folders: {', '.join(leftovers)}")
-    if check_labels:
-        for sid in ids:
-            if (root / sid).exists():
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root).as_posix()
+        if p.is_file() and rel not in files and rel not in ("manifest.json", LOCK_NAME) \
+                and not rel.startswith(".tmp-") and not rel.startswith("show/"):
+            problems.append(f"{rel}: not in the manifest")
+    for sid in ids:
+        listed = sequence_files(m, sid)
+        missing = [n for n in SEQUENCE_FILES if n not in listed]
+        if missing:
+            problems.append(f"{sid}: the manifest lists no {missing[0]}")
+        if check_labels and (root / sid).is_dir():
+            try:
                 problems += [f"{sid}: {p}" for p in _label_problems(root / sid)]
+            except InputError as err:
+                problems.append(f"{sid}: {err}")
+            except Exception as err:  # a damaged file must be reported, never crash verify
+                problems.append(f"{sid}: cannot be read ({type(err).__name__}: {err})")
+        if check_images and check_labels and (root / sid).is_dir() and not any(p.startswith(sid) for p in problems):
+            from .checks import image_label_problems
+
+            try:
+                problems += [f"{sid}: {p}" for p in image_label_problems(Sequence(root / sid))]
+            except InputError as err:
+                problems.append(f"{sid}: {err}")
     return problems
 
 
@@ -361,52 +654,54 @@ def _label_problems(seq_dir: Path) -> list:
     from hvloc.geometry import transform_points
 
     out = []
-    try:
-        seq = Sequence(seq_dir)
-    except (InputError, ValueError, KeyError) as err:
-        return [str(err)]
+    seq = Sequence(seq_dir)
     c = seq.columns
-    missing = [k for k in FRAME_COLUMNS if k not in c]
-    if missing:
-        return [f"frames.csv lacks columns {missing}"]
     n = len(seq)
-    imgs = list((seq_dir / "images").glob("*.png"))
-    if len(imgs) != n:
-        out.append(f"{len(imgs)} images for {n} frames")
+    if n == 0:
+        return ["frames.csv has no frames"]
+    imgs = {p.name for p in (seq_dir / "images").glob("*.png")}
+    named = {Path(str(v)).name for v in c["image"]}
+    if imgs != named:
+        out.append(f"{len(imgs)} images for {n} frames (or images not named in frames.csv)")
     t = c["t"]
-    if n > 1 and np.any(np.diff(t) <= 0):
-        out.append("frame times not increasing")
+    if not np.all(np.isfinite(t)) or (n > 1 and np.any(np.diff(t) <= 0)):
+        out.append("frame times not finite and increasing")
     if np.any(np.abs(t - c["frame"] / seq.fps) > 1e-6):
         out.append("frame k is not at t = k / fps")
     q = np.column_stack([c[k] for k in ("qx", "qy", "qz", "qw")])
-    if np.any(np.abs(np.linalg.norm(q, axis=1) - 1) > 1e-6):
+    if np.any(~np.isfinite(q)) or np.any(np.abs(np.linalg.norm(q, axis=1) - 1) > 1e-6):
         out.append("non-unit quaternions")
-    if np.any(np.abs(c["height_above_pad"] - c["tz"]) > 1e-9) or np.any(c["tz"] <= 0):
+    elif n > 1 and np.any(np.sum(q[1:] * q[:-1], axis=1) < 0):
+        out.append("quaternions change hemisphere between rows")
+    if np.any(np.abs(c["height_above_pad"] - c["tz"]) > 1e-9) or np.any(~(c["tz"] > 0)):
         out.append("height_above_pad is not tz > 0")
-    bad_phase = set(c["phase_gt"]) - {"approaching", "adjustment", "touchdown"}
+    bad_phase = set(c["phase_gt"]) - set(PHASES)
     if bad_phase:
         out.append(f"unknown phases {sorted(bad_phase)}")
     gt = read_tum(seq_dir / "groundtruth.tum")
     if gt.shape[0] != n or np.abs(gt[:, 0] - t).max(initial=0) > 1e-9 or \
-            np.abs(gt[:, 1:4] - np.column_stack([c["tx"], c["ty"], c["tz"]])).max(initial=0) > 1e-9:
+            np.abs(gt[:, 1:] - np.column_stack([c[k] for k in POSE])).max(initial=0) > 1e-9:
         out.append("groundtruth.tum disagrees with frames.csv")
-    # projected corners agree with the pose
-    pad_doc = json.loads((seq_dir / "pad.json").read_text())
-    corners = np.asarray(pad_doc["outer_corners"], float)
+    corners = seq.pad.outer_corners_P
     worst = 0.0
     for k in range(n):
-        T = transform_from_tum([c[f][k] for f in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        T = transform_from_tum([c[f][k] for f in POSE])
         px = seq.camera.project(transform_points(np.linalg.inv(T), corners))
-        px[~seq.camera.in_image(px)] = np.nan
+        inside = seq.camera.in_image(px)
+        px[~inside] = np.nan
         lab = np.array([[c[f"c{i}u"][k], c[f"c{i}v"][k]] for i in range(4)])
         if not np.array_equal(np.isnan(px), np.isnan(lab)):
-            out.append(f"frame {k}: corner visibility disagrees with the pose")
+            out.append(f"frame {k}: corner in-view flags disagree with the pose")
+            break
+        vis = np.array([c[f"c{i}_visible"][k] for i in range(4)]) > 0.5
+        if np.any(vis & ~inside):
+            out.append(f"frame {k}: a corner outside the image is labelled visible")
             break
         d = np.abs(px - lab)
         worst = max(worst, float(np.nanmax(d)) if np.isfinite(d).any() else 0.0)
     if worst > 1e-3:
         out.append(f"projected corners disagree with the pose by {worst:.4f} px")
-    imu = read_csv_columns(seq_dir / "imu.csv")
-    if len(imu.get("t", [])) < 2 or imu["t"][0] > t[0] + 1e-9 or imu["t"][-1] < t[-1] - 0.01:
-        out.append("imu.csv does not cover the frames")
+    imu = seq.imu
+    if len(imu) < 2 or not np.all(np.isfinite(imu)) or imu[0, 0] > t[0] + 1e-9 or imu[-1, 0] < t[-1] - 0.01:
+        out.append("imu.csv does not cover the frames with finite values")
     return out

@@ -1,10 +1,19 @@
-"""The one place that picks the OpenGL platform, before pyrender is first imported."""
+"""The one place that picks the OpenGL platform, before pyrender (or PyOpenGL) is first imported.
+
+Platform: ``PYOPENGL_PLATFORM`` when it is set; else EGL when the machine has a GPU render node
+and an EGL library (hardware rasterisation), else OSMesa (software, any machine).  What was
+chosen, and the GL renderer string, are printed by ``python -m render.gl`` and recorded by the
+speed benchmark.
+"""
 from __future__ import annotations
 
 import ctypes
+import ctypes.util
+import glob
 import os
 import types
 
+import cv2
 import numpy as np
 
 _patched = False
@@ -27,10 +36,31 @@ def _context_key():
         return ctx
 
 
+def choose_platform(environ=os.environ, devices=None, egl_library=None) -> tuple:
+    """``(platform, why)``: the GL platform this process should use (see the module docstring).
+    ``devices``/``egl_library`` are for tests; by default the machine is looked at."""
+    asked = environ.get("PYOPENGL_PLATFORM")
+    if asked:
+        return asked, "PYOPENGL_PLATFORM is set"
+    if devices is None:
+        devices = glob.glob("/dev/dri/renderD*") + glob.glob("/dev/nvidia[0-9]*")
+    if egl_library is None:
+        egl_library = ctypes.util.find_library("EGL")
+    if devices and egl_library:
+        return "egl", f"GPU device {sorted(devices)[0]} and {egl_library}"
+    return "osmesa", "no GPU render device with an EGL library: software rendering"
+
+
+def gl_platform() -> str:
+    """The platform this process renders with (chosen once, on the first import of pyrender)."""
+    return os.environ.get("PYOPENGL_PLATFORM") or choose_platform()[0]
+
+
 def import_pyrender():
-    """Import pyrender with ``PYOPENGL_PLATFORM=osmesa`` unless another platform was asked for."""
+    """Import pyrender on the platform :func:`choose_platform` picks (set once per process)."""
     global _patched
-    os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
+    if "PYOPENGL_PLATFORM" not in os.environ:
+        os.environ["PYOPENGL_PLATFORM"] = choose_platform()[0]
     import pyrender
     import pyrender.shader_program as sp
 
@@ -46,8 +76,6 @@ def _patch_transparent_order(pyrender) -> None:
     back to front.  pyrender sorts translucent meshes by node-origin distance only, which would
     sometimes draw a shadow lying 1 mm above the pad before the (soft-edged, translucent) pad,
     so that the depth test then hid the pad under it."""
-    import numpy as np
-
     R = pyrender.renderer.Renderer
 
     def _sorted_mesh_nodes(self, scene):
@@ -63,6 +91,42 @@ def _patch_transparent_order(pyrender) -> None:
         return solid + trans
 
     R._sorted_mesh_nodes = _sorted_mesh_nodes
+
+
+def render_color_depth(offscreen, scene, flags, znear: float, zfar: float) -> tuple:
+    """``(rgb (H, W, 3) uint8, z (H, W) float32)`` in OpenCV's row order: colour, and depth along
+    the optical axis in metres (``inf`` where nothing was drawn).  One read of each buffer."""
+    from OpenGL.GL import (GL_DEPTH_COMPONENT, GL_FLOAT, GL_FRONT, GL_READ_FRAMEBUFFER, GL_RGB, GL_UNSIGNED_BYTE,
+                           glBindFramebuffer, glReadBuffer, glReadPixels)
+
+    plat = offscreen._platform
+    if plat.supports_framebuffers():  # EGL: pyrender reads and converts both (0 where nothing)
+        color, z = offscreen.render(scene, flags=flags)
+        z = np.where(z > 0, z, np.float32(np.inf)).astype(np.float32)
+        return color, z
+    plat.make_current()
+    r = offscreen._renderer
+    r.viewport_width, r.viewport_height = offscreen.viewport_width, offscreen.viewport_height
+    r.point_size = offscreen.point_size
+    r.render(scene, flags)
+    w, h = r.viewport_width, r.viewport_height
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0)
+    glReadBuffer(GL_FRONT)
+    color = np.frombuffer(glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE), np.uint8).reshape(h, w, 3)
+    depth = np.frombuffer(glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT), np.float32).reshape(h, w)
+    plat.make_uncurrent()
+    return cv2.flip(color, 0), linear_depth(cv2.flip(depth, 0), znear, zfar)
+
+
+def linear_depth(depth, znear: float, zfar: float) -> np.ndarray:
+    """Depth-buffer values in [0, 1] -> z in metres along the optical axis (``inf`` where 1)."""
+    d = np.asarray(depth, np.float32)
+    den = d * np.float32(-2.0 * (zfar - znear))
+    den += np.float32(2.0 * zfar)
+    with np.errstate(divide="ignore"):
+        z = np.divide(np.float32(2.0 * znear * zfar), den, out=den)
+    z[d >= 1.0] = np.inf
+    return z
 
 
 def render_color(offscreen, scene, flags):
@@ -92,3 +156,15 @@ def translucent_texture(texture):
     Translucent meshes must be drawn after every opaque one."""
     texture._is_transparent = True
     return texture
+
+
+if __name__ == "__main__":  # python -m render.gl : which platform this machine renders with
+    plat, why = choose_platform()
+    print(f"platform: {plat} ({why})")
+    pr = import_pyrender()
+    r = pr.OffscreenRenderer(8, 8)
+    from OpenGL.GL import GL_RENDERER, GL_VERSION, glGetString
+
+    r._platform.make_current()
+    print(f"renderer: {glGetString(GL_RENDERER).decode()}; OpenGL {glGetString(GL_VERSION).decode()}")
+    r.delete()

@@ -1,53 +1,128 @@
-"""Ground-truth landing phase: what a perfect detector could see in the frame.
+"""What the camera sees of the pad, and the ground-truth landing phase (what a perfect detector
+could see in the frame), from the labelled pose and the renderer's own depth.
 
-Rule (per frame, from the labelled pose alone, never from a localizer):
+Visibility means *seen*: a pad point is visible when it projects inside the image and nothing
+in the scene lies in front of it (its depth in the rendered depth buffer is not nearer than the
+point itself).  Without a depth buffer the facts are geometric (in the image, in front).
 
-* ``adjustment`` while all three corner finder markers are fully in the image and their
-  modules are at least ``min_module_px`` pixels (so a marker detector can resolve them);
-* else ``approaching`` while the whole pad outline is in the image;
+Rule (per frame, never from a localizer):
+
+* ``adjustment`` while all three corner markers are wholly visible and their modules are at least
+  ``min_module_px`` pixels (so a marker detector can resolve them);
+* else ``approaching`` while the whole pad outline is visible;
 * else ``touchdown`` once the camera is low enough that the pad no longer fits in the image
   (height below ``side * f / min(W, H)``): the flow tracker's range;
-* else ``approaching`` (the pad is partly out of view at range: nothing sees it well).
+* else ``approaching`` (the pad is partly out of view, or partly hidden, at range).
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from hvloc.geometry import Camera, invert, transform_points
+from pad_design.geometry import MARKER_NAMES, PadGeometry
 
 PHASES = ("approaching", "adjustment", "touchdown")
+EDGE_SAMPLES = 8     # points per side of the outline, between its corners
+INTERIOR_GRID = 9    # the pad's area is sampled on a grid this many points across
+MARKER_GRID = 3      # and each marker's on this grid, plus its corners
 
 
-def view_facts(camera: Camera, cam2pad: np.ndarray, pad_geometry: dict) -> dict:
-    """Visibility facts of one pose: pad outline, markers, module size in pixels."""
+@dataclass(frozen=True)
+class PadSamples:
+    """Points on the pad (pad frame, metres) whose visibility is tested."""
+
+    corners: np.ndarray    # (4, 3)
+    outline: np.ndarray    # (4 + 4 * EDGE_SAMPLES, 3)
+    interior: np.ndarray   # (INTERIOR_GRID**2, 3)
+    markers: dict          # name -> (4 + MARKER_GRID**2, 3), corner set
+
+    @classmethod
+    def of(cls, geometry: PadGeometry) -> "PadSamples":
+        c = geometry.outer_corners
+        s = np.linspace(0.0, 1.0, EDGE_SAMPLES + 2)[1:-1, None]
+        edges = [c[i] + s * (c[(i + 1) % 4] - c[i]) for i in range(4)]
+        h = geometry.half_side_m * (1 - 1e-6)
+        g = np.linspace(-h, h, INTERIOR_GRID)
+        gx, gy = np.meshgrid(g, g)
+        interior = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+        markers = {}
+        for m in geometry.markers_in("corner"):
+            a = m.size_m / 2 * (1 - 1e-6)
+            t = np.linspace(-a, a, MARKER_GRID)
+            mx, my = np.meshgrid(t, t)
+            inner = np.column_stack([mx.ravel(), my.ravel(), np.zeros(mx.size)]) + m.center
+            markers[m.name] = np.concatenate([m.outer_corners, inner])
+        return cls(c, np.concatenate([c] + edges), interior, markers)
+
+
+def depth_occlusion(render_camera: Camera, z_render: np.ndarray, cam2pad: np.ndarray):
+    """``occluded(points_P (N, 3)) -> (N,) bool``: True where the rendered depth at a pad point's
+    pixel (of the undistorted render camera) is nearer than the point by more than the depth
+    buffer's resolution allows.  Points outside the render are not occluded (the image test
+    decides those)."""
     pad2cam = invert(cam2pad)
-    outer = np.asarray(pad_geometry["outer_corners"], float)
-    Pc = transform_points(pad2cam, outer)
-    px = camera.project(Pc)
-    pad_visible = bool(np.all(Pc[:, 2] > 0) and np.all(camera.in_image(px)))
-    markers_visible = 0
+    H, W = z_render.shape
+
+    def occluded(points_P):
+        Pc = transform_points(pad2cam, points_P)
+        px = render_camera.project(Pc)
+        out = np.zeros(len(Pc), bool)
+        ok = np.isfinite(px).all(axis=1) & (Pc[:, 2] > 0)
+        u = np.round(px[ok, 0]).astype(np.int64)
+        v = np.round(px[ok, 1]).astype(np.int64)
+        inside = (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        idx = np.nonzero(ok)[0][inside]
+        z = Pc[idx, 2]
+        out[idx] = z_render[v[inside], u[inside]] < z - (0.01 + 0.002 * z)
+        return out
+
+    return occluded
+
+
+def view_facts(camera: Camera, cam2pad: np.ndarray, geometry: PadGeometry, occluded=None,
+               samples: PadSamples | None = None) -> dict:
+    """Visibility facts of one pose: the outer corners' pixels and visibility, the whole pad's,
+    each corner marker's, the share of the pad's area in view, the smallest visible module."""
+    samples = samples or PadSamples.of(geometry)
+    pad2cam = invert(cam2pad)
+
+    def seen(P):
+        Pc = transform_points(pad2cam, P)
+        px = camera.project(Pc)
+        vis = (Pc[:, 2] > 0) & camera.in_image(px)
+        if occluded is not None and vis.any():
+            vis &= ~occluded(P)
+        return vis, px
+
+    corner_vis, corners_px = seen(samples.corners)
+    outline_vis, _ = seen(samples.outline)
+    inner_vis, _ = seen(samples.interior)
+    marker_vis = {}
     module_px = np.inf
-    for m in pad_geometry["markers"]:
-        if m["set"] != "corner":
-            continue
-        sq = np.asarray(m["squares"][0]["corners"], float)
-        mc = transform_points(pad2cam, sq)
-        mp = camera.project(mc)
-        if np.all(mc[:, 2] > 0) and np.all(camera.in_image(mp)):
-            markers_visible += 1
+    for m in geometry.markers_in("corner"):
+        vis, _ = seen(samples.markers[m.name])
+        marker_vis[m.name] = bool(vis.all())
+        if marker_vis[m.name]:
+            mp = camera.project(transform_points(pad2cam, m.outer_corners))
             sides = np.linalg.norm(np.roll(mp, -1, axis=0) - mp, axis=1)
-            module_px = min(module_px, float(sides.min()) / (7.0 if m["kind"] == "finder" else 6.0))
-    return {"corners_px": px, "pad_fully_visible": pad_visible, "markers_visible": markers_visible,
+            module_px = min(module_px, float(sides.min()) / m.modules_across)
+    return {"corners_px": corners_px, "corner_visible": corner_vis,
+            "pad_fully_visible": bool(outline_vis.all() and inner_vis.all()),
+            "pad_visible_fraction": float(inner_vis.mean()),
+            "marker_visible": {n: marker_vis.get(n, False) for n in MARKER_NAMES},
+            "markers_visible": int(sum(marker_vis.values())),
             "module_px": float(module_px) if np.isfinite(module_px) else 0.0}
 
 
-def phase_gt(camera: Camera, cam2pad: np.ndarray, pad_geometry: dict, min_module_px: float, facts=None) -> str:
-    f = facts or view_facts(camera, cam2pad, pad_geometry)
+def phase_gt(camera: Camera, cam2pad: np.ndarray, geometry: PadGeometry, min_module_px: float, facts=None) -> str:
+    f = facts or view_facts(camera, cam2pad, geometry)
     if f["markers_visible"] == 3 and f["module_px"] >= min_module_px:
         return "adjustment"
     if f["pad_fully_visible"]:
         return "approaching"
-    fit_height = pad_geometry["side_m"] * min(camera.fx, camera.fy) / min(camera.width, camera.height)
+    fit_height = geometry.side_m * min(camera.fx, camera.fy) / min(camera.width, camera.height)
     if cam2pad[2, 3] < fit_height:
         return "touchdown"
     return "approaching"

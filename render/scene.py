@@ -22,7 +22,7 @@ import numpy as np
 
 from hvloc.geometry import Camera, make_transform, rotation_z
 
-from .gl import import_pyrender, render_color, translucent_texture
+from .gl import import_pyrender, render_color, render_color_depth, translucent_texture
 from .textures import aruco_image, finder_marker_image, ground_texture
 
 # OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
@@ -81,6 +81,9 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw
         return r * math.cos(a), r * math.sin(a), rng.uniform(0, math.pi)
 
     boxes = []
+    for b in d.boxes_at:
+        boxes.append((float(b.xy_m[0]), float(b.xy_m[1]), math.radians(b.yaw_deg), *map(float, b.size_m),
+                      (120, 120, 125)))
     for _ in range(ri(d.boxes)):
         x, y, yaw = place()
         sx, sy, sz = rng.uniform(1.0, 6.0), rng.uniform(1.0, 6.0), rng.uniform(0.4, 6.0)
@@ -185,12 +188,16 @@ class LandingScene:
         tile = 8.0
         self._add(textured_quad(ground_texture(draw.ground, rng), ground_extent_m, ground_extent_m,
                                 uv_repeat=ground_extent_m / tile, repeat=True), pose=np.eye(4))
-        if platform_height > 0 and platform_size > 0:
+        # the platform and everything on it move together: children of one node (set_platform)
+        self.platform_node = pr.Node(name="platform", matrix=np.eye(4))
+        scene.add_node(self.platform_node)
+        self.has_platform_box = platform_height > 0 and platform_size > 0
+        if self.has_platform_box:
             self._add(box((platform_size, platform_size, platform_height), (110, 112, 118)),
-                      pose=pose_xy(0, 0, platform_height / 2))
+                      pose=pose_xy(0, 0, platform_height / 2), parent=self.platform_node)
         # the pad's outline is a labelled feature: soft (texture-filtered) edges, not aliased ones
         self.pad_node = self._add(textured_quad(pad.texture_rgb, pad.side_m, pad.side_m, soft_edge_px=16),
-                                  pose=pose_xy(0, 0, self.pad_surface_z))
+                                  pose=pose_xy(0, 0, self.pad_surface_z), parent=self.platform_node)
         for x, y, yaw, sx, sy, sz, col in draw.boxes:
             self._add(box((sx, sy, sz), col, yaw), pose=pose_xy(x, y, sz / 2, yaw))
         for x, y, yaw, sx, sy in draw.decoy_patches:
@@ -207,22 +214,28 @@ class LandingScene:
         self._shade = lambda sx, sy: flat_quad((0, 0, 0), sx, sy, self.shadow_alpha)
         if shadows and self.shadow_alpha > 0 and draw.boxes:
             self._add_box_shadows(draw.boxes)
+        if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
+            self._add_box_shadows([(0.0, 0.0, 0.0, platform_size, platform_size, platform_height, None)],
+                                  parent=self.platform_node, m_per_px=0.01)
         self.drone_size = drone_size_m
         self.drone_shadow = None
         if shadows and self.shadow_alpha > 0:
             self.drone_shadow = self._add(self._shade(drone_size_m, drone_size_m), pose_xy(0, 0, -100), "shadow_drone")
 
         fx, fy, cx, cy = pyrender_intrinsics(camera)
-        self.cam_node = scene.add(pr.IntrinsicsCamera(fx=fx, fy=fy, cx=cx, cy=cy, znear=znear, zfar=2000.0),
+        self.znear, self.zfar = float(znear), 2000.0
+        self.cam_node = scene.add(pr.IntrinsicsCamera(fx=fx, fy=fy, cx=cx, cy=cy, znear=self.znear, zfar=self.zfar),
                                   pose=np.eye(4))
+        self.platform_xy = np.zeros(2)
         self.renderer = pr.OffscreenRenderer(camera.width, camera.height)
 
-    def _add(self, mesh, pose=None, name: str = "mesh"):
+    def _add(self, mesh, pose=None, name: str = "mesh", parent=None):
         """Add a mesh node with a unique, ordered name (draw order is deterministic)."""
         self._count += 1
-        return self.scene.add(mesh, pose=np.eye(4) if pose is None else pose, name=f"{name}_{self._count:04d}")
+        return self.scene.add(mesh, pose=np.eye(4) if pose is None else pose, name=f"{name}_{self._count:04d}",
+                              parent_node=parent)
 
-    def _add_box_shadows(self, boxes, m_per_px: float = 0.02):
+    def _add_box_shadows(self, boxes, m_per_px: float = 0.02, parent=None):
         """All boxes' shadows on the ground as one alpha texture: the union of each box's corners
         cast along the sun (overlapping shadows darken once, and the draw order cannot matter)."""
         pr = self.pr
@@ -259,7 +272,14 @@ class LandingScene:
         normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
         prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv, material=mat,
                             indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
-        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, SHADOW_LIFT_M * 2)), "shadow_boxes")
+        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, SHADOW_LIFT_M * 2)), "shadow_boxes",
+                  parent=parent)
+
+    def set_platform(self, pad2world: np.ndarray) -> None:
+        """Move the platform, the pad and the platform's shadow: ``T_W_P``'s horizontal position (the
+        pad translates with the platform and never rotates)."""
+        self.platform_xy = np.asarray(pad2world, np.float64)[:2, 3].copy()
+        self.scene.set_pose(self.platform_node, make_transform(np.eye(3), (*self.platform_xy, 0.0)))
 
     def set_drone(self, body2world: np.ndarray) -> None:
         """Move the drone's shadow: its body (a flat square) cast along the sun onto the surface below."""
@@ -271,7 +291,8 @@ class LandingScene:
         for surface in (self.pad_surface_z, 0.0):
             k = (p[2] - surface) / max(s[2], 0.05)
             xy = p[:2] - s[:2] * k
-            on_platform = max(abs(xy[0]), abs(xy[1])) <= max(self.platform_size, 0.0) / 2 and self.platform_height > 0
+            rel = xy - self.platform_xy
+            on_platform = max(abs(rel[0]), abs(rel[1])) <= max(self.platform_size, 0.0) / 2 and self.platform_height > 0
             if surface == 0.0 or on_platform:
                 break
         z = surface + SHADOW_LIFT_M if surface > 0 else SHADOW_LIFT_M * 3
@@ -281,6 +302,12 @@ class LandingScene:
         """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""
         self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
         return render_color(self.renderer, self.scene, self.pr.RenderFlags.FLAT)
+
+    def render_with_depth(self, cam2world: np.ndarray) -> tuple:
+        """``(rgb (H, W, 3) uint8, z (H, W) float32)``: colour and depth along the optical axis in
+        metres (``inf`` where nothing), at the render camera's pixels."""
+        self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
+        return render_color_depth(self.renderer, self.scene, self.pr.RenderFlags.FLAT, self.znear, self.zfar)
 
     def close(self) -> None:
         if self.renderer is not None:

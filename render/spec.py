@@ -12,6 +12,7 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
+from hvloc.geometry import focal_from_hfov
 from pad_design.errors import load_yaml_model
 from pad_design.spec import PadSpec
 
@@ -47,7 +48,16 @@ class MountSpec(_Model):
 
     xyz_m: tuple[float, float, float] = (0.0, 0.0, -0.05)
     rpy_deg: tuple[float, float, float] = Field(
-        (180.0, 0.0, -90.0), description="extra rotation of the camera, applied as R_B_C = Rz(yaw) Ry(pitch) Rx(roll)")
+        (180.0, 0.0, -90.0), description="the camera's rotation in the body, R_B_C = Rz(yaw) Ry(pitch) Rx(roll); "
+        "the default looks straight down with the image top forward; [180 + a, 0, -90] tilts the optical axis "
+        "a degrees forward of nadir")
+
+    def transform(self):
+        """``T_B_C`` (4, 4): camera (OpenCV) to body (FLU)."""
+        from hvloc.geometry import make_transform, so3_exp
+
+        r, p, y = (math.radians(v) for v in self.rpy_deg)
+        return make_transform(so3_exp([0, 0, y]) @ so3_exp([0, p, 0]) @ so3_exp([r, 0, 0]), self.xyz_m)
 
 
 class CameraSpec(_Model):
@@ -68,7 +78,7 @@ class CameraSpec(_Model):
             raise ValueError(f"exposure_s: {self.exposure_s} s is longer than a frame (1/fps = {1 / self.fps:.4f} s)")
         # the radial distortion must be invertible out to the image corners, or some pixels see no ray
         k1, k2, _, _, k3 = self.dist
-        f = (self.width / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
+        f = focal_from_hfov(self.width, math.radians(self.hfov_deg))
         r_corner = math.hypot(self.width / 2.0, self.height / 2.0) / f * max(1.0, 1.0 / self.fy_over_fx)
         r = [i * 0.01 for i in range(1, 1000)]
         r_d = [x * (1 + k1 * x**2 + k2 * x**4 + k3 * x**6) for x in r]
@@ -106,6 +116,8 @@ class TrajectorySpec(_Model):
     manoeuvre_step_m: NonNegRange = (0.2, 0.5)
     gust_accel_mps2: NonNegRange = Field((0.0, 0.4), description="amplitude of smooth gust accelerations")
     final_offset_m: NonNegRange = Field((0.0, 0.1), description="touchdown point's distance from the pad centre")
+    aim_camera: bool = Field(True, description="an off-nadir camera keeps its optical axis on the pad: the path "
+                             "is moved back by where the axis meets the pad plane (no effect on a nadir camera)")
 
     @model_validator(mode="after")
     def _heights(self):
@@ -119,8 +131,24 @@ class TrajectorySpec(_Model):
 GroundKind = Literal["grass", "soil", "asphalt", "sand", "concrete"]
 
 
+class PlacedBox(_Model):
+    """A box at a chosen place (metres, world frame at t = 0: the pad's centre is the origin)."""
+
+    xy_m: tuple[float, float]
+    size_m: tuple[float, float, float]
+    yaw_deg: float = 0.0
+
+    @model_validator(mode="after")
+    def _size(self):
+        if min(self.size_m) <= 0:
+            raise ValueError(f"size_m: every side must be positive, got {list(self.size_m)}")
+        return self
+
+
 class DistractorSpec(_Model):
     boxes: IntRange = Field((0, 6), description="buildings/boxes around the pad")
+    boxes_at: list[PlacedBox] = Field(default_factory=list, description="boxes at chosen places, besides the "
+                                      "random ones (scenes built to occlude)")
     decoy_patches: IntRange = Field((0, 2), description="flat patches of the pad's border colour")
     decoy_markers: IntRange = Field((0, 2), description="lone finder-like squares and ArUco markers")
     keep_clear_m: float = Field(2.5, ge=0.0, description="no distractor within this distance of the pad centre")
@@ -138,7 +166,18 @@ class EnvironmentSpec(_Model):
 
 class DegradationSpec(_Model):
     motion_blur: bool = True
-    blur_subframes: int = Field(5, ge=1, le=64, description="sub-frame renders averaged over the exposure")
+    blur_method: Literal["velocity", "subframes"] = Field(
+        "velocity", description="velocity: the sharp render moved along each pixel's image motion (one render per "
+        "frame); subframes: the exact reference, one render per sample time")
+    blur_subframes: int | Literal["auto"] = Field(
+        "auto", description="samples over the exposure: enough that any point's consecutive images are at most "
+        "0.5 px apart; a number is the least used (a floor); the count used is written per frame")
+
+    @model_validator(mode="after")
+    def _samples(self):
+        if isinstance(self.blur_subframes, int) and not 1 <= self.blur_subframes <= 256:
+            raise ValueError(f"blur_subframes: {self.blur_subframes} is not in [1, 256] (or 'auto')")
+        return self
     defocus_sigma_px: NonNegRange = (0.0, 0.6)
     shot_noise: NonNegRange = Field((0.0, 0.02), description="Poisson-like noise std at full scale, sqrt-scaled")
     read_noise: NonNegRange = Field((0.0, 0.008), description="Gaussian read noise std (0-1 scale)")
@@ -183,14 +222,19 @@ class DatasetSpec(_Model):
         # At the start height the whole pad must fit in the image with some room, else no
         # localizer could ever see it: a spec error, not a hard sequence.
         cam = self.camera
-        f = (cam.width / 2.0) / math.tan(math.radians(cam.hfov_deg) / 2.0)
-        pad_px = self.pad.side_m * f / self.trajectory.start_height_m
+        f = focal_from_hfov(cam.width, math.radians(cam.hfov_deg))
+        # an off-nadir camera aimed at the pad sees it at the slant distance along its axis
+        down = -float(cam.mount.transform()[2, 2]) if self.trajectory.aim_camera else 1.0
+        if down < 0.2:
+            raise ValueError("camera.mount: the optical axis is within 12 degrees of the horizon (or above it); "
+                             "it cannot be aimed at the pad during a descent")
+        slant = self.trajectory.start_height_m / down
+        pad_px = self.pad.side_m * f / slant
         if pad_px < 4.0:
             raise ValueError(f"camera: the pad is only {pad_px:.1f} px wide at the start height "
                              f"{self.trajectory.start_height_m} m (needs >= 4 px); raise the resolution "
                              "or the field of view's focal length, or start lower")
-        half_view = self.trajectory.start_height_m * math.tan(math.radians(cam.hfov_deg) / 2.0) * \
-            min(1.0, cam.height / cam.width)
+        half_view = slant * math.tan(math.radians(cam.hfov_deg) / 2.0) * min(1.0, cam.height / cam.width)
         if self.trajectory.lateral_offset_m[1] + self.pad.side_m / 2 > half_view:
             raise ValueError(f"trajectory.lateral_offset_m: up to {self.trajectory.lateral_offset_m[1]} m puts the pad "
                              f"outside the camera's view at the start height (half-width {half_view:.2f} m)")

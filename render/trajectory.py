@@ -93,12 +93,21 @@ class Trajectory:
     """``path(t) -> (pos_rel (N,3), yaw (N,))`` relative to the pad; platform moving at ``pad_vel``."""
 
     def __init__(self, path, duration: float, gusts: Gusts | None, pad_height: float, pad_vel=(0.0, 0.0),
-                 family: str = ""):
+                 family: str = "", aim_axis_B=None, body_above_cam: float = 0.0):
         self.path, self.duration, self.gusts = path, float(duration), gusts
         self.pad_height, self.pad_vel, self.family = pad_height, np.asarray(pad_vel, float), family
+        # an off-nadir camera looks at the pad: the path moves back by where its optical axis meets the pad plane
+        self.aim_axis_B = None if aim_axis_B is None else np.asarray(aim_axis_B, float) / np.linalg.norm(aim_axis_B)
+        self.body_above_cam = float(body_above_cam)
 
     def _rel(self, t):
         p, yaw = self.path(t)
+        if self.aim_axis_B is not None:
+            d = self.aim_axis_B
+            c, s = np.cos(yaw), np.sin(yaw)
+            dx, dy = c * d[0] - s * d[1], s * d[0] + c * d[1]
+            reach = (p[..., 2] - self.body_above_cam) / max(-d[2], 0.2)  # along the axis to the pad plane
+            p = p - np.stack([dx * reach, dy * reach, np.zeros_like(reach)], axis=-1)
         if self.gusts is not None:
             p = p + self.gusts.displacement(t)
         return p, yaw
@@ -145,7 +154,7 @@ def _descent_profile(tau, h0, h1):
 
 
 def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam: float,
-                    pad_height: float, pad_vel=(0.0, 0.0)) -> Trajectory:
+                    pad_height: float, pad_vel=(0.0, 0.0), optical_axis_B=None) -> Trajectory:
     """Draw one trajectory of ``family`` from the spec's ranges with ``rng``.
 
     Heights in the spec are camera heights above the pad; ``body_above_cam`` converts them to the
@@ -243,7 +252,9 @@ def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam:
         amp[:, 2] *= 0.3
         gusts = Gusts(amp, rng.uniform(0.6, 3.0, ncomp), rng.uniform(0, 2 * math.pi, (ncomp, 3)),
                       fade_in=2.0, fade_out_start=duration - 4.0, fade_out_end=duration - 0.5)
-    return Trajectory(path, duration, gusts, pad_height, pad_vel, family)
+    aim = optical_axis_B if (spec.aim_camera and optical_axis_B is not None
+                             and np.hypot(optical_axis_B[0], optical_axis_B[1]) > 1e-9) else None
+    return Trajectory(path, duration, gusts, pad_height, pad_vel, family, aim, body_above_cam)
 
 
 def angular_rate_check(traj: Trajectory, t0: float, t1: float, n: int = 2000) -> float:

@@ -30,7 +30,7 @@ def _read_tum(p):
 
 def test_position_rmse_matches_an_independent_computation_from_tum_files(smoke):
     out, res = smoke
-    ds = next((out / "datasets").iterdir())
+    ds = next(p for p in (out / "datasets").iterdir() if p.name.startswith("tiny-"))
     for seq_dir in sorted(p for p in ds.iterdir() if p.name.startswith("seq_")):
         gt = _read_tum(seq_dir / "groundtruth.tum")
         est = _read_tum(out / "estimates" / "hierarchical" / ds.name / seq_dir.name / "estimates.tum")

@@ -106,7 +106,7 @@ def test_flip_is_real_and_gravity_picks_the_right_one(pad):
 def _decoy_scene(pad, with_pad=True):
     G = tilted(0.0, 0.0, 8.0, 0.3)
     img = warp_pad_view(pad, CAM, G, GROUND) if with_pad else np.full((800, 800, 3), GROUND, np.uint8)
-    border = tuple(int(c) for c in pad.geometry["border"]["color_rgb"])
+    border = pad.geometry.border.color_rgb
     cv2.rectangle(img, (40, 40), (190, 170), border, -1)  # a solid patch of the pad's colour, bigger than the pad
     cv2.fillConvexPoly(img, np.array([[600, 620], [700, 640], [690, 740], [590, 720]]), border)
     sq = np.full((70, 70), 255, np.uint8)  # a lone finder-like square

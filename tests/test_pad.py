@@ -18,11 +18,9 @@ from tests.conftest import assert_input_error, run_cli
 
 
 def listed_corners(geometry):
-    pts = list(geometry["outer_corners"]) + list(geometry["field_corners"]) + list(geometry["cue"]["corners"])
-    for m in geometry["markers"]:
-        for sq in m["squares"]:
-            pts += sq["corners"]
-    return np.asarray(pts)[:, :2]
+    pts = [geometry.outer_corners, geometry.field_corners, geometry.cue.corners]
+    pts += [sq.corners for m in geometry.markers for sq in m.squares]
+    return np.concatenate(pts)[:, :2]
 
 
 def test_every_listed_corner_is_where_texture_edges_meet(pad):
@@ -52,7 +50,7 @@ def _rotate(img, angle_deg):
 def test_exactly_three_finder_nests_named_right_at_36_yaws(pad):
     small = cv2.resize(cv2.cvtColor(pad.texture_rgb, cv2.COLOR_RGB2GRAY), None, fx=0.5, fy=0.5,
                        interpolation=cv2.INTER_AREA)
-    centres = {m["name"]: pad.to_texture_px(np.array([m["center"]]))[0] * 0.5 + 0.25 - 0.5
+    centres = {m.name: pad.to_texture_px(np.array([m.center]))[0] * 0.5 + 0.25 - 0.5
                for m in pad.markers("corner")}
     # at full resolution, the texture holds exactly three nests
     full = mk.find_finder_nests(mk.binarize_dark(cv2.cvtColor(pad.texture_rgb, cv2.COLOR_RGB2GRAY)))
@@ -146,8 +144,8 @@ def test_nested_variant_has_two_marker_sets():
     triples = mk.find_marker_triples(nests)
     assert len(triples) == 2
     ratios = sorted(t.spacing_ratio for t in triples)
-    m = pad.geometry["markers"]
-    expect = sorted([m[0]["size_m"] / (2 * abs(m[0]["center"][0])), m[3]["size_m"] / (2 * abs(m[3]["center"][0]))])
+    m = pad.geometry.markers
+    expect = sorted([m[0].size_m / (2 * abs(m[0].center[0])), m[3].size_m / (2 * abs(m[3].center[0]))])
     np.testing.assert_allclose(ratios, expect, rtol=0.15)
 
 
@@ -159,8 +157,8 @@ def test_aruco_variant_detected_by_opencv_at_listed_corners():
     corners, ids, _ = det.detectMarkers(gray)
     assert ids is not None and sorted(ids.ravel().tolist()) == [0, 1, 2]
     for c, i in zip(corners, ids.ravel()):
-        m = next(m for m in pad.geometry["markers"] if m["aruco_id"] == i)
-        truth = pad.to_texture_px(np.asarray(m["squares"][0]["corners"]))
+        m = next(m for m in pad.geometry.markers if m.aruco_id == i)
+        truth = pad.to_texture_px(m.outer_corners)
         # OpenCV reports corners on the outer edge of the black border, +-1 px
         assert np.abs(c[0] - truth).max() < 1.5
 

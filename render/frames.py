@@ -1,0 +1,193 @@
+"""Render one sequence frame by frame as named layers (the dataset writer decides what goes to disk).
+
+``SequenceRenderer(spec, index).render(k) -> FrameLayers``:
+
+* ``rgb``       ``(H, W, 3)`` uint8: the camera's image (OpenCV pixel convention).
+* ``depth_m``   ``(H, W)`` float32: depth along the optical axis at each pixel centre at the frame
+  time, metres; ``inf`` where nothing is (the sky).
+* ``motion_px`` ``(H, W, 2)`` float32: each pixel's image motion from the shutter's opening to
+  its closing (``None`` when the frame has no motion blur).
+* ``labels``    ``{column: value}``: the frame's row of ``frames.csv`` (:data:`render.dataset.FRAME_COLUMNS`).
+
+Each frame is rasterised once with its depth at the frame time; the depth gives the labels'
+occlusion (what the camera really sees) and each pixel's image motion, from which the motion
+blur is made (:mod:`render.motion`).  ``degradations.blur_method: subframes`` renders one image
+per sample time instead (the exact reference).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hvloc.geometry import continuous_quaternions, invert, tum_from_transform
+
+from . import motion as mo
+from .phase import PadSamples, depth_occlusion, phase_gt, view_facts
+from .plan import camera_from_spec, mount_from_spec, pad_for, plan_sequence
+from .spec import DatasetSpec
+
+
+@dataclass
+class FrameLayers:
+    index: int
+    t: float
+    rgb: np.ndarray
+    depth_m: np.ndarray
+    motion_px: np.ndarray | None
+    labels: dict
+
+
+class SequenceRenderer:
+    """The scene, camera and image formation of one sequence; :meth:`render` makes frame ``k``."""
+
+    def __init__(self, spec: DatasetSpec, index: int, texture_png=None):
+        from .imaging import ImageFormation
+        from .scene import PAD_THICKNESS_M, LandingScene
+
+        self.spec = spec
+        self.plan = plan = plan_sequence(spec, index)
+        self.pad = pad = pad_for(spec, texture_png)
+        self.camera = camera = camera_from_spec(spec.camera)
+        self.T_B_C = mount_from_spec(spec.camera.mount)
+        self.times = plan.frame_times
+        self.exposure = float(spec.camera.exposure_s)
+        d = spec.degradations
+        self.blur = bool(d.motion_blur and self.exposure > 0)
+        self.floor = 1 if d.blur_subframes == "auto" else int(d.blur_subframes)
+        self.method = d.blur_method
+        self.imaging = ImageFormation(camera, spec.camera.supersample, plan.imaging, 1.0, plan.seed)
+        self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
+                                  self.imaging.render_camera, pad.spec.border_color,
+                                  np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,
+                                  znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m))
+        self.samples = PadSamples.of(pad.geometry)
+        traj = plan.trajectory
+        self.body2world = traj.body_poses(self.times)
+        self.pad2world = traj.pad_poses(self.times)
+        state = traj.state(self.times)
+        self.body_vel = state.vel_W
+        self.pad_vel = np.tile(np.append(traj.pad_vel, 0.0), (len(self.times), 1))
+        self.platform_moves = bool(np.any(traj.pad_vel != 0))
+        self.flow = mo.FlowField(camera) if self.blur else None
+        # what moves with the platform, in the pad frame: its top and sides, the pad (and its margin)
+        half = max(pad.side_m / 2, spec.platform.size_m / 2 if spec.platform.height_m > 0 else 0.0) + 1e-3
+        self._moving_half = half
+        self._moving_floor = -(spec.platform.height_m + PAD_THICKNESS_M) + 1e-3
+        # quaternions keep one hemisphere from row to row
+        self._quats = continuous_quaternions([tum_from_transform(self.cam2pad(k))[3:] for k in range(len(self.times))])
+        self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])
+
+    # ------------------------------------------------------------------ poses
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def cam2pad(self, k: int) -> np.ndarray:
+        """``T_P_C`` at frame ``k``'s time."""
+        return invert(self.pad2world[k]) @ self.body2world[k] @ self.T_B_C
+
+    def _poses_at(self, t) -> tuple:
+        traj = self.plan.trajectory
+        return traj.body_poses(t), traj.pad_poses(t)
+
+    # ------------------------------------------------------------------ one frame
+    def render(self, k: int) -> FrameLayers:
+        t = float(self.times[k])
+        T_W_B, T_W_P = self.body2world[k], self.pad2world[k]
+        cam2world = T_W_B @ self.T_B_C
+        cam2pad = invert(T_W_P) @ cam2world
+        self.scene.set_platform(T_W_P)
+        self.scene.set_drone(T_W_B)
+        rgb_r, z_r = self.scene.render_with_depth(cam2world)
+        facts = view_facts(self.camera, cam2pad, self.pad.geometry,
+                           depth_occlusion(self.imaging.render_camera, z_r, cam2pad), self.samples)
+        depth = self.imaging.depth_to_pixels(z_r)
+        n, flows = 1, None
+        if self.blur:
+            flows = self._flows(depth, cam2world, cam2pad, T_W_P, t)
+            sub = flows[:, ::4, ::4]
+            n = mo.samples_needed(float(mo.path_length_px(sub[0], sub[1]).max()), self.floor)
+        if n > 1 and self.method == "subframes":
+            linear = self._subframes(t, n)
+        else:
+            linear = self.imaging.linear(rgb_r)
+            if n > 1:
+                linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base_x, self.flow.base_y)
+        rgb = self.imaging.finish(linear, k)
+        labels = self._labels(k, t, cam2pad, facts, n)
+        return FrameLayers(k, t, rgb, depth, None if flows is None else flows[1] - flows[0], labels)
+
+    def _classify(self, cam2pad):
+        if not self.platform_moves:
+            return lambda P: np.zeros(len(P), np.int8)
+        R, tr = cam2pad[:3, :3], cam2pad[:3, 3]
+        half, floor = self._moving_half, self._moving_floor
+
+        def classify(points_C):
+            P = points_C @ R.T + tr
+            return ((np.abs(P[:, 0]) <= half) & (np.abs(P[:, 1]) <= half) & (P[:, 2] > floor)).astype(np.int8)
+
+        return classify
+
+    def _flows(self, depth, cam2world, cam2pad, T_W_P, t) -> np.ndarray:
+        """``(2, H, W, 2)``: every pixel's image motion to the shutter's opening and closing."""
+        tau = np.array([-self.exposure / 2, self.exposure / 2])
+        B, P = self._poses_at(t + tau)
+        motion = mo.relative_motion(cam2world, B @ self.T_B_C, T_W_P, P, tau)
+        return self.flow.flows(depth, self._classify(cam2pad), motion)
+
+    def _subframes(self, t: float, n: int) -> np.ndarray:
+        """The reference blur: one render per sample time, averaged in linear light."""
+        tau = mo.sample_times(self.exposure, n)
+        B, P = self._poses_at(t + tau)
+        renders = []
+        for Bi, Pi in zip(B, P):
+            self.scene.set_platform(Pi)
+            self.scene.set_drone(Bi)
+            renders.append(self.scene.render(Bi @ self.T_B_C))
+        return self.imaging.linear_average(renders)
+
+    def _labels(self, k: int, t: float, cam2pad, facts: dict, n: int) -> dict:
+        px = facts["corners_px"].copy()
+        px[~self.camera.in_image(px)] = np.nan
+        pose = tum_from_transform(cam2pad)
+        pose[3:] = self._quats[k]
+        blur = 0.0
+        if self.exposure > 0:  # the pad corners' image motion over the exposure (ideal pinhole)
+            B, P = self._poses_at(t + np.array([-self.exposure / 2, self.exposure / 2]))
+            pin = self.camera.without_distortion()
+            ends = [pin.project_from(invert(Pi) @ Bi @ self.T_B_C, self.pad.outer_corners_P) for Bi, Pi in zip(B, P)]
+            d = np.linalg.norm(ends[1] - ends[0], axis=1)
+            blur = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+        phase = phase_gt(self.camera, cam2pad, self.pad.geometry, self.spec.phase_rule.min_module_px, facts)
+        body = tum_from_transform(self.body2world[k])
+        body[3:] = self._body_quats[k]
+        padw = tum_from_transform(self.pad2world[k])
+        row = {"frame": k, "t": t, "image": f"images/{k:06d}.png",
+               **dict(zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), pose)), "height_above_pad": pose[2],
+               "phase_gt": phase, "pad_fully_visible": facts["pad_fully_visible"],
+               "markers_visible": facts["markers_visible"], "module_px": facts["module_px"], "blur_px": blur,
+               "blur_subframes": n}
+        for i in range(4):
+            row[f"c{i}u"], row[f"c{i}v"] = px[i]
+        for i in range(4):
+            row[f"c{i}_visible"] = bool(facts["corner_visible"][i])
+        for name, vis in facts["marker_visible"].items():
+            row[f"marker_{name.lower()}_visible"] = vis
+        row["pad_visible_fraction"] = facts["pad_visible_fraction"]
+        row.update({f"pad2world_{c}": v for c, v in zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), padw)})
+        row.update({f"body2world_{c}": v for c, v in zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), body)})
+        row.update({f"body_vel_{c}": v for c, v in zip("xyz", self.body_vel[k])})
+        row.update({f"pad_vel_{c}": v for c, v in zip("xyz", self.pad_vel[k])})
+        return row
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        self.scene.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False

@@ -1,0 +1,99 @@
+"""Everything drawn for one sequence before rendering, reproducible from the dataset seed and the
+sequence index alone: trajectory, scene, lighting, degradations, IMU; and the spec's camera."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hvloc.geometry import Camera, focal_from_hfov
+
+from .spec import DatasetSpec
+
+
+def sequence_seed(dataset_seed: int, index: int) -> int:
+    """Per-sequence seed derived from the dataset seed and the index alone (regenerable alone)."""
+    return int(np.random.SeedSequence([int(dataset_seed), int(index)]).generate_state(1, np.uint64)[0] % (2**63))
+
+
+def camera_from_spec(cam) -> Camera:
+    f = focal_from_hfov(cam.width, math.radians(cam.hfov_deg))
+    return Camera(cam.width, cam.height, f, f * cam.fy_over_fx, (cam.width - 1) / 2.0 + cam.principal_offset_px[0],
+                  (cam.height - 1) / 2.0 + cam.principal_offset_px[1], tuple(cam.dist))
+
+
+def mount_from_spec(mount) -> np.ndarray:
+    """``T_B_C`` from the spec: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    return mount.transform()
+
+
+_PAD_CACHE = {}
+
+
+def pad_for(spec: DatasetSpec, texture_png=None):
+    """The spec's pad.  With ``texture_png`` (a dataset's ``pad.png``) its texture is read from there,
+    so that every sequence of a dataset shows the very same pixels whatever draws pads today."""
+    from pad_design import make_pad
+
+    key = (spec.pad.model_dump_json(), spec.pad_ppm, str(texture_png))
+    if key not in _PAD_CACHE:
+        if texture_png is None:
+            _PAD_CACHE[key] = make_pad(spec.pad, spec.pad_ppm)
+        else:
+            from pad_design.errors import InputError
+            from pad_design.layout import build_geometry
+            from pad_design.pad import Pad
+
+            from .dataset import read_image
+
+            rgb = read_image(texture_png)
+            n = int(round(spec.pad.side_m * spec.pad_ppm))
+            if rgb.shape != (n, n, 3):
+                raise InputError(f"{texture_png}: a {rgb.shape[1]}x{rgb.shape[0]} texture, the spec's pad needs {n}x{n}")
+            _PAD_CACHE[key] = Pad(spec.pad, build_geometry(spec.pad), rgb, n / spec.pad.side_m)
+    return _PAD_CACHE[key]
+
+
+@dataclass
+class SequencePlan:
+    """Everything drawn for one sequence before rendering (reproducible from the seed alone)."""
+
+    index: int
+    seed: int
+    family: str
+    trajectory: object
+    scene_draw: object
+    imaging: object
+    frame_times: np.ndarray
+    imu: np.ndarray = field(repr=False)
+
+
+def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
+    from .imaging import ImagingParams
+    from .imu import synthesize_imu
+    from .scene import PAD_THICKNESS_M, draw_scene
+    from .trajectory import make_trajectory
+
+    seed = sequence_seed(spec.seed, index)
+    rng = np.random.default_rng(seed)
+    fams = spec.trajectory.families
+    family = fams[index % len(fams)]
+    T_B_C = mount_from_spec(spec.camera.mount)
+    body_above_cam = -float(T_B_C[2, 3])
+    pad_surface = spec.platform.height_m + PAD_THICKNESS_M
+    traj = make_trajectory(spec.trajectory, np.random.default_rng(rng.integers(2**63)), family, body_above_cam,
+                           pad_surface, spec.platform.velocity_mps, optical_axis_B=T_B_C[:3, 2])
+    cam = spec.camera
+    view_radius = spec.trajectory.start_height_m * math.tan(math.radians(cam.hfov_deg) / 2) * 1.5 + \
+        spec.trajectory.lateral_offset_m[1]
+    draw = draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius)
+    d = spec.degradations
+    r2 = np.random.default_rng(rng.integers(2**63))
+    u = lambda r: float(r2.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731
+    imaging = ImagingParams(u(d.exposure_gain), u(d.gamma), u(d.defocus_sigma_px), u(d.shot_noise),
+                            u(d.read_noise), d.jpeg_quality)
+    n = int(math.floor(traj.duration * cam.fps + 1e-9)) + 1
+    times = np.arange(n) / cam.fps
+    imu = synthesize_imu(traj, spec.imu, np.random.default_rng(rng.integers(2**63)), times[-1])
+    return SequencePlan(index, seed, family, traj, draw, imaging, times, imu)

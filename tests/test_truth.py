@@ -1,0 +1,308 @@
+"""Every spec field renders what its labels say: images against labels, visibility against an
+independent ray test, moving platforms, the one-render blur against sub-frames."""
+import csv
+import functools
+import hashlib
+import json
+import math
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from hvloc.geometry import invert, rotation_z, transform_points
+from render.checks import check_image
+from render.dataset import Dataset, sha256_file, verify_dataset
+from render.frames import SequenceRenderer
+from render.generate import generate
+from render.phase import PadSamples
+from render.spec import DatasetSpec
+from tests.conftest import run_cli
+from tests.spec_space import BASE, FIELDS, leaf_paths, random_spec, set_path
+
+
+def _spec(d: dict) -> DatasetSpec:
+    return DatasetSpec.model_validate(d)
+
+
+def _merge(base: dict, updates: dict) -> dict:
+    d = json.loads(json.dumps(base))
+    for path, value in updates.items():
+        set_path(d, path, value)
+    return d
+
+
+# ----------------------------------------------------------------------------- every field is rendered
+
+def test_every_spec_field_is_in_the_spec_space():
+    missing = sorted(set(leaf_paths()) - set(FIELDS))
+    stale = sorted(set(FIELDS) - set(leaf_paths()))
+    assert not missing, f"spec fields with no domain or effect in tests/spec_space.py: {missing}"
+    assert not stale, f"tests/spec_space.py names fields the spec does not have: {stale}"
+
+
+def _outputs(d: dict, render: bool) -> str:
+    """A digest of what sequence 0 of a spec is: its plan, labels and (with ``render``) pixels."""
+    return _outputs_of(json.dumps(d, sort_keys=True), render)
+
+
+@functools.lru_cache(maxsize=64)
+def _outputs_of(spec_json: str, render: bool) -> str:
+    spec = _spec(json.loads(spec_json))
+    h = hashlib.sha256(json.dumps([spec.name, spec.sequences]).encode())
+    with SequenceRenderer(spec, 0) as r:
+        p = r.plan
+        for part in (r.times, r.body2world, r.pad2world, p.imu, r.T_B_C, r.pad.texture_rgb):
+            h.update(np.ascontiguousarray(part).tobytes())
+        h.update(json.dumps([p.scene_draw.to_dict(), p.imaging.to_dict(), r.camera.to_dict(), r.pad.document(),
+                             spec.camera.exposure_s, spec.camera.supersample], default=str).encode())
+        if render:
+            for k in range(len(r)):
+                layers = r.render(k)
+                h.update(layers.rgb.tobytes())
+                h.update(json.dumps(layers.labels, default=str).encode())
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("path", sorted(FIELDS))
+def test_every_spec_field_changes_what_is_rendered(path):
+    _, perturbed, context = FIELDS[path]
+    base = _merge(BASE, context)
+    changed = _merge(base, {path: perturbed})
+    assert changed != base, f"{path}: the perturbation equals the base value"
+    if _outputs(changed, render=False) != _outputs(base, render=False):
+        return
+    assert _outputs(changed, render=True) != _outputs(base, render=True), \
+        f"{path}: changing it changes neither the plan, the labels nor the pixels of sequence 0"
+
+
+# ----------------------------------------------------------------------------- labels against images
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_specs_render_what_their_labels_say(seed):
+    """Random valid specs (mounts off nadir, lenses, moving platforms, sun, distractors, blur,
+    supersampling...): where the pad is near and sharp, the image shows it at the labelled pose."""
+    rng = np.random.default_rng(1000 + seed)
+    spec = _spec(random_spec(rng))
+    with SequenceRenderer(spec, 0) as r:
+        f = min(r.camera.fx, r.camera.fy)
+        across = np.array([r.pad.side_m * f / r.cam2pad(k)[2, 3] for k in range(len(r))])
+        cand = np.nonzero((across >= 60) & (across <= 0.8 * min(r.camera.width, r.camera.height)))[0]
+        tested = 0
+        for k in cand[np.linspace(0, len(cand) - 1, min(3, len(cand))).round().astype(int)] if len(cand) else []:
+            layers = r.render(int(k))
+            L = layers.labels
+            if L["blur_px"] > 1.5 or L["pad_visible_fraction"] < 0.5:
+                continue
+            matched, cells, required = check_image(r.camera, r.pad, r.cam2pad(int(k)), layers.rgb,
+                                                   L["pad_visible_fraction"])
+            assert matched >= required, (f"spec {seed} frame {k}: {matched} of {cells} pad cells match "
+                                         f"({required} needed): {spec.canonical_json()}")
+            tested += 1
+    if seed < 3:  # most draws have near, sharp frames: the property is not vacuous
+        assert tested >= 1 or len(cand) == 0
+
+
+def _seg_hits_box(C, X, box, grow):
+    """Does the segment C->X pass through the oriented box (grown by ``grow`` metres)?"""
+    x, y, yaw, sx, sy, sz, _ = box
+    R = rotation_z(yaw)
+    c = np.array([x, y, sz / 2])
+    a, b = R.T @ (C - c), R.T @ (X - c)
+    d = b - a
+    half = np.array([sx, sy, sz]) / 2 + grow
+    t0, t1 = 0.0, 1.0
+    for i in range(3):
+        if abs(d[i]) < 1e-12:
+            if abs(a[i]) > half[i]:
+                return False
+            continue
+        u, v = (-half[i] - a[i]) / d[i], (half[i] - a[i]) / d[i]
+        t0, t1 = max(t0, min(u, v)), min(t1, max(u, v))
+    return t0 < t1 - 1e-9
+
+
+def test_visibility_labels_agree_with_a_ray_test_in_a_scene_built_to_occlude():
+    """A camera 20 deg off nadir and a wall beside the pad: per-corner and per-marker visibility
+    (from the renderer's depth) against an exact segment-box intersection."""
+    spec = _spec({"name": "occ", "seed": 4, "sequences": 1,
+                  "camera": {"width": 200, "height": 200, "hfov_deg": 70, "fps": 2, "exposure_s": 0.0,
+                             "mount": {"rpy_deg": [200, 0, -90]}},
+                  "platform": {"height_m": 0.0},
+                  "trajectory": {"families": ["straight"], "start_height_m": 5, "duration_s": [10, 10],
+                                 "lateral_offset_m": [0, 0], "final_offset_m": [0, 0], "yaw_deg": [180, 180],
+                                 "yaw_change_deg": [0, 0], "gust_accel_mps2": [0, 0]},
+                  "environment": {"distractors": {"boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0],
+                                                  "boxes_at": [{"xy_m": [0.55, 0.0], "size_m": [0.12, 1.2, 1.0]}]}}})
+    disagree, tested, occluded = [], 0, 0
+    with SequenceRenderer(spec, 0) as r:
+        samples = PadSamples.of(r.pad.geometry)
+        box = r.plan.scene_draw.boxes[0]
+        for k in range(len(r)):
+            labels = r.render(k).labels
+            T_W_C = r.body2world[k] @ r.T_B_C
+            C = T_W_C[:3, 3]
+            gsd = max(np.linalg.norm(C), 0.1) / r.camera.fx
+            pts = {f"c{i}_visible": samples.corners[i:i + 1] for i in range(4)}
+            pts.update({f"marker_{n.lower()}_visible": samples.markers[n] for n in samples.markers})
+            for col, P in pts.items():
+                Xw = transform_points(r.pad2world[k], P)
+                in_image = r.camera.in_image(r.camera.project_from(invert(r.pad2world[k]) @ T_W_C, P)).all()
+                hit_out = [_seg_hits_box(C, X, box, 2 * gsd) for X in Xw]
+                hit_in = [_seg_hits_box(C, X, box, -2 * gsd) for X in Xw]
+                if hit_out != hit_in:
+                    continue  # within two pixels of the wall's edge: either answer is right
+                truth = bool(in_image and not any(hit_out))
+                tested += 1
+                occluded += bool(in_image and any(hit_out))
+                if bool(labels[col]) != truth:
+                    disagree.append((k, col, labels[col], truth))
+    assert tested >= 100 and occluded >= 10, (tested, occluded)
+    assert not disagree, disagree[:5]
+
+
+# ----------------------------------------------------------------------------- moving platform, verify
+
+def _moving_spec(**over):
+    d = {"name": "mp", "seed": 3, "sequences": 1,
+         "camera": {"width": 240, "height": 240, "hfov_deg": 60, "fps": 2, "exposure_s": 0.004},
+         "platform": {"height_m": 0.5, "velocity_mps": [0.6, 0.3]},
+         "trajectory": {"families": ["straight"], "start_height_m": 4, "duration_s": [9, 9],
+                        "lateral_offset_m": [0, 0.5]}}
+    return _spec(_merge(d, over))
+
+
+@pytest.fixture(scope="module")
+def moving_dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("mp") / "ok"
+    generate(_moving_spec(), root, show_progress=False)
+    return root
+
+
+def test_moving_platform_is_rendered_where_its_labels_say(moving_dataset):
+    seq = Dataset(moving_dataset)[0]
+    c = seq.columns
+    # the pad's world pose moves with the spec's velocity, and T_P_C = T_W_P^-1 T_W_B T_B_C
+    np.testing.assert_allclose(c["pad2world_tx"], 0.6 * c["t"], atol=1e-9)
+    np.testing.assert_allclose(c["pad_vel_y"], 0.3)
+    from hvloc.geometry import transform_from_tum
+
+    for k in (0, len(seq) // 2, len(seq) - 1):
+        T_W_P = transform_from_tum([c[f"pad2world_{q}"][k] for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        T_W_B = transform_from_tum([c[f"body2world_{q}"][k] for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        np.testing.assert_allclose(invert(T_W_P) @ T_W_B @ seq.T_B_C, seq.frame(k).cam2pad, atol=1e-9)
+    assert verify_dataset(moving_dataset) == []
+
+
+def test_verify_catches_a_platform_that_is_labelled_moving_but_rendered_still(tmp_path, monkeypatch):
+    """The bug this round fixed: the trajectory moved with the pad, the rendered pad did not."""
+    import render.scene as scene
+
+    monkeypatch.setattr(scene.LandingScene, "set_platform", lambda self, T: None)
+    generate(_moving_spec(), tmp_path / "bad", show_progress=False)
+    r = run_cli("dataset", "verify", tmp_path / "bad")
+    assert r.returncode == 1 and "does not show the pad at its labelled pose" in r.stdout, r.stdout
+
+
+def _rewrite_checksums(root: Path, sid: str, names) -> None:
+    m = json.loads((root / "manifest.json").read_text())
+    meta = json.loads((root / sid / "meta.json").read_text())
+    for n in names:
+        meta["files"][n] = m["files"][f"{sid}/{n}"] = sha256_file(root / sid / n)
+    (root / sid / "meta.json").write_text(json.dumps(meta, indent=1) + "\n")
+    m["files"][f"{sid}/meta.json"] = sha256_file(root / sid / "meta.json")
+    (root / "manifest.json").write_text(json.dumps(m, indent=1) + "\n")
+
+
+def test_verify_catches_labels_off_by_a_pixel_with_consistent_checksums(moving_dataset, tmp_path):
+    """Poses moved by ~1.5 px at the tested frames, the corner columns and groundtruth.tum moved
+    with them and every checksum rewritten: only the image check can tell, and it does."""
+    root = tmp_path / "shifted"
+    shutil.copytree(moving_dataset, root)
+    seq = Dataset(root)[0]
+    path = root / seq.id / "frames.csv"
+    rows = list(csv.DictReader(path.open()))
+    from hvloc.geometry import transform_from_tum
+
+    for row in rows:
+        h = float(row["tz"])
+        row["tx"] = repr(float(row["tx"]) + 1.5 * h / seq.camera.fx)
+        T = transform_from_tum([float(row[q]) for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        px = seq.camera.project_from(T, seq.pad.outer_corners_P)
+        inside = seq.camera.in_image(px)
+        for i in range(4):
+            row[f"c{i}u"], row[f"c{i}v"] = (repr(float(v)) for v in px[i]) if inside[i] else ("nan", "nan")
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    tum = root / seq.id / "groundtruth.tum"
+    lines = tum.read_text().splitlines()
+    out = [lines[0]] + [" ".join([r["t"], r["tx"], r["ty"], r["tz"], r["qx"], r["qy"], r["qz"], r["qw"]]) for r in rows]
+    tum.write_text("\n".join(out) + "\n")
+    _rewrite_checksums(root, seq.id, ["frames.csv", "groundtruth.tum"])
+    res = run_cli("dataset", "verify", root)
+    assert res.returncode == 1 and "does not show the pad" in res.stdout, res.stdout
+
+
+def test_reading_a_sequence_never_rasterises_the_pad(moving_dataset, monkeypatch):
+    import pad_design.pad
+    import pad_design.texture
+
+    def boom(*a, **k):
+        raise AssertionError("the pad texture was rasterised on read")
+
+    monkeypatch.setattr(pad_design.texture, "render_texture", boom)
+    monkeypatch.setattr(pad_design.pad, "render_texture", boom)
+    seq = Dataset(moving_dataset, verify=True)[0]
+    assert seq.pad.texture_rgb.shape[0] == int(round(seq.pad.side_m * seq.pad.ppm))
+    assert (seq.root / "pad.json").read_text().count("../pad.png") == 1
+
+
+# ----------------------------------------------------------------------------- the one-render blur
+
+def test_velocity_blur_matches_the_subframe_reference():
+    """Strong motion blur (20 ms exposure, gusts): the one-render blur against one render per
+    sample time, on the corners of the marker squares (refined on both images)."""
+    from hvloc.features import refine_quads
+
+    def spec(method):
+        return _spec({"name": "blur", "seed": 800, "sequences": 1, "pad_ppm": 2000,
+                      "camera": {"width": 300, "height": 300, "hfov_deg": 60, "fps": 2, "exposure_s": 0.02,
+                                 "supersample": 2},
+                      "platform": {"height_m": 0.5},
+                      "trajectory": {"families": ["spiral"], "start_height_m": 4, "duration_s": [10, 10],
+                                     "lateral_offset_m": [0, 1], "gust_accel_mps2": [1.0, 1.0]},
+                      "environment": {"shadows": False},
+                      "degradations": {"blur_method": method, "shot_noise": [0, 0], "read_noise": [0, 0],
+                                       "defocus_sigma_px": [0, 0]}})
+
+    fast, ref = SequenceRenderer(spec("velocity"), 0), SequenceRenderer(spec("subframes"), 0)
+    errs, psnr, blurs = [], [], []
+    try:
+        for k in range(len(fast) // 2, len(fast) - 1, 2):
+            a, b = fast.render(k), ref.render(k)
+            assert a.labels["blur_subframes"] == b.labels["blur_subframes"]
+            blurs.append(a.labels["blur_px"])
+            d = a.rgb.astype(float) - b.rgb.astype(float)
+            psnr.append(10 * math.log10(255**2 / max(float((d * d).mean()), 1e-9)))
+            pad2cam = invert(fast.cam2pad(k))
+            quads = np.array([fast.camera.project(transform_points(pad2cam, sq.corners))
+                              for m in fast.pad.geometry.markers_in("corner") for sq in m.squares])
+            ok = (np.isfinite(quads).all(axis=(1, 2)) & (quads.min(axis=(1, 2)) > 5) & (quads.max(axis=(1, 2)) < 294)
+                  & (np.linalg.norm(quads[:, 0] - quads[:, 1], axis=1) > 20))
+            if not ok.any():
+                continue
+            g = [cv2.cvtColor(x.rgb, cv2.COLOR_RGB2GRAY).astype(np.float32) for x in (a, b)]
+            qa, _ = refine_quads(g[0], quads[ok], 3.0, fast.camera)
+            qb, _ = refine_quads(g[1], quads[ok], 3.0, fast.camera)
+            e = np.linalg.norm(qa - qb, axis=2).ravel()
+            errs += list(e[np.isfinite(e)])
+    finally:
+        fast.close()
+        ref.close()
+    assert max(blurs) > 4.0 and len(errs) >= 40, (max(blurs), len(errs))
+    assert float(np.median(errs)) <= 0.05 and float(np.median(psnr)) >= 33.0, \
+        f"corner difference median {np.median(errs):.3f} px, PSNR median {np.median(psnr):.1f} dB"
