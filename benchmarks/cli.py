@@ -6,6 +6,14 @@ import json
 from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, workers_arg
 
 
+def _executor_args(p) -> None:
+    from render.executor import EXECUTORS
+
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where sequences are rendered and localized: local processes, or a Ray cluster")
+    p.add_argument("--ray-address", help="Ray cluster to join (default: start one on this machine); see README")
+
+
 def main(argv: list) -> int:
     p = ArgumentParser(prog="hvloc bench", description="Score localizers per landing phase.")
     sub = p.add_subparsers(dest="action", required=True)
@@ -13,7 +21,10 @@ def main(argv: list) -> int:
     r.add_argument("suite", help="suite YAML, or a name in data_specs/suites/")
     r.add_argument("--out", required=True)
     r.add_argument("--workers", type=workers_arg, default=1, help="processes that render, then localize (one sequence each)")
-    r.add_argument("--quiet", action="store_true")
+    _executor_args(r)
+    r.add_argument("--no-verify", action="store_true",
+                   help="use datasets even if their files differ from the checksums in their manifests")
+    r.add_argument("--quiet", action="store_true", help="no progress bars")
     w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
     w.add_argument("suite")
     w.add_argument("--adjust-heights", type=float, nargs="+", default=[3.0, 5.0, 7.0, 9.0, 12.0])
@@ -33,7 +44,8 @@ def main(argv: list) -> int:
         load_suite(a.suite)  # a bad suite is refused before anything is written
         prepare_out_dir(a.out)
     if a.action == "run":
-        res = run_suite(a.suite, a.out, workers=a.workers, show_progress=not a.quiet)
+        res = run_suite(a.suite, a.out, workers=a.workers, show_progress=not a.quiet, executor=a.executor,
+                        ray_address=a.ray_address, verify=not a.no_verify)
         from .report import phase_table
 
         print(phase_table(res["summary"]))

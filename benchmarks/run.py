@@ -81,14 +81,18 @@ def write_estimates(seq_out: Path, estimates: list) -> None:
 
 
 def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: bool = True,
-                     show_progress: bool = True, kind: str = "hierarchical") -> dict:
-    """Localize every sequence of a dataset; writes ``OUT/<seq>/estimates.{csv,tum}``."""
-    from render.dataset import Dataset
+                     show_progress: bool = True, kind: str = "hierarchical", verify: bool = True) -> dict:
+    """Localize every sequence of a dataset; writes ``OUT/<seq>/estimates.{csv,tum}``.
+    ``verify``: refuse a dataset whose files differ from their checksums (checked as read)."""
+    from render.dataset import Dataset, FolderLock
 
-    ds = Dataset(root)
+    ds = Dataset(root, verify=verify)
+    with FolderLock(out, "writing results into"):
+        return _localize_dataset(ds, Path(out), config, use_imu, show_progress, kind)
+
+
+def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind) -> dict:
     config = config or LocalizerConfig()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     total = sum(len(ds[s]) for s in ds.sequence_ids)
     bar = None
     if show_progress:
@@ -123,7 +127,9 @@ def localize_main(argv: list) -> int:
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
     p.add_argument("--localizer", choices=KINDS, default="hierarchical",
                    help="hvloc's hierarchical localizer, or the ArUco peer (needs the aruco pad variant)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--no-verify", action="store_true",
+                   help="use a dataset even if its files differ from the checksums in its manifest")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
     cfg = load_config(a.config) if a.config else LocalizerConfig()
     if not Path(a.dataset).is_dir():
@@ -131,7 +137,7 @@ def localize_main(argv: list) -> int:
     if a.localizer != "hierarchical":
         from render.dataset import Dataset
 
-        ds = Dataset(a.dataset)
+        ds = Dataset(a.dataset, verify=not a.no_verify)
         if len(ds) == 0:
             raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
         variant = ds[0].pad.geometry.variant
@@ -140,7 +146,7 @@ def localize_main(argv: list) -> int:
                              f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")
     prepare_out_dir(a.out)
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
-                           kind=a.localizer)
+                           kind=a.localizer, verify=not a.no_verify)
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)
     print(f"{a.out}: {len(res['sequences'])} sequence(s), {res['frames']} frames, {n_ok} poses ok "
           f"({res['seconds']:.1f} s)")

@@ -119,28 +119,35 @@ def provenance() -> dict:
             "versions": package_versions(), "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
-def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> dict:
-    """Generate (or reuse) the suite's datasets, run each localizer, score, write results."""
-    from render.dataset import Dataset, verify_dataset
+def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True, executor: str = "local",
+              ray_address: str | None = None, verify: bool = True) -> dict:
+    """Generate (or reuse) the suite's datasets, run each localizer, score, write results.
+    ``verify``: refuse datasets whose files differ from their checksums (as they are read)."""
+    from render.dataset import FolderLock
+
+    suite, specs, configs, suite_hash = load_suite(suite_path)
+    out = Path(out)
+    with FolderLock(out, "writing results into"):
+        return _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, executor, ray_address,
+                          verify)
+
+
+def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, executor, ray_address, verify):
+    from render.dataset import Dataset
+    from render.executor import run_units
     from render.generate import generate
 
     from .run import read_estimates
 
-    suite, specs, configs, suite_hash = load_suite(suite_path)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     data_root = out / "datasets"
     rows, per_seq, fes_by_loc, fes_by_ds = [], {}, {}, {}
     timing = {}
     for spec in specs:
         droot = data_root / f"{spec.name}-{spec.sha256()[:10]}"
         t0 = time.time()
-        generate(spec, droot, workers=workers, show_progress=show_progress)
+        generate(spec, droot, workers=workers, show_progress=show_progress, executor=executor, ray_address=ray_address)
         timing[f"generate:{spec.name}"] = time.time() - t0
-        problems = verify_dataset(droot, check_labels=False)
-        if problems:
-            raise InputError(f"{droot}: dataset does not verify: {problems[0]}")
-        ds = Dataset(droot)
+        ds = Dataset(droot, verify=verify)
         here = [(loc, cfg) for loc, cfg in configs if runs_on(loc, spec)]
         if not here:
             continue
@@ -151,20 +158,12 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
 
             bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(here)} {spec.name}")
         setups = [(cfg.model_dump(), loc.use_imu, loc.kind) for loc, cfg in here]
-        jobs = [(str(droot), seq.id, setups,
-                 [str(out / "estimates" / loc.name / droot.name / seq.id) for loc, _ in here]) for seq in ds]
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:  # every localizer on each image as it is read
-                _localize_job(job, progress=bar.update if bar else None)
-        else:  # one sequence per process; the bar moves when a sequence is done
-            import multiprocessing as mp
-
-            lengths = {seq.id: len(seq) for seq in ds}  # longest first: the pool's tail stays short
-            jobs.sort(key=lambda j: -lengths[j[1]])
-            with mp.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-                for n in pool.imap_unordered(_localize_job, jobs):
-                    if bar:
-                        bar.update(n)
+        lengths = {sid: s["frames"] for sid, s in ((s["id"], s) for s in ds.manifest["sequences"])}
+        jobs = [(str(droot), sid, setups, [str(out / "estimates" / loc.name / droot.name / sid) for loc, _ in here],
+                 verify) for sid in sorted(ds.sequence_ids, key=lambda s: -lengths[s])]  # longest first
+        for n in run_units(_localize_unit, jobs, workers, executor, ray_address, progress=bar.update if bar else None):
+            if bar and executor == "ray":
+                bar.update(n)
         if bar:
             bar.close()
         timing[f"localize:{spec.name}"] = time.time() - t0
@@ -210,22 +209,17 @@ def run_suite(suite_path, out, workers: int = 1, show_progress: bool = True) -> 
     return results
 
 
-def _localize_job(job, progress=None) -> int:
-    """Every setup over one sequence, estimates written; returns the frame count.  Runs in the
-    suite's process, or in a pool worker (then with one OpenCV thread: the pool is the parallelism)."""
-    import multiprocessing as mp
-
+def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bool) -> int:
+    """Every setup over one sequence (each image read once), estimates written; returns the frame
+    count.  A unit of work for :func:`render.executor.run_units`."""
     from render.dataset import Dataset
+    from render.executor import report_progress
 
     from .run import localize_sequence_many, write_estimates
 
-    if mp.parent_process() is not None:
-        import cv2
-
-        cv2.setNumThreads(1)
-    droot, seq_id, setups, dirs = job
-    seq = Dataset(droot)[seq_id]
-    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups], progress)
+    seq = Dataset(droot, verify=verify)[seq_id]
+    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups],
+                                  report_progress)
     for d, est in zip(dirs, ests):
         write_estimates(Path(d), est)
     return len(seq)

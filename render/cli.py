@@ -14,6 +14,11 @@ def generate_main(argv: list) -> int:
     p.add_argument("--seed", type=int, help="override the spec's dataset seed")
     p.add_argument("--workers", type=workers_arg, default=1, help="parallel render processes (one OSMesa context each)")
     p.add_argument("--overwrite", action="store_true", help="replace a dataset of another spec in --out")
+    from .executor import EXECUTORS
+
+    p.add_argument("--executor", choices=EXECUTORS, default="local",
+                   help="where sequences are rendered: local processes, or a Ray cluster")
+    p.add_argument("--ray-address", help="Ray cluster to join (default: start one on this machine); see README")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     a = p.parse_args(argv)
     from .generate import generate
@@ -28,7 +33,8 @@ def generate_main(argv: list) -> int:
     if over:
         spec = validate_model(DatasetSpec, {**spec.model_dump(mode="json"), **over}, "command line")
     prepare_out_dir(a.out)
-    res = generate(spec, a.out, workers=a.workers, overwrite=a.overwrite, show_progress=not a.quiet)
+    res = generate(spec, a.out, workers=a.workers, overwrite=a.overwrite, show_progress=not a.quiet,
+                   executor=a.executor, ray_address=a.ray_address)
     fps = res.frames / res.seconds if res.seconds > 0 else float("nan")
     print(f"{res.root}: {len(res.rendered)} sequence(s) rendered ({res.frames} frames, {res.seconds:.1f} s, "
           f"{fps:.1f} frames/s), {len(res.skipped)} already complete")

@@ -1,0 +1,137 @@
+"""Nothing a race, a corrupt file or a killed run can do goes unnoticed or breaks a dataset."""
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from benchmarks.corruptions import KINDS
+from pad_design.errors import InputError
+from render.dataset import verify_dataset
+from render.generate import generate
+from render.spec import DatasetSpec
+from tests.conftest import assert_input_error, run_cli
+
+SPEC = {"name": "rel", "seed": 2, "sequences": 2, "pad_ppm": 500,
+        "camera": {"width": 64, "height": 64, "fps": 2},
+        "trajectory": {"start_height_m": 3.0, "duration_s": [4.0, 4.0], "lateral_offset_m": [0.0, 0.3],
+                       "families": ["straight", "spiral"]}}
+# damage that localize does not read (it reads the manifest, the sequences it lists and their files)
+NOT_READ = {"an extra image", "an unlisted file", "an unfinished .tmp folder"}
+
+
+def _spec(**over) -> DatasetSpec:
+    return DatasetSpec.model_validate({**SPEC, **over})
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rel") / "ds"
+    generate(_spec(), root, show_progress=False)
+    assert verify_dataset(root) == []
+    return root
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_verify_reports_every_kind_of_damage_and_localize_refuses_what_it_reads(clean, tmp_path, kind):
+    root = tmp_path / "ds"
+    shutil.copytree(clean, root)
+    KINDS[kind](root)
+    problems = verify_dataset(root)
+    assert problems, f"{kind}: verify said ok"
+    from benchmarks.run import localize_dataset
+
+    if kind in NOT_READ:
+        localize_dataset(root, tmp_path / "est", show_progress=False)
+    else:
+        with pytest.raises(InputError):
+            localize_dataset(root, tmp_path / "est", show_progress=False)
+
+
+def test_damage_through_the_cli_is_one_line_and_a_resume_redoes_it(clean, tmp_path):
+    root = tmp_path / "ds"
+    shutil.copytree(clean, root)
+    KINDS["PNG truncated"](root)
+    r = run_cli("dataset", "verify", root)
+    assert r.returncode == 1 and "seq_0000/images/000001.png: checksum differs" in r.stdout and not r.stderr
+    assert_input_error(run_cli("localize", root, "--out", tmp_path / "est", "--quiet"), "000001.png")
+    r = run_cli("localize", root, "--out", tmp_path / "est2", "--quiet", "--no-verify")
+    assert r.returncode == 2 and "not a readable image" in r.stderr  # unreadable even unverified: still one line
+    # a resume re-checks what it keeps: the damaged sequence is rendered again, the other kept
+    res = generate(_spec(), root, show_progress=False)
+    assert res.rendered == ["seq_0000"] and res.skipped == ["seq_0001"]
+    assert verify_dataset(root) == []
+    assert json.loads((root / "manifest.json").read_text())["files"] == \
+        json.loads((clean / "manifest.json").read_text())["files"]
+
+
+def _spec_file(tmp_path, seed):
+    p = tmp_path / f"spec{seed}.yaml"
+    p.write_text(json.dumps({**SPEC, "seed": seed, "sequences": 3}))
+    return p
+
+
+def test_two_writers_into_one_folder_one_is_refused_and_nothing_is_mixed(tmp_path):
+    out = tmp_path / "shared"
+    out.mkdir()
+    cmds = [[sys.executable, "-m", "hvloc.cli", "generate", str(_spec_file(tmp_path, s)), "--out", str(out), "--quiet"]
+            for s in (5, 6)]
+    procs = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for c in cmds]
+    res = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
+    codes = sorted(c for c, _ in res)
+    assert codes == [0, 2], res
+    loser = next(err for c, err in res if c == 2)
+    assert len(loser.strip().splitlines()) == 1 and ("another hvloc process" in loser or "another spec" in loser), loser
+    assert verify_dataset(out) == []
+
+
+def _children(pid: int) -> list:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_kill_9_of_the_parent_stops_its_workers_and_a_rerun_completes_identically(tmp_path):
+    spec_file = _spec_file(tmp_path, 7)
+    full = tmp_path / "full"
+    assert run_cli("generate", spec_file, "--out", full, "--quiet").returncode == 0
+    out = tmp_path / "killed"
+    p = subprocess.Popen([sys.executable, "-m", "hvloc.cli", "generate", str(spec_file), "--out", str(out), "--quiet",
+                          "--workers", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    workers = []
+    while time.time() < deadline:  # kill once the workers are rendering
+        workers = [c for c in _children(p.pid) if b"multiprocessing" in Path(f"/proc/{c}/cmdline").read_bytes()]
+        if len(workers) >= 2 and list(out.glob(".tmp-seq_*/images/*.png")):
+            break
+        time.sleep(0.05)
+    assert workers, "no workers started"
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    time.sleep(2.0)
+    assert not [w for w in workers if _alive(w)], "workers outlived their killed parent"
+    assert verify_dataset(out)  # incomplete, and verify says so
+    r = run_cli("generate", spec_file, "--out", out, "--quiet", "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    assert verify_dataset(out) == []
+    assert json.loads((out / "manifest.json").read_text())["files"] == \
+        json.loads((full / "manifest.json").read_text())["files"]
