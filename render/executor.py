@@ -71,7 +71,7 @@ def run_units(fn, units: list, workers: int = 1, executor: str = "local", ray_ad
     if executor not in EXECUTORS:
         raise InputError(f"--executor: {executor!r} is not one of {', '.join(EXECUTORS)}")
     if executor == "ray":
-        yield from _run_ray(fn, units, ray_address, setup)
+        yield from _run_ray(fn, units, ray_address, setup, workers)
         return
     if workers <= 1 or len(units) <= 1:
         global _progress_sink
@@ -120,15 +120,16 @@ def _drain(queue, progress) -> None:
             progress(n)
 
 
-def _run_ray(fn, units: list, address: str | None, setup):
+def _run_ray(fn, units: list, address: str | None, setup, workers: int):
     try:
         import ray
     except ImportError:
         raise InputError("--executor ray: Ray is not installed (pip install 'hvloc[ray]')") from None
     if not ray.is_initialized():
         try:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False,
-                     ignore_reinit_error=True, configure_logging=False)
+            # without an address, a local instance with --workers CPUs; with one, the cluster's own
+            ray.init(address=address, num_cpus=None if address else max(1, workers), include_dashboard=False,
+                     log_to_driver=False, ignore_reinit_error=True, configure_logging=False)
         except (ConnectionError, ValueError, RuntimeError) as err:
             raise InputError(f"--ray-address {address or '(local)'}: cannot start or join a Ray cluster ({err})") from None
 
