@@ -29,52 +29,44 @@ def _timeit(fn, n: int, warmup: int = 2) -> float:
     return (time.perf_counter() - t) / n
 
 
-def render_speed(spec_path: str, blur: bool, n: int) -> dict:
+def render_speed(spec_path: str, blur: bool, n: int, blur_method: str = "velocity", subframes=5) -> dict:
+    """Frames/s of the real per-frame pipeline (raster with depth, visibility, flow, lens, blur, noise,
+    tone curve, labels; no disk), its breakdown by stage, and the PNG encoding that a writer thread
+    does beside it; against one ``cv2.warpPerspective`` of the pad texture at the output size."""
+    import cv2
     import yaml
 
-    from render.generate import camera_from_spec, mount_from_spec, pad_for, plan_sequence
-    from render.imaging import ImageFormation
+    from hvloc.geometry import invert
+    from render.dataset import encode_png
+    from render.frames import SequenceRenderer
     from render.planar import warp_pad_view
-    from render.scene import LandingScene
     from render.spec import DatasetSpec
 
     d = yaml.safe_load(Path(spec_path).read_text())
-    d.setdefault("degradations", {})["motion_blur"] = blur
+    deg = d.setdefault("degradations", {})
+    deg.update(motion_blur=blur, blur_method=blur_method, blur_subframes=subframes)
     spec = DatasetSpec.model_validate(d)
-    plan = plan_sequence(spec, 0)
-    pad = pad_for(spec)
-    cam = camera_from_spec(spec.camera)
-    T_B_C = mount_from_spec(spec.camera.mount)
-    img_form = ImageFormation(cam, spec.camera.supersample, plan.imaging, 1.0, plan.seed)
-    scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m, img_form.render_camera,
-                         pad.spec.border_color, np.random.default_rng(0), shadows=spec.environment.shadows)
-    nsub = spec.degradations.blur_subframes if blur else 1
-    times = np.linspace(plan.frame_times[-1] * 0.3, plan.frame_times[-1] * 0.9, n)
-    poses = plan.trajectory.body_poses(times)
-    k = [0]
-
-    def one_frame():
-        T = poses[k[0] % n]
-        k[0] += 1
-        subs = []
-        for _ in range(nsub):
-            scene.set_drone(T)
-            subs.append(scene.render(T @ T_B_C))
-        return img_form.finish([img_form.linear_average(subs)])
-
-    t_frame = _timeit(one_frame, n)
-    k[0] = 0
-    t_raster = _timeit(lambda: scene.render(poses[0] @ T_B_C), n)
-    scene.close()
-    from hvloc.geometry import invert
-
-    cam2pad = invert(plan.trajectory.pad_poses([times[0]])[0]) @ poses[0] @ T_B_C
-    levels = [pad.texture_rgb]
-    pinhole = cam.without_distortion()  # the floor: one plain warpPerspective at the output size
-    t_warp = _timeit(lambda: warp_pad_view(pad, pinhole, cam2pad, supersample=1, levels=levels), n)
-    return {"spec": spec.name, "resolution": f"{cam.width}x{cam.height}", "supersample": spec.camera.supersample,
-            "subframes": nsub, "fps": 1.0 / t_frame, "ms_per_frame": 1000 * t_frame,
-            "ms_per_raster": 1000 * t_raster, "ref_warp_ms": 1000 * t_warp, "ratio_to_warp": t_frame / t_warp}
+    r = SequenceRenderer(spec, 0)
+    frames = np.linspace(0.3 * (len(r) - 1), 0.9 * (len(r) - 1), n).round().astype(int)
+    r.render(int(frames[0]))  # warm up (shader compilation, first allocations)
+    r.stage_seconds.clear()
+    t = time.perf_counter()
+    outs = [r.render(int(k)) for k in frames]
+    t_frame = (time.perf_counter() - t) / n
+    stages = {k: 1000 * v / n for k, v in r.stage_seconds.items()}
+    t_png = _timeit(lambda: encode_png(outs[-1].rgb), 3, 1)
+    cam2pad = r.cam2pad(int(frames[0]))
+    levels = [r.pad.texture_rgb]
+    pinhole = r.camera.without_distortion()  # the floor: one plain warpPerspective at the output size
+    t_warp = _timeit(lambda: warp_pad_view(r.pad, pinhole, cam2pad, supersample=1, levels=levels), n)
+    r.close()
+    raster = stages.get("raster+readback", 0.0)
+    del cv2, invert
+    return {"spec": spec.name, "resolution": f"{r.camera.width}x{r.camera.height}", "supersample": spec.camera.supersample,
+            "blur": blur_method if blur else "none", "samples": [o.labels["blur_subframes"] for o in outs],
+            "fps": 1.0 / t_frame, "ms_per_frame": 1000 * t_frame, "stages_ms": stages,
+            "non_raster_share": 1.0 - raster / (1000 * t_frame), "png_ms_writer_thread": 1000 * t_png,
+            "ref_warp_ms": 1000 * t_warp, "ratio_to_warp": t_frame / t_warp}
 
 
 def localizer_speed(width: int, height: int, hfov_deg: float, n: int) -> list:
@@ -156,13 +148,22 @@ def main(argv=None) -> int:
     n = 5 if a.quick else 20
     res = {"provenance": provenance(), "threads": 1, "render": [], "localizer": []}
     if not a.skip_render:
+        from render.gl import choose_platform
+
+        res["gl_platform"] = choose_platform()[0]
+        print(f"GL platform: {res['gl_platform']}")
         for spec in ("sim800", "field1080"):
-            for blur in (False, True):
-                r = render_speed(str(REPO / "data_specs" / f"{spec}.yaml"), blur, max(3, n // 2))
+            for blur, method in ((False, "velocity"), (True, "velocity"), (True, "subframes")):
+                if method == "subframes" and a.quick:
+                    continue
+                r = render_speed(str(REPO / "data_specs" / f"{spec}.yaml"), blur, max(3, n // 2), method)
                 res["render"].append(r)
-                print(f"render {r['spec']:10s} {r['resolution']:>9s} ss{r['supersample']} sub{r['subframes']}: "
-                      f"{r['fps']:6.2f} frames/s ({r['ms_per_frame']:7.1f} ms; raster {r['ms_per_raster']:6.1f} ms)  "
-                      f"warpPerspective {r['ref_warp_ms']:6.2f} ms  ratio {r['ratio_to_warp']:6.1f}x", flush=True)
+                st = "  ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items())
+                print(f"render {r['spec']:10s} {r['resolution']:>9s} ss{r['supersample']} blur {r['blur']:9s} "
+                      f"samples {min(r['samples'])}-{max(r['samples'])}: {r['fps']:6.2f} frames/s "
+                      f"({r['ms_per_frame']:6.1f} ms; not raster {100 * r['non_raster_share']:.0f} %; png "
+                      f"{r['png_ms_writer_thread']:.0f} ms on the writer thread)  warpPerspective {r['ref_warp_ms']:5.2f} ms "
+                      f"ratio {r['ratio_to_warp']:6.1f}x\n    ms: {st}", flush=True)
     for w, h, fov in ((800, 800, 60.0), (1920, 1080, 94.0)):
         for r in localizer_speed(w, h, fov, n):
             res["localizer"].append(r)

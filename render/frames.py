@@ -16,6 +16,7 @@ per sample time instead (the exact reference).
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,7 @@ class SequenceRenderer:
                                   np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,
                                   znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m))
         self.samples = PadSamples.of(pad.geometry)
+        self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames
         traj = plan.trajectory
         self.body2world = traj.body_poses(self.times)
         self.pad2world = traj.pad_poses(self.times)
@@ -92,6 +94,8 @@ class SequenceRenderer:
 
     # ------------------------------------------------------------------ one frame
     def render(self, k: int) -> FrameLayers:
+        clock = self.stage_seconds
+        t0 = time.perf_counter()
         t = float(self.times[k])
         T_W_B, T_W_P = self.body2world[k], self.pad2world[k]
         cam2world = T_W_B @ self.T_B_C
@@ -99,22 +103,31 @@ class SequenceRenderer:
         self.scene.set_platform(T_W_P)
         self.scene.set_drone(T_W_B)
         rgb_r, z_r = self.scene.render_with_depth(cam2world)
+        t1 = time.perf_counter()
         facts = view_facts(self.camera, cam2pad, self.pad.geometry,
                            depth_occlusion(self.imaging.render_camera, z_r, cam2pad), self.samples)
         depth = self.imaging.depth_to_pixels(z_r)
         n, flows = 1, None
         if self.blur:
-            flows = self._flows(depth, cam2world, cam2pad, T_W_P, t)
-            sub = flows[:, ::4, ::4]
-            n = mo.samples_needed(float(mo.path_length_px(sub[0], sub[1]).max()), self.floor)
+            flows, longest = self._flows(depth, cam2world, cam2pad, T_W_P, t)
+            n = mo.samples_needed(longest, self.floor)
+        t2 = time.perf_counter()
         if n > 1 and self.method == "subframes":
             linear = self._subframes(t, n)
+            t3 = t4 = time.perf_counter()
         else:
             linear = self.imaging.linear(rgb_r)
+            t3 = time.perf_counter()
             if n > 1:
-                linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base_x, self.flow.base_y)
+                linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base)
+            t4 = time.perf_counter()
         rgb = self.imaging.finish(linear, k)
+        t5 = time.perf_counter()
         labels = self._labels(k, t, cam2pad, facts, n)
+        t6 = time.perf_counter()
+        for name, dt in (("raster+readback", t1 - t0), ("visibility+flow", t2 - t1), ("lens+linear", t3 - t2),
+                         ("blur", t4 - t3), ("noise+tone", t5 - t4), ("labels", t6 - t5)):
+            clock[name] = clock.get(name, 0.0) + dt
         return FrameLayers(k, t, rgb, depth, None if flows is None else flows[1] - flows[0], labels)
 
     def _classify(self, cam2pad):
@@ -129,8 +142,9 @@ class SequenceRenderer:
 
         return classify
 
-    def _flows(self, depth, cam2world, cam2pad, T_W_P, t) -> np.ndarray:
-        """``(2, H, W, 2)``: every pixel's image motion to the shutter's opening and closing."""
+    def _flows(self, depth, cam2world, cam2pad, T_W_P, t) -> tuple:
+        """``((2, H, W, 2), longest path px)``: every pixel's image motion to the shutter's opening
+        and closing."""
         tau = np.array([-self.exposure / 2, self.exposure / 2])
         B, P = self._poses_at(t + tau)
         motion = mo.relative_motion(cam2world, B @ self.T_B_C, T_W_P, P, tau)

@@ -91,9 +91,7 @@ class ImageFormation:
         self.centre_x = pin_x.reshape(camera.height, camera.width).astype(np.float32)
         self.centre_y = pin_y.reshape(camera.height, camera.width).astype(np.float32)
         self.gain = params.exposure_gain * WHITE_LEVEL * irradiance_rel
-        # tone curve: 8-bit value of sqrt(linear) quantised to 16 bits (fine steps near black)
-        s_ = np.arange(65536, dtype=np.float64) / 65535.0
-        self.tone_lut = np.clip((s_ * s_) ** (1.0 / (SRGB_GAMMA * params.gamma)) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        self.tone_exponent = 1.0 / (SRGB_GAMMA * params.gamma)
 
     def to_pixels(self, render: np.ndarray) -> np.ndarray:
         """One render (uint8 sRGB, render camera) -> uint8 sRGB at the camera's pixel grid.
@@ -135,19 +133,18 @@ class ImageFormation:
         if p.defocus_sigma_px > 0.05:
             k = int(2 * round(3 * p.defocus_sigma_px) + 1)
             x = cv2.GaussianBlur(x, (k, k), p.defocus_sigma_px, borderType=cv2.BORDER_REPLICATE)
+        np.clip(x, 0.0, None, out=x)  # bicubic blur samples can overshoot below black
         if p.shot_noise > 0 or p.read_noise > 0:
-            np.maximum(x, 0, out=x)
             sigma = x * np.float32(p.shot_noise**2)
             sigma += np.float32(p.read_noise**2)
             cv2.sqrt(sigma, sigma)
             noise = np.empty_like(x)
             cv2.setRNGSeed(int(np.random.SeedSequence([self.seed, 7, int(frame_index)]).generate_state(1)[0] % 2**31))
             cv2.randn(noise, 0.0, 1.0)
-            x += noise * sigma
+            cv2.multiply(noise, sigma, dst=noise)
+            x += noise
         np.clip(x, 0.0, 1.0, out=x)
-        cv2.sqrt(x, x)
-        idx = (x * np.float32(65535.0) + np.float32(0.5)).astype(np.uint16)
-        out = self.tone_lut[idx]
+        out = cv2.convertScaleAbs(cv2.pow(x, self.tone_exponent), alpha=255.0)  # rounds to the nearest level
         if p.jpeg_quality:
             q = [cv2.IMWRITE_JPEG_QUALITY, int(p.jpeg_quality)]
             out = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), q)[1],

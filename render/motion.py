@@ -69,17 +69,19 @@ class FlowField:
     """Per-pixel flow of one camera at ``(H, W)`` from depth and a motion class per pixel.
 
     ``classify(points_C (N, 3)) -> (N,) int`` says which points move with the platform; it is
-    called on 3D points in the camera frame at the frame time."""
+    called on 3D points in the camera frame at the frame time.  The grid step grows with the
+    image (about 40k nodes) so the cost stays bounded."""
 
-    def __init__(self, camera: Camera, step: int = 4):
+    def __init__(self, camera: Camera, step: int | None = None):
         self.camera = camera
-        self.step = step
         H, W = camera.height, camera.width
+        self.step = step = step or max(2, int(round(math.sqrt(H * W / 40000.0))))
         self.gh, self.gw = -(-H // step), -(-W // step)
         # grid nodes at pixel (step * i + (step - 1) / 2): cv2.resize by `step` then lands exactly
-        gx = step * np.arange(self.gw) + (step - 1) / 2.0
-        gy = step * np.arange(self.gh) + (step - 1) / 2.0
-        self.grid_px = np.stack(np.meshgrid(np.minimum(gx, W - 1), np.minimum(gy, H - 1)), axis=-1)  # (gh, gw, 2)
+        gx = np.minimum(step * np.arange(self.gw) + (step - 1) / 2.0, W - 1)
+        gy = np.minimum(step * np.arange(self.gh) + (step - 1) / 2.0, H - 1)
+        self.grid_px = np.stack(np.meshgrid(gx, gy), axis=-1)  # (gh, gw, 2)
+        self.grid_ix = np.round(self.grid_px).astype(np.int64)
         n = camera.normalized_from_pixels(self.grid_px.reshape(-1, 2))
         self.grid_xn = n[:, 0].reshape(self.gh, self.gw)
         self.grid_yn = n[:, 1].reshape(self.gh, self.gw)
@@ -87,18 +89,19 @@ class FlowField:
         full = camera.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()]))
         self.xn = full[:, 0].reshape(H, W).astype(np.float32)
         self.yn = full[:, 1].reshape(H, W).astype(np.float32)
-        self.base_x, self.base_y = u.astype(np.float32), v.astype(np.float32)
+        self.base = np.dstack([u, v]).astype(np.float32)  # (H, W, 2): each pixel's own position
 
     def points(self, xn, yn, z) -> np.ndarray:
         zc = np.minimum(z, 1e5)
         return np.stack([xn * zc, yn * zc, zc], axis=-1)
 
-    def flows(self, z: np.ndarray, classify, motion: Motion) -> np.ndarray:
-        """``(S, H, W, 2)`` float32: the image motion of every pixel to each sample time."""
+    def flows(self, z: np.ndarray, classify, motion: Motion) -> tuple:
+        """``(flows (S, H, W, 2) float32, longest path over the exposure (px))``: the image motion of
+        every pixel to each sample time (for two samples, the shutter's opening and closing, the
+        path is the parabola through them and the frame time)."""
         H, W = z.shape
         s = self.step
-        gz = z[np.minimum(self.grid_px[..., 1].astype(int), H - 1), np.minimum(self.grid_px[..., 0].astype(int), W - 1)]
-        gz = gz.astype(np.float64)
+        gz = z[self.grid_ix[..., 1], self.grid_ix[..., 0]].astype(np.float64)
         gcls = classify(self.points(self.grid_xn, self.grid_yn, gz).reshape(-1, 3)).reshape(gz.shape)
         S = len(motion.tau)
         coarse = np.zeros((S, self.gh, self.gw, 2), np.float32)
@@ -109,10 +112,10 @@ class FlowField:
                     u, v = _project(self.camera, self.grid_xn[sel], self.grid_yn[sel], gz[sel], Ms[i])
                     coarse[i, sel, 0] = u - self.grid_px[sel][:, 0]
                     coarse[i, sel, 1] = v - self.grid_px[sel][:, 1]
+        longest = float(path_length_px(coarse[0], coarse[-1]).max()) if S == 2 else float("nan")
         out = np.empty((S, H, W, 2), np.float32)
         for i in range(S):
-            up = cv2.resize(coarse[i], (self.gw * s, self.gh * s), interpolation=cv2.INTER_LINEAR)
-            out[i] = up[:H, :W]
+            out[i] = cv2.resize(coarse[i], (self.gw * s, self.gh * s), interpolation=cv2.INTER_LINEAR)[:H, :W]
         # cells where the depth or the class jumps: every pixel exactly
         zc = np.minimum(gz, 1e5)
         jump = np.zeros((self.gh, self.gw), bool)
@@ -123,8 +126,8 @@ class FlowField:
             jump[b] |= j
         if jump.any():
             # a node's cells are the ones it interpolates: its 3x3 neighbourhood of cells, in pixels
-            cells = cv2.dilate(jump.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-            mask = np.repeat(np.repeat(cells, s, axis=0), s, axis=1)[:H, :W]
+            cells = cv2.dilate(jump.astype(np.uint8), np.ones((3, 3), np.uint8))
+            mask = cv2.resize(cells, (self.gw * s, self.gh * s), interpolation=cv2.INTER_NEAREST)[:H, :W]
             ys, xs = np.nonzero(mask)
             zz = z[ys, xs].astype(np.float64)
             xn, yn = self.xn[ys, xs].astype(np.float64), self.yn[ys, xs].astype(np.float64)
@@ -136,7 +139,9 @@ class FlowField:
                         u, v = _project(self.camera, xn[sel], yn[sel], zz[sel], Ms[i])
                         out[i, ys[sel], xs[sel], 0] = u - xs[sel]
                         out[i, ys[sel], xs[sel], 1] = v - ys[sel]
-        return out
+            if S == 2:
+                longest = max(longest, float(path_length_px(out[0, ys, xs], out[1, ys, xs]).max()))
+        return out, longest
 
 
 def exposure_times(exposure_s: float) -> np.ndarray:
@@ -158,12 +163,15 @@ def _lagrange(s: float) -> tuple:
 
 def path_length_px(v_open: np.ndarray, v_close: np.ndarray, pieces: int = 8) -> np.ndarray:
     """Length (px) of each pixel's parabolic path over the exposure; ``v_*`` (..., 2)."""
-    pts = []
-    for s in np.linspace(-1.0, 1.0, pieces + 1):
-        a, b = _lagrange(s)
-        pts.append(a * v_open + b * v_close)
-    pts = np.stack(pts)
-    return np.linalg.norm(np.diff(pts, axis=0), axis=-1).sum(axis=0)
+    s = np.linspace(-1.0, 1.0, pieces + 1)
+    wa, wb = 0.5 * s * (s - 1.0), 0.5 * s * (s + 1.0)
+    da, db = np.diff(wa), np.diff(wb)  # each piece is da * v_open + db * v_close
+    total = np.zeros(v_open.shape[:-1], np.float64)
+    for a, b in zip(da, db):
+        dx = a * v_open[..., 0] + b * v_close[..., 0]
+        dy = a * v_open[..., 1] + b * v_close[..., 1]
+        total += np.sqrt(dx * dx + dy * dy)
+    return total
 
 
 def samples_needed(max_path_px: float, floor: int = 1) -> int:
@@ -174,20 +182,19 @@ def samples_needed(max_path_px: float, floor: int = 1) -> int:
     return int(min(MAX_SAMPLES, max(floor, math.ceil(max_path_px / SAMPLE_SPACING_PX))))
 
 
-def velocity_blur(linear: np.ndarray, v_open: np.ndarray, v_close: np.ndarray, n: int,
-                  base_x: np.ndarray, base_y: np.ndarray) -> np.ndarray:
+def velocity_blur(linear: np.ndarray, v_open: np.ndarray, v_close: np.ndarray, n: int, base: np.ndarray) -> np.ndarray:
     """The exposure's blur of a sharp linear-light image ``(H, W, C)`` float32 with ``n`` samples
     along each pixel's path (``v_open``/``v_close`` (H, W, 2): the flow to the shutter's opening
-    and closing).  ``n <= 1`` returns the image."""
+    and closing; ``base`` (H, W, 2): each pixel's own position).  ``n <= 1`` returns the image."""
     if n <= 1:
         return linear
     acc = np.zeros_like(linear)
     for tau in sample_times(2.0, n):  # s in (-1, 1): the same centred samples as sub-frames
-        a, b = (np.float32(w) for w in _lagrange(float(tau)))
-        mx = base_x - (a * v_open[..., 0] + b * v_close[..., 0])
-        my = base_y - (a * v_open[..., 1] + b * v_close[..., 1])
+        a, b = _lagrange(float(tau))
+        m = cv2.addWeighted(v_open, -a, v_close, -b, 0.0)
+        m += base
         # bicubic: bilinear samples at fractional offsets smooth the image a little more each, which
         # widens edge ramps and, after the tone curve, moves edges by ~0.1 px (bicubic: ~0.04 px)
-        acc += cv2.remap(linear, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        acc += cv2.remap(linear, m, None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
     acc *= 1.0 / n
     return acc
