@@ -71,7 +71,19 @@ class SequenceRenderer:
         self.body_vel = state.vel_W
         self.pad_vel = np.tile(np.append(traj.pad_vel, 0.0), (len(self.times), 1))
         self.platform_moves = bool(np.any(traj.pad_vel != 0))
-        self.flow = mo.FlowField(camera) if self.blur else None
+        self.rays = mo.pixel_rays(camera)
+        self.flow = mo.FlowField(camera, rays=self.rays) if self.blur else None
+        self.ground = None
+        if spec.environment.ground_detail:
+            from .ground import GroundDetail
+
+            draw = plan.scene_draw
+            flat = [(0.0, 0.0, 0.0, pad.side_m + 0.02, pad.side_m + 0.02, True)]
+            if spec.platform.height_m > 0:
+                flat.append((0.0, 0.0, 0.0, spec.platform.size_m, spec.platform.size_m, True))
+            flat += [(x, y, yaw, sx, sy, False) for x, y, yaw, sx, sy in draw.decoy_patches]
+            flat += [(x, y, yaw, size, size, False) for x, y, yaw, size, _, _ in draw.decoy_markers]
+            self.ground = GroundDetail(draw.ground, plan.seed, camera, *self.rays, flat)
         # what moves with the platform, in the pad frame: its top and sides, the pad (and its margin)
         half = max(pad.side_m / 2, spec.platform.size_m / 2 if spec.platform.height_m > 0 else 0.0) + 1e-3
         self._moving_half = half
@@ -94,10 +106,15 @@ class SequenceRenderer:
 
     # ------------------------------------------------------------------ one frame
     def render(self, k: int) -> FrameLayers:
+        """Frame ``k`` of the sequence."""
+        return self.render_at(k, float(self.times[k]), self.body2world[k], self.pad2world[k])
+
+    def render_at(self, k: int, t: float, T_W_B: np.ndarray, T_W_P: np.ndarray) -> FrameLayers:
+        """The scene seen from body pose ``T_W_B`` with the pad at ``T_W_P`` at time ``t`` (``k``
+        seeds the frame's noise and names its row).  Motion blur follows the sequence's trajectory
+        around ``t``; labels other than the pose and visibility assume frame ``k``."""
         clock = self.stage_seconds
         t0 = time.perf_counter()
-        t = float(self.times[k])
-        T_W_B, T_W_P = self.body2world[k], self.pad2world[k]
         cam2world = T_W_B @ self.T_B_C
         cam2pad = invert(T_W_P) @ cam2world
         self.scene.set_platform(T_W_P)
@@ -117,13 +134,15 @@ class SequenceRenderer:
             t3 = t4 = time.perf_counter()
         else:
             linear = self.imaging.linear(rgb_r)
+            if self.ground is not None:
+                self.ground.apply(linear, depth, cam2world, T_W_P)
             t3 = time.perf_counter()
             if n > 1:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base)
             t4 = time.perf_counter()
         rgb = self.imaging.finish(linear, k)
         t5 = time.perf_counter()
-        labels = self._labels(k, t, cam2pad, facts, n)
+        labels = self._labels(k, t, cam2pad, facts, n, T_W_B, T_W_P)
         t6 = time.perf_counter()
         for name, dt in (("raster+readback", t1 - t0), ("visibility+flow", t2 - t1), ("lens+linear", t3 - t2),
                          ("blur", t4 - t3), ("noise+tone", t5 - t4), ("labels", t6 - t5)):
@@ -154,18 +173,23 @@ class SequenceRenderer:
         """The reference blur: one render per sample time, averaged in linear light."""
         tau = mo.sample_times(self.exposure, n)
         B, P = self._poses_at(t + tau)
-        renders = []
+        acc = None
         for Bi, Pi in zip(B, P):
             self.scene.set_platform(Pi)
             self.scene.set_drone(Bi)
-            renders.append(self.scene.render(Bi @ self.T_B_C))
-        return self.imaging.linear_average(renders)
+            rgb, z = self.scene.render_with_depth(Bi @ self.T_B_C)
+            lin = self.imaging.linear(rgb)
+            if self.ground is not None:
+                self.ground.apply(lin, self.imaging.depth_to_pixels(z), Bi @ self.T_B_C, Pi)
+            acc = lin if acc is None else acc + lin
+        return acc * np.float32(1.0 / len(B))
 
-    def _labels(self, k: int, t: float, cam2pad, facts: dict, n: int) -> dict:
+    def _labels(self, k: int, t: float, cam2pad, facts: dict, n: int, T_W_B, T_W_P) -> dict:
         px = facts["corners_px"].copy()
         px[~self.camera.in_image(px)] = np.nan
         pose = tum_from_transform(cam2pad)
-        pose[3:] = self._quats[k]
+        if np.allclose(cam2pad, self.cam2pad(k), atol=1e-12):
+            pose[3:] = self._quats[k]  # the hemisphere kept from row to row
         blur = 0.0
         if self.exposure > 0:  # the pad corners' image motion over the exposure (ideal pinhole)
             B, P = self._poses_at(t + np.array([-self.exposure / 2, self.exposure / 2]))
@@ -174,9 +198,10 @@ class SequenceRenderer:
             d = np.linalg.norm(ends[1] - ends[0], axis=1)
             blur = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
         phase = phase_gt(self.camera, cam2pad, self.pad.geometry, self.spec.phase_rule.min_module_px, facts)
-        body = tum_from_transform(self.body2world[k])
-        body[3:] = self._body_quats[k]
-        padw = tum_from_transform(self.pad2world[k])
+        body = tum_from_transform(T_W_B)
+        if np.allclose(T_W_B, self.body2world[k], atol=1e-12):
+            body[3:] = self._body_quats[k]
+        padw = tum_from_transform(T_W_P)
         row = {"frame": k, "t": t, "image": f"images/{k:06d}.png",
                **dict(zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), pose)), "height_above_pad": pose[2],
                "phase_gt": phase, "pad_fully_visible": facts["pad_fully_visible"],

@@ -31,6 +31,7 @@ class ImagingParams:
     shot_noise: float
     read_noise: float
     jpeg_quality: int | None
+    sharpen: float = 0.0
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -144,7 +145,10 @@ class ImageFormation:
             cv2.multiply(noise, sigma, dst=noise)
             x += noise
         np.clip(x, 0.0, 1.0, out=x)
-        out = cv2.convertScaleAbs(cv2.pow(x, self.tone_exponent), alpha=255.0)  # rounds to the nearest level
+        disp = cv2.pow(x, self.tone_exponent)
+        if p.sharpen > 0:  # the camera's own sharpening, in display space (a symmetric kernel keeps edges put)
+            disp = cv2.addWeighted(disp, 1.0 + p.sharpen, cv2.GaussianBlur(disp, (0, 0), 1.0), -p.sharpen, 0.0)
+        out = cv2.convertScaleAbs(disp, alpha=255.0)  # rounds to the nearest level, saturates at 0 and 255
         if p.jpeg_quality:
             q = [cv2.IMWRITE_JPEG_QUALITY, int(p.jpeg_quality)]
             out = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), q)[1],

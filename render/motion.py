@@ -65,6 +65,14 @@ def _project(camera: Camera, xn, yn, z, M) -> tuple:
     return u.reshape(np.shape(xn)), v.reshape(np.shape(xn))
 
 
+def pixel_rays(camera: Camera) -> tuple:
+    """``(xn, yn)`` ``(H, W)`` float32: every pixel's undistorted normalised ray ``(x/z, y/z)``."""
+    u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+    full = camera.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()]))
+    return (full[:, 0].reshape(camera.height, camera.width).astype(np.float32),
+            full[:, 1].reshape(camera.height, camera.width).astype(np.float32))
+
+
 class FlowField:
     """Per-pixel flow of one camera at ``(H, W)`` from depth and a motion class per pixel.
 
@@ -72,7 +80,7 @@ class FlowField:
     called on 3D points in the camera frame at the frame time.  The grid step grows with the
     image (about 40k nodes) so the cost stays bounded."""
 
-    def __init__(self, camera: Camera, step: int | None = None):
+    def __init__(self, camera: Camera, step: int | None = None, rays: tuple | None = None):
         self.camera = camera
         H, W = camera.height, camera.width
         self.step = step = step or max(2, int(round(math.sqrt(H * W / 40000.0))))
@@ -85,11 +93,9 @@ class FlowField:
         n = camera.normalized_from_pixels(self.grid_px.reshape(-1, 2))
         self.grid_xn = n[:, 0].reshape(self.gh, self.gw)
         self.grid_yn = n[:, 1].reshape(self.gh, self.gw)
-        u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-        full = camera.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()]))
-        self.xn = full[:, 0].reshape(H, W).astype(np.float32)
-        self.yn = full[:, 1].reshape(H, W).astype(np.float32)
-        self.base = np.dstack([u, v]).astype(np.float32)  # (H, W, 2): each pixel's own position
+        self.xn, self.yn = rays if rays is not None else pixel_rays(camera)
+        u, v = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
+        self.base = np.dstack([u, v])  # (H, W, 2): each pixel's own position
 
     def points(self, xn, yn, z) -> np.ndarray:
         zc = np.minimum(z, 1e5)

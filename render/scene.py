@@ -23,7 +23,7 @@ import numpy as np
 from hvloc.geometry import Camera, make_transform, rotation_z
 
 from .gl import import_pyrender, render_color, render_color_depth, translucent_texture
-from .textures import aruco_image, finder_marker_image, ground_texture
+from .textures import GROUND_TILE_M, aruco_image, finder_marker_image, ground_texture
 
 # OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -184,8 +184,8 @@ class LandingScene:
         def pose_xy(x, y, z, yaw=0.0):
             return make_transform(rotation_z(yaw), (x, y, z))
 
-        # ground: a large plane, texture tiled every 8 m
-        tile = 8.0
+        # ground: a large plane, its texture repeated every GROUND_TILE_M
+        tile = GROUND_TILE_M
         self._add(textured_quad(ground_texture(draw.ground, rng), ground_extent_m, ground_extent_m,
                                 uv_repeat=ground_extent_m / tile, repeat=True), pose=np.eye(4))
         # the platform and everything on it move together: children of one node (set_platform)

@@ -128,7 +128,7 @@ class TrajectorySpec(_Model):
         return self
 
 
-GroundKind = Literal["grass", "soil", "asphalt", "sand", "concrete"]
+GroundKind = Literal["grass", "dry_grass", "gravel", "soil", "asphalt", "sand", "concrete", "snow"]
 
 
 class PlacedBox(_Model):
@@ -162,6 +162,8 @@ class EnvironmentSpec(_Model):
     sun_intensity: NonNegRange = Field((2.5, 4.0), description="pyrender directional-light intensity")
     ambient: NonNegRange = Field((0.25, 0.45), description="ambient light level (0-1)")
     shadows: bool = Field(True, description="cast shadows (sun), including the drone's own on the pad")
+    ground_detail: bool = Field(True, description="ground keeps showing finer structure as the camera descends "
+                                "(world-fixed detail at scales from 8 mm to 0.5 mm, render/ground.py)")
 
 
 class DegradationSpec(_Model):
@@ -183,6 +185,8 @@ class DegradationSpec(_Model):
     read_noise: NonNegRange = Field((0.0, 0.008), description="Gaussian read noise std (0-1 scale)")
     exposure_gain: NonNegRange = Field((0.85, 1.15), description="global brightness gain")
     gamma: Range = Field((0.9, 1.1), description="tone curve exponent")
+    sharpen: NonNegRange = Field((0.0, 0.0), description="in-camera sharpening (unsharp mask of luma and colour in "
+                                 "display space, radius 1 px) as consumer cameras apply it; 1 doubles the detail")
     jpeg_quality: int | None = Field(None, ge=10, le=100, description="re-encode frames as JPEG at this quality")
 
 

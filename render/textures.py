@@ -4,7 +4,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-GROUND_KINDS = ("grass", "soil", "asphalt", "sand", "concrete")
+GROUND_KINDS = ("grass", "dry_grass", "gravel", "soil", "asphalt", "sand", "concrete", "snow")
 
 
 def fbm(size: int, rng: np.random.Generator, beta: float = 1.8, lo_cut: float = 1.0) -> np.ndarray:
@@ -21,44 +21,47 @@ def fbm(size: int, rng: np.random.Generator, beta: float = 1.8, lo_cut: float = 
     return n.astype(np.float32)
 
 
-def _mix(base, var, n, extra=None):
-    img = np.asarray(base, np.float32)[None, None, :] + (n[..., None] - 0.5) * np.asarray(var, np.float32)
-    if extra is not None:
-        img += extra
-    return np.clip(img, 0, 255).astype(np.uint8)
+# mean colour (sRGB) and colour variation of each ground kind
+GROUND_COLOURS = {"grass": ((70, 104, 44), (26, 30, 14)), "dry_grass": ((150, 132, 86), (30, 26, 18)),
+                  "gravel": ((128, 122, 112), (18, 18, 18)), "soil": ((112, 84, 60), (26, 20, 14)),
+                  "asphalt": ((74, 74, 77), (10, 10, 10)), "sand": ((196, 172, 132), (16, 14, 10)),
+                  "concrete": ((162, 160, 152), (12, 12, 11)), "snow": ((228, 232, 240), (8, 8, 6))}
 
 
-def ground_texture(kind: str, rng: np.random.Generator, size: int = 1024) -> np.ndarray:
-    """``(size, size, 3)`` uint8 RGB, tileable, for one ground kind."""
-    if kind == "grass":
-        n = 0.6 * fbm(size, rng, 1.6) + 0.4 * fbm(size, rng, 0.6)
-        blades = fbm(size, rng, 0.2)
-        blades = sum(np.roll(blades, k, axis=0) for k in range(-3, 4)) / 7.0  # streaks, still tileable
-        return _mix((62, 104, 40), (60, 80, 40), n, ((blades - 0.5) * 40)[..., None])
-    if kind == "soil":
-        n = 0.7 * fbm(size, rng, 1.9) + 0.3 * fbm(size, rng, 0.4)
-        return _mix((112, 84, 60), (70, 55, 40), n)
-    if kind == "asphalt":
-        n = 0.5 * fbm(size, rng, 1.5) + 0.5 * fbm(size, rng, 0.1)
-        img = _mix((72, 72, 75), (40, 40, 40), n)
-        specks = rng.random((size, size)) > 0.985
-        img[specks] = np.clip(img[specks].astype(int) + 60, 0, 255).astype(np.uint8)
-        return img
-    if kind == "sand":
-        n = fbm(size, rng, 2.2)
-        y = np.arange(size, dtype=np.float32)[:, None]
-        warp = fbm(size, rng, 2.5) * 40
-        ripples = np.sin(2 * np.pi * (y * 24 / size + warp / 8)) * 10
-        return _mix((196, 172, 132), (50, 45, 35), n, ripples[..., None])
-    if kind == "concrete":
-        n = 0.5 * fbm(size, rng, 1.7) + 0.5 * fbm(size, rng, 0.3)
-        img = _mix((160, 158, 150), (45, 45, 42), n)
-        step = size // 4
+GROUND_TILE_M = 32.0   # the rasterised ground texture repeats every this many metres
+GROUND_TILE_PX = 2048  # 15.6 mm per texel; render/ground.py adds the finer octaves
+
+
+def ground_texture(kind: str, rng: np.random.Generator, size: int = GROUND_TILE_PX) -> np.ndarray:
+    """``(size, size, 3)`` uint8 RGB, tileable over ``GROUND_TILE_M``, for one ground kind: its
+    colour, large patches, and the coarse octaves of the kind's detail (32, 16 and 8 m per detail
+    tile: features from ~20 cm down to the texel); :mod:`render.ground` adds the finer ones."""
+    from .ground import AMPLITUDE, COARSE, TILE_PX, detail_tile
+
+    if kind not in GROUND_COLOURS:
+        raise ValueError(f"unknown ground kind {kind!r} (one of {', '.join(GROUND_KINDS)})")
+    base, var = GROUND_COLOURS[kind]
+    log_albedo = np.zeros((size, size), np.float32)
+    for repeats in (1, 2, 4):  # octaves of 32, 16 and 8 m: a different tile each, repeated to the period
+        tile = detail_tile(kind, int(rng.integers(2**31)))
+        px = size // repeats
+        octave = cv2.resize(tile, (px, px), interpolation=cv2.INTER_CUBIC if px > TILE_PX else cv2.INTER_AREA)
+        log_albedo += AMPLITUDE[kind] * COARSE[kind] * np.tile(octave, (repeats, repeats))
+    log_albedo += 0.5 * (fbm(size, rng, 2.4) - 0.5)  # field-scale patches
+    hue = fbm(size, rng, 2.0) - 0.5
+    lin = (np.asarray(base, np.float32) / 255.0) ** 2.2
+    img = lin[None, None, :] * np.exp(log_albedo)[..., None]
+    img *= 1.0 + (np.asarray(var, np.float32) / np.asarray(base, np.float32))[None, None, :] * 2.0 * hue[..., None]
+    out = np.clip(img, 0, 1) ** (1 / 2.2) * 255.0
+    if kind == "concrete":  # slab joints every 2 m
+        step = size // 16
         for k in range(0, size, step):
-            img[k:k + 3, :] = (img[k:k + 3, :] * 0.55).astype(np.uint8)
-            img[:, k:k + 3] = (img[:, k:k + 3] * 0.55).astype(np.uint8)
-        return img
-    raise ValueError(f"unknown ground kind {kind!r} (one of {', '.join(GROUND_KINDS)})")
+            out[k:k + 2, :] *= 0.6
+            out[:, k:k + 2] *= 0.6
+    if kind == "asphalt":  # a painted line
+        w = max(2, size // 320)
+        out[size // 3:size // 3 + w, :] = out[size // 3:size // 3 + w, :] * 0.3 + np.array([235, 235, 225]) * 0.7
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)
 
 
 def finder_marker_image(modules_px: int = 16, quiet_modules: int = 1) -> np.ndarray:

@@ -1,0 +1,226 @@
+"""Ground with detail at every height: a multi-octave albedo modulation in world coordinates.
+
+The rasterised ground texture (a 32 m tile at 15.6 mm per texel, mipmapped) is right from 20 m
+down to a few metres;
+below that real ground keeps showing finer structure (blades, stones, cracks) while a texture
+only blurs.  So every pixel that sees the ground gets its albedo multiplied by
+``exp(sum_o w_o * a_o * tile(R_o (x, y) / lambda_o + offset_o))``: the same kind-specific,
+tileable detail tile at several scales ``lambda_o`` (octaves), each rotated and shifted.  Each
+octave is read from the level of its tile's mipmap whose texels match the pixels' footprint on
+the ground (as the GPU reads the rasterised texture): prefiltered, so nothing aliases, and with
+a scale-free tile the image shows the same amount of detail at every height.  The level is
+chosen per octave and frame from the median footprint of the ground in view.
+
+Applied in linear light on the sharp frame (before motion blur), from the frame's depth and
+pose: ground is where the world height is within a few millimetres of zero and no flat object
+(the pad on the ground, decoys) lies; the modulation fades out within two pixels of their edges
+so that no labelled edge moves.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import cv2
+import numpy as np
+
+TILE_PX = 512
+# octave scales (metres per tile), and the log-albedo amplitude of each octave, per ground kind
+OCTAVES_M = (4.0, 2.0, 1.0, 0.5, 0.25)
+AMPLITUDE = {"grass": 0.34, "dry_grass": 0.34, "gravel": 0.30, "soil": 0.22, "asphalt": 0.20, "sand": 0.14,
+             "concrete": 0.12, "snow": 0.06}
+# the coarse octaves (32, 16, 8 m, in the rasterised texture) relative to the fine ones: real ground
+# has more structure at the scale of blades and stones than at the scale of tufts and patches
+COARSE = {"grass": 0.4, "dry_grass": 0.4, "gravel": 0.6, "soil": 0.8, "asphalt": 0.7, "sand": 0.8, "concrete": 0.6,
+          "snow": 1.0}
+GROUND_Z_TOL_M = 0.005
+
+
+def _wrap_lines(canvas, pts_a, pts_b, values, widths):
+    """Anti-aliased strokes on a tileable canvas (each drawn at its 3x3 wrapped copies)."""
+    n = canvas.shape[0]
+    for (a, b, v, w) in zip(pts_a, pts_b, values, widths):
+        for dx in (-n, 0, n):
+            for dy in (-n, 0, n):
+                p = (int(round((a[0] + dx) * 16)), int(round((a[1] + dy) * 16)))
+                q = (int(round((b[0] + dx) * 16)), int(round((b[1] + dy) * 16)))
+                cv2.line(canvas, p, q, float(v), int(max(1, round(w))), cv2.LINE_AA, shift=4)
+
+
+def _blur_wrapped(t: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian blur of a tileable image (OpenCV's blur has no wrapping border)."""
+    m = int(math.ceil(4 * sigma)) + 1
+    big = np.pad(t, m, mode="wrap")
+    return cv2.GaussianBlur(big, (0, 0), sigma)[m:-m, m:-m]
+
+
+def _fbm(n: int, rng, beta: float) -> np.ndarray:
+    white = rng.standard_normal((n, n))
+    f = np.fft.fftfreq(n) * n
+    r = np.hypot(*np.meshgrid(f, f))
+    r[0, 0] = 1.0
+    out = np.real(np.fft.ifft2(np.fft.fft2(white) / r ** (beta / 2)))
+    return ((out - out.mean()) / out.std()).astype(np.float32)
+
+
+def _voronoi(n: int, rng, cells: int) -> tuple:
+    """(cell value, distance to the nearest border in px) of a tileable Voronoi pattern."""
+    pts = rng.uniform(0, n, (cells, 2))
+    vals = rng.standard_normal(cells).astype(np.float32)
+    tiled = np.concatenate([pts + [dx, dy] for dx in (-n, 0, n) for dy in (-n, 0, n)])
+    tval = np.tile(vals, 9)
+    yy, xx = np.mgrid[0:n, 0:n].astype(np.float32)
+    best = np.full((n, n), np.inf, np.float32)
+    second = np.full((n, n), np.inf, np.float32)
+    val = np.zeros((n, n), np.float32)
+    for (px, py), v in zip(tiled, tval):
+        if not (-0.3 * n < px < 1.3 * n and -0.3 * n < py < 1.3 * n):
+            continue
+        d = np.hypot(xx - px, yy - py)
+        closer = d < best
+        second = np.where(closer, best, np.minimum(second, d))
+        val = np.where(closer, v, val)
+        best = np.where(closer, d, best)
+    return val, (second - best) / 2.0
+
+
+@functools.lru_cache(maxsize=16)
+def detail_tile(kind: str, seed: int) -> np.ndarray:
+    """``(TILE_PX, TILE_PX)`` float32, tileable, zero mean, unit std: the kind's log-albedo detail."""
+    n = TILE_PX
+    rng = np.random.default_rng([seed, sum(map(ord, kind))])
+    t = np.zeros((n, n), np.float32)
+    if kind in ("grass", "dry_grass"):
+        dry = kind == "dry_grass"
+        count = 2600 if dry else 1800
+        c = rng.uniform(0, n, (count, 2))
+        ang = rng.uniform(0, math.pi, count)
+        length = rng.uniform(18, 70 if dry else 45, count)
+        d = np.stack([np.cos(ang), np.sin(ang)], axis=1) * length[:, None] / 2
+        vals = rng.choice([-1.0, 1.0], count, p=[0.45, 0.55]) * rng.uniform(0.4, 1.0, count)
+        _wrap_lines(t, c - d, c + d, vals, rng.uniform(1.0, 2.2 if dry else 3.0, count))
+        t += 0.35 * _fbm(n, rng, 1.6)
+    elif kind == "gravel":
+        val, border = _voronoi(n, rng, 700)
+        t = val * 0.6 - 1.4 * np.exp(-border / 1.2) + 0.25 * _fbm(n, rng, 0.8)
+    elif kind == "soil":
+        t = _fbm(n, rng, 1.5) + 0.4 * _fbm(n, rng, 0.3)
+        pits = rng.uniform(0, n, (500, 2))
+        for x, y in pits:
+            cv2.circle(t, (int(x), int(y)), int(rng.integers(1, 4)), -2.0, -1, cv2.LINE_AA)
+    elif kind == "asphalt":
+        t = 0.5 * _fbm(n, rng, 0.6)
+        for _ in range(6000):  # aggregate: bright and dark grains
+            x, y = rng.uniform(0, n, 2)
+            cv2.circle(t, (int(x), int(y)), int(rng.integers(1, 3)), float(rng.choice([-1.5, 1.8])), -1, cv2.LINE_AA)
+        for _ in range(3):  # cracks: random walks
+            p = rng.uniform(0, n, 2)
+            a = rng.uniform(0, 2 * math.pi)
+            pts = [p.copy()]
+            for _ in range(60):
+                a += rng.normal(0, 0.35)
+                p = p + 6 * np.array([math.cos(a), math.sin(a)])
+                pts.append(p.copy())
+            _wrap_lines(t, pts[:-1], pts[1:], [-3.0] * (len(pts) - 1), [1.5] * (len(pts) - 1))
+    elif kind == "sand":
+        grain = _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.8)
+        y = np.arange(n, dtype=np.float32)[:, None]
+        t = grain + 0.8 * np.sin(2 * np.pi * (y * 6 / n + 0.4 * _fbm(n, rng, 2.5))).astype(np.float32)
+    elif kind == "concrete":
+        t = 0.6 * _fbm(n, rng, 0.9) + 0.4 * _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.7)
+        for _ in range(1500):  # pores
+            x, y = rng.uniform(0, n, 2)
+            cv2.circle(t, (int(x), int(y)), 1, -2.5, -1, cv2.LINE_AA)
+    elif kind == "snow":
+        t = _fbm(n, rng, 1.2)
+        sparkle = rng.random((n, n)) > 0.997
+        t[sparkle] += 4.0
+    else:
+        raise ValueError(f"unknown ground kind {kind!r}")
+    t = _blur_wrapped(t.astype(np.float32), 0.6)
+    return ((t - t.mean()) / max(float(t.std()), 1e-6)).astype(np.float32)
+
+
+class GroundDetail:
+    """The detail of one sequence's ground, for one camera (pixel rays precomputed).
+
+    ``flat_objects``: rectangles lying on the ground that are not ground, ``(x, y, yaw, sx, sy,
+    moves_with_pad)`` in the world at t = 0 (the pad when it lies on the ground, decoys)."""
+
+    def __init__(self, kind: str, seed: int, camera, xn: np.ndarray, yn: np.ndarray, flat_objects=()):
+        self.kind = kind
+        self.tile = detail_tile(kind, int(seed) % 2**31)
+        self.mip = [self.tile]
+        while self.mip[-1].shape[0] > 4:  # box-filtered halvings: the octave's prefiltered levels
+            self.mip.append(cv2.resize(self.mip[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+        rng = np.random.default_rng([int(seed) % 2**31, 99])
+        self.octaves = []
+        for lam in OCTAVES_M:
+            ang = rng.uniform(0, 2 * math.pi)
+            self.octaves.append((lam, AMPLITUDE[kind], math.cos(ang), math.sin(ang), *rng.uniform(0, TILE_PX, 2)))
+        self.f = float(min(camera.fx, camera.fy))
+        self.xn, self.yn = xn, yn
+        self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
+        self.flat_objects = list(flat_objects)
+        self.texel_m = np.array([lam / TILE_PX for lam, *_ in self.octaves])
+
+    def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
+        """``(H, W)`` float32 albedo factor (1 off the ground), or ``None`` where nothing would change."""
+        finite = np.isfinite(z)
+        if not finite.any():
+            return None
+        R = cam2world[:3, :3]
+        up_C = R.T @ np.array([0.0, 0.0, 1.0])  # world up in the camera frame
+        zc = np.where(finite, z, 0.0).astype(np.float32)
+        # the pixel's footprint on a horizontal surface (m), along its most stretched direction
+        cos_in = np.abs(up_C[0] * self.xn + up_C[1] * self.yn + up_C[2]) / np.sqrt(self.r2)
+        footprint = zc * self.r2 / (self.f * np.maximum(cos_in, 0.05) * np.sqrt(self.r2))
+        fp = float(np.median(footprint[finite]))
+        if not any(self._level(fp, texel) is not None for texel in self.texel_m):
+            return None  # every octave averages out within a pixel
+        X = cv2.merge([self.xn * zc, self.yn * zc, zc])
+        W = cv2.transform(X, cam2world[:3, :].astype(np.float32))
+        wx, wy, wz = cv2.split(W)
+        ground = (finite & (np.abs(wz) < GROUND_Z_TOL_M)).astype(np.float32)
+        for x0, y0, yaw, sx, sy, moves in self.flat_objects:  # fade out within 2 px of their edges
+            ox, oy = (x0 + pad2world[0, 3], y0 + pad2world[1, 3]) if moves else (x0, y0)
+            c, s = math.cos(yaw), math.sin(yaw)
+            u = np.abs(c * (wx - ox) + s * (wy - oy)) - sx / 2
+            v = np.abs(-s * (wx - ox) + c * (wy - oy)) - sy / 2
+            ground *= np.clip(np.maximum(u, v) / np.maximum(footprint, 1e-9) - 1.0, 0.0, 1.0)
+        if not ground.any():
+            return None
+        logf = np.zeros_like(zc)
+        cx, cy = cam2world[0, 3], cam2world[1, 3]
+        fp = float(np.median(footprint[ground > 0]))
+        for (lam, amp, c, s, ox, oy), texel in zip(self.octaves, self.texel_m):
+            level = self._level(fp, texel)
+            if level is None:
+                continue
+            tile = self.mip[level]
+            k = tile.shape[0] / lam
+            n = tile.shape[0]
+            # texel coordinates near the camera stay small (remap's fixed point has 16-bit integers):
+            # shift by whole tiles, which leaves the world-fixed pattern as it is
+            u0 = TILE_PX / lam * (c * cx - s * cy) + ox
+            v0 = TILE_PX / lam * (s * cx + c * cy) + oy
+            # into the level's texels (centres: level texel i covers base texels [2i, 2i + 1])
+            u0, v0, ox, oy = (q * n / TILE_PX for q in (u0, v0, ox, oy))
+            ox, oy = ox + 0.5 * n / TILE_PX - 0.5, oy + 0.5 * n / TILE_PX - 0.5
+            mx = cv2.addWeighted(wx, c * k, wy, -s * k, ox - n * math.floor(u0 / n))
+            my = cv2.addWeighted(wx, s * k, wy, c * k, oy - n * math.floor(v0 / n))
+            logf += amp * cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        logf *= ground
+        return np.exp(logf)
+
+    def _level(self, footprint_m: float, texel_m: float):
+        """The mipmap level whose texels match the footprint, or None when the octave's tile is
+        down to 16 texels or fewer there (it averages out within a pixel or two)."""
+        level = max(0, int(math.floor(math.log2(max(footprint_m / texel_m, 1e-9)))))
+        return level if self.mip[level if level < len(self.mip) else -1].shape[0] > 16 and level < len(self.mip) else None
+
+    def apply(self, linear: np.ndarray, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray:
+        f = self.factor(z, cam2world, pad2world)
+        if f is not None:
+            linear *= f[..., None]
+        return linear
