@@ -41,19 +41,25 @@ class _TexturePyramid:
         return cv2.remap(self.levels[level], u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
-def pad_template(camera, pad, cam2pad: np.ndarray, pyramid: _TexturePyramid | None = None) -> tuple:
+def pad_template(camera, pad, cam2pad: np.ndarray, pyramid: _TexturePyramid | None = None, row_pose=None,
+                 band: int = 8) -> tuple:
     """``(template luma (H, W) float32, pad x (H, W), pad y (H, W))``: what a camera at ``cam2pad``
-    sees of the pad at each pixel (NaN coordinates where the ray misses the pad plane)."""
+    sees of the pad at each pixel (NaN coordinates where the ray misses the pad plane).  With a
+    rolling shutter, ``row_pose(row) -> T_P_C`` gives each band of ``band`` rows its own pose."""
     H, W = camera.height, camera.width
     u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-    xy = camera.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()]))
-    R, t = cam2pad[:3, :3], cam2pad[:3, 3]
-    d = np.column_stack([xy, np.ones(len(xy))]) @ R.T
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = -t[2] / d[:, 2]
-    s[~(s > 0)] = np.nan
-    X = (t[0] + s * d[:, 0]).reshape(H, W)
-    Y = (t[1] + s * d[:, 1]).reshape(H, W)
+    xy = camera.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()])).reshape(H, W, 2)
+    X, Y = np.full((H, W), np.nan), np.full((H, W), np.nan)
+    for r0 in range(0, H, band if row_pose is not None else H):
+        r1 = min(H, r0 + (band if row_pose is not None else H))
+        T = row_pose((r0 + r1 - 1) / 2) if row_pose is not None else cam2pad
+        R, t = T[:3, :3], T[:3, 3]
+        d = np.concatenate([xy[r0:r1], np.ones((r1 - r0, W, 1))], axis=2) @ R.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = -t[2] / d[..., 2]
+        s[~(s > 0)] = np.nan
+        X[r0:r1] = t[0] + s * d[..., 0]
+        Y[r0:r1] = t[1] + s * d[..., 1]
     pyramid = pyramid or _TexturePyramid(pad.texture_rgb, pad.ppm)
     gsd = max(float(t[2]), 1e-3) / min(camera.fx, camera.fy)  # metres per pixel below the camera
     tmpl = pyramid.sample(np.nan_to_num(X), np.nan_to_num(Y), pad.side_m, gsd * pad.ppm)
@@ -96,10 +102,12 @@ def cell_matches(gray: np.ndarray, tmpl: np.ndarray, X: np.ndarray, Y: np.ndarra
     return out
 
 
-def check_image(camera, pad, cam2pad: np.ndarray, rgb: np.ndarray, visible_fraction: float, pyramid=None) -> tuple:
+def check_image(camera, pad, cam2pad: np.ndarray, rgb: np.ndarray, visible_fraction: float, pyramid=None,
+                row_pose=None) -> tuple:
     """``(matched cells, tested cells, required)``: does ``rgb`` show ``pad`` as a camera at
-    ``cam2pad`` would see it?  ``visible_fraction``: the share of the pad the labels say is seen."""
-    tmpl, X, Y = pad_template(camera, pad, cam2pad, pyramid)
+    ``cam2pad`` would see it?  ``visible_fraction``: the share of the pad the labels say is seen;
+    ``row_pose``: each row's pose, for a rolling shutter."""
+    tmpl, X, Y = pad_template(camera, pad, cam2pad, pyramid, row_pose)
     gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
     px_per_m = min(camera.fx, camera.fy) / max(float(cam2pad[2, 3]), 1e-3)
     res = cell_matches(gray, tmpl, X, Y, pad.side_m, margin_m=3.0 / px_per_m)
@@ -110,8 +118,11 @@ def check_image(camera, pad, cam2pad: np.ndarray, rgb: np.ndarray, visible_fract
 def frame_check(seq, k: int, pyramid=None) -> tuple:
     """:func:`check_image` for frame ``k`` of a dataset sequence."""
     f = seq.frame(k)
+    row_pose = None
+    if seq.line_s > 0:
+        row_pose = lambda r: seq.pose_at(f.t + (r - seq.ref_row) * seq.line_s)  # noqa: E731
     return check_image(seq.camera, seq.pad, f.cam2pad, seq.image(k), float(seq.columns["pad_visible_fraction"][k]),
-                       pyramid)
+                       pyramid, row_pose)
 
 
 def testable_frames(seq, max_frames: int = 6) -> list:

@@ -25,6 +25,7 @@ from hvloc.geometry import continuous_quaternions, invert, tum_from_transform
 
 from . import motion as mo
 from .phase import PadSamples, depth_occlusion, phase_gt, view_facts
+from .imaging import SRGB_TO_LINEAR
 from .plan import camera_from_spec, mount_from_spec, pad_for, plan_sequence
 from .spec import DatasetSpec
 
@@ -55,6 +56,10 @@ class SequenceRenderer:
         self.exposure = float(spec.camera.exposure_s)
         d = spec.degradations
         self.blur = bool(d.motion_blur and self.exposure > 0)
+        # rolling shutter: row r is exposed at t + (r - middle row) * line time
+        self.line_s = float(spec.camera.rolling_shutter_line_s)
+        self.ref_row = (spec.camera.height - 1) / 2.0
+        self.row_dt = (np.arange(spec.camera.height) - self.ref_row) * self.line_s
         self.floor = 1 if d.blur_subframes == "auto" else int(d.blur_subframes)
         self.method = d.blur_method
         self.imaging = ImageFormation(camera, spec.camera.supersample, plan.imaging, 1.0, plan.seed)
@@ -72,7 +77,7 @@ class SequenceRenderer:
         self.pad_vel = np.tile(np.append(traj.pad_vel, 0.0), (len(self.times), 1))
         self.platform_moves = bool(np.any(traj.pad_vel != 0))
         self.rays = mo.pixel_rays(camera)
-        self.flow = mo.FlowField(camera, rays=self.rays) if self.blur else None
+        self.flow = mo.FlowField(camera, rays=self.rays) if (self.blur or self.line_s > 0) else None
         self.ground = None
         if spec.environment.ground_detail:
             from .ground import GroundDetail
@@ -91,6 +96,7 @@ class SequenceRenderer:
         # quaternions keep one hemisphere from row to row
         self._quats = continuous_quaternions([tum_from_transform(self.cam2pad(k))[3:] for k in range(len(self.times))])
         self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])
+        self.exposure_gain = self._auto_exposure(spec.camera.auto_exposure_lag_s)
 
     # ------------------------------------------------------------------ poses
     def __len__(self) -> int:
@@ -124,10 +130,12 @@ class SequenceRenderer:
         facts = view_facts(self.camera, cam2pad, self.pad.geometry,
                            depth_occlusion(self.imaging.render_camera, z_r, cam2pad), self.samples)
         depth = self.imaging.depth_to_pixels(z_r)
-        n, flows = 1, None
-        if self.blur:
-            flows, longest = self._flows(depth, cam2world, cam2pad, T_W_P, t)
-            n = mo.samples_needed(longest, self.floor)
+        n, flows, half = 1, None, self.exposure / 2
+        if self.flow is not None:
+            half = float(np.abs(self.row_dt).max()) + (self.exposure / 2 if self.blur else 0.0)  # the path's ends
+            flows, longest = self._flows(depth, cam2world, cam2pad, T_W_P, t, half)
+            if self.blur:  # over the exposure alone (not the readout)
+                n = mo.samples_needed(longest * self.exposure / (2 * half), self.floor)
         t2 = time.perf_counter()
         if n > 1 and self.method == "subframes":
             linear = self._subframes(t, n)
@@ -137,10 +145,13 @@ class SequenceRenderer:
             if self.ground is not None:
                 self.ground.apply(linear, depth, cam2world, T_W_P)
             t3 = time.perf_counter()
-            if n > 1:
+            if self.line_s > 0:
+                linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base, self.row_dt / half,
+                                          (self.exposure if self.blur else 0.0) / half)
+            elif n > 1:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base)
             t4 = time.perf_counter()
-        rgb = self.imaging.finish(linear, k)
+        rgb = self.imaging.finish(linear, k, float(self.exposure_gain[k]) if k < len(self.exposure_gain) else 1.0)
         t5 = time.perf_counter()
         labels = self._labels(k, t, cam2pad, facts, n, T_W_B, T_W_P)
         t6 = time.perf_counter()
@@ -161,13 +172,48 @@ class SequenceRenderer:
 
         return classify
 
-    def _flows(self, depth, cam2world, cam2pad, T_W_P, t) -> tuple:
-        """``((2, H, W, 2), longest path px)``: every pixel's image motion to the shutter's opening
-        and closing."""
-        tau = np.array([-self.exposure / 2, self.exposure / 2])
+    def _flows(self, depth, cam2world, cam2pad, T_W_P, t, half: float) -> tuple:
+        """``((2, H, W, 2), longest path px)``: every pixel's image motion to ``t - half`` and
+        ``t + half`` (the shutter's opening and closing; with a rolling shutter, of the first
+        and last rows)."""
+        tau = np.array([-half, half])
         B, P = self._poses_at(t + tau)
         motion = mo.relative_motion(cam2world, B @ self.T_B_C, T_W_P, P, tau)
         return self.flow.flows(depth, self._classify(cam2pad), motion)
+
+    def _auto_exposure(self, lag_s) -> np.ndarray:
+        """Per-frame multiplier of the exposure gain: 1 without auto exposure; with it, the gain
+        that keeps the image's mean brightness where plain ground puts it, followed with a
+        first-order lag of ``lag_s``.  The brightness is predicted from the labels (the share of
+        the view the pad covers, the pad's and the ground's mean albedo), so every frame's value
+        is known before any is rendered."""
+        n = len(self.times)
+        if lag_s is None:
+            return np.ones(n)
+        from .textures import GROUND_COLOURS
+
+        ground = float(np.mean((np.asarray(GROUND_COLOURS[self.plan.scene_draw.ground][0], float) / 255.0) ** 2.2))
+        pad = float(np.mean(SRGB_TO_LINEAR[self.pad.texture_rgb[::8, ::8]]))
+        gy, gx = np.mgrid[0:32, 0:32]
+        px = np.column_stack([(gx.ravel() + 0.5) * self.camera.width / 32 - 0.5,
+                              (gy.ravel() + 0.5) * self.camera.height / 32 - 0.5])
+        rays = np.column_stack([self.camera.normalized_from_pixels(px), np.ones(len(px))])
+        h = self.pad.side_m / 2
+        share = np.empty(n)
+        for k in range(n):
+            T = self.cam2pad(k)
+            d = rays @ T[:3, :3].T
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = -T[2, 3] / d[:, 2]
+            hit = T[:3, 3] + s[:, None] * d
+            share[k] = np.mean((s > 0) & (np.abs(hit[:, 0]) <= h) & (np.abs(hit[:, 1]) <= h))
+        target = ground / (share * pad + (1 - share) * ground)
+        a = 1.0 - np.exp(-np.diff(self.times, prepend=self.times[0]) / lag_s)
+        gain = np.empty(n)
+        gain[0] = target[0]
+        for k in range(1, n):
+            gain[k] = gain[k - 1] + a[k] * (target[k] - gain[k - 1])
+        return gain
 
     def _subframes(self, t: float, n: int) -> np.ndarray:
         """The reference blur: one render per sample time, averaged in linear light."""
@@ -186,6 +232,12 @@ class SequenceRenderer:
 
     def _labels(self, k: int, t: float, cam2pad, facts: dict, n: int, T_W_B, T_W_P) -> dict:
         px = facts["corners_px"].copy()
+        if self.line_s > 0:  # where each corner appears: at the time of the row it lands on
+            for _ in range(3):
+                rows = np.clip(np.nan_to_num(px[:, 1], nan=self.ref_row), 0, self.camera.height - 1)
+                B, P = self._poses_at(t + (rows - self.ref_row) * self.line_s)
+                px = np.stack([self.camera.project_from(invert(Pi) @ Bi @ self.T_B_C, self.pad.outer_corners_P[i:i + 1])[0]
+                               for i, (Bi, Pi) in enumerate(zip(B, P))])
         px[~self.camera.in_image(px)] = np.nan
         pose = tum_from_transform(cam2pad)
         if np.allclose(cam2pad, self.cam2pad(k), atol=1e-12):

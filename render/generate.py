@@ -39,7 +39,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
         cam = spec.camera
         info = r.camera.to_dict()
         info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
-                     "supersample": cam.supersample,
+                     "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
+                     "rolling_shutter_ref_row": r.ref_row,
                      "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
                                     "T_B_C maps camera (OpenCV) to body (FLU)"})
         plan = r.plan

@@ -9,6 +9,7 @@ quantisation, optional JPEG.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -32,6 +33,8 @@ class ImagingParams:
     read_noise: float
     jpeg_quality: int | None
     sharpen: float = 0.0
+    vignetting: float = 0.0
+    chromatic_aberration_px: float = 0.0
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -93,6 +96,15 @@ class ImageFormation:
         self.centre_y = pin_y.reshape(camera.height, camera.width).astype(np.float32)
         self.gain = params.exposure_gain * WHITE_LEVEL * irradiance_rel
         self.tone_exponent = 1.0 / (SRGB_GAMMA * params.gamma)
+        # optics: light falloff toward the corners, and red/blue magnified/shrunk about the principal point
+        H, W = camera.height, camera.width
+        corner = max(math.hypot(x - camera.cx, y - camera.cy) for x in (0, W - 1) for y in (0, H - 1))
+        self.vignette = None
+        if params.vignetting > 0:
+            yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+            rho2 = ((xx - camera.cx) ** 2 + (yy - camera.cy) ** 2) / corner**2
+            self.vignette = (1.0 - params.vignetting * rho2).astype(np.float32)
+        self.ca_scale = params.chromatic_aberration_px / corner if params.chromatic_aberration_px > 0 else 0.0
 
     def to_pixels(self, render: np.ndarray) -> np.ndarray:
         """One render (uint8 sRGB, render camera) -> uint8 sRGB at the camera's pixel grid.
@@ -124,13 +136,26 @@ class ImageFormation:
             acc *= 1.0 / len(subframes)
         return acc
 
-    def finish(self, linear: np.ndarray, frame_index: int) -> np.ndarray:
+    def optics(self, linear: np.ndarray) -> np.ndarray:
+        """Vignetting and lateral chromatic aberration, in place where possible."""
+        if self.ca_scale:
+            c = self.camera
+            for ch, k in ((0, 1.0 + self.ca_scale), (2, 1.0 - self.ca_scale)):  # red outward, blue inward
+                M = np.array([[1 / k, 0, c.cx * (1 - 1 / k)], [0, 1 / k, c.cy * (1 - 1 / k)]], np.float64)
+                linear[..., ch] = cv2.warpAffine(np.ascontiguousarray(linear[..., ch]), M, linear.shape[1::-1],
+                                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                                 borderMode=cv2.BORDER_REPLICATE)
+        if self.vignette is not None:
+            linear *= self.vignette[..., None]
+        return linear
+
+    def finish(self, linear: np.ndarray, frame_index: int, exposure: float = 1.0) -> np.ndarray:
         """Linear light ``(H, W, 3)`` float32 -> the final uint8 RGB image of frame ``frame_index``
         (its noise is seeded by the sequence seed and the index: any frame renders alone alike).
-        ``linear`` is consumed."""
+        ``exposure`` scales the sequence's gain (auto exposure).  ``linear`` is consumed."""
         p = self.params
-        x = linear
-        x *= np.float32(self.gain)
+        x = self.optics(linear)
+        x *= np.float32(self.gain * exposure)
         if p.defocus_sigma_px > 0.05:
             k = int(2 * round(3 * p.defocus_sigma_px) + 1)
             x = cv2.GaussianBlur(x, (k, k), p.defocus_sigma_px, borderType=cv2.BORDER_REPLICATE)

@@ -188,19 +188,27 @@ def samples_needed(max_path_px: float, floor: int = 1) -> int:
     return int(min(MAX_SAMPLES, max(floor, math.ceil(max_path_px / SAMPLE_SPACING_PX))))
 
 
-def velocity_blur(linear: np.ndarray, v_open: np.ndarray, v_close: np.ndarray, n: int, base: np.ndarray) -> np.ndarray:
+def velocity_blur(linear: np.ndarray, v_open: np.ndarray, v_close: np.ndarray, n: int, base: np.ndarray,
+                  row_s: np.ndarray | None = None, exposure_s: float = 2.0) -> np.ndarray:
     """The exposure's blur of a sharp linear-light image ``(H, W, C)`` float32 with ``n`` samples
-    along each pixel's path (``v_open``/``v_close`` (H, W, 2): the flow to the shutter's opening
-    and closing; ``base`` (H, W, 2): each pixel's own position).  ``n <= 1`` returns the image."""
-    if n <= 1:
+    along each pixel's path (``v_open``/``v_close`` (H, W, 2): the flow to the path's two ends, at
+    s = -1 and +1; ``base`` (H, W, 2): each pixel's own position).  Global shutter: the ends are
+    the shutter's opening and closing.  Rolling shutter: ``row_s`` (H,) is each row's own time
+    and ``exposure_s`` the exposure, both in the units of s.  ``n <= 1`` without ``row_s``
+    returns the image."""
+    if n <= 1 and row_s is None:
         return linear
     acc = np.zeros_like(linear)
-    for tau in sample_times(2.0, n):  # s in (-1, 1): the same centred samples as sub-frames
-        a, b = _lagrange(float(tau))
-        m = cv2.addWeighted(v_open, -a, v_close, -b, 0.0)
+    for tau in sample_times(exposure_s if row_s is not None else 2.0, max(n, 1)):
+        if row_s is None:  # one time for every pixel
+            a, b = _lagrange(float(tau))
+            m = cv2.addWeighted(v_open, -a, v_close, -b, 0.0)
+        else:  # each row at its own time
+            a, b = _lagrange(row_s + tau)
+            m = -(a[:, None, None] * v_open + b[:, None, None] * v_close).astype(np.float32)
         m += base
         # bicubic: bilinear samples at fractional offsets smooth the image a little more each, which
         # widens edge ramps and, after the tone curve, moves edges by ~0.1 px (bicubic: ~0.04 px)
         acc += cv2.remap(linear, m, None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
-    acc *= 1.0 / n
+    acc *= 1.0 / max(n, 1)
     return acc

@@ -70,12 +70,22 @@ class CameraSpec(_Model):
     fps: float = Field(30.0, gt=0.0, le=1000.0)
     exposure_s: float = Field(0.004, ge=0.0, description="shutter open time, centred on the frame time")
     supersample: int = Field(1, ge=1, le=4, description="render at this many times the resolution, then average")
+    rolling_shutter_line_s: float = Field(0.0, ge=0.0, description="time between the exposures of consecutive rows "
+                                          "(0: global shutter); the frame's time and labels are those of its middle row")
+    vignetting: NonNegRange = Field((0.0, 0.0), description="light lost at the image corners (0.3: 30 %, falling "
+                                    "off with the square of the distance from the centre)")
+    chromatic_aberration_px: NonNegRange = Field((0.0, 0.0), description="lateral chromatic aberration: red and "
+                                                 "blue displaced by this much, outward and inward, at the corners")
+    auto_exposure_lag_s: float | None = Field(None, gt=0.0, description="auto exposure: the gain follows the scene's "
+                                              "brightness with this time constant (None: fixed exposure)")
     mount: MountSpec = MountSpec()
 
     @model_validator(mode="after")
     def _exposure(self):
         if self.exposure_s > 1.0 / self.fps:
             raise ValueError(f"exposure_s: {self.exposure_s} s is longer than a frame (1/fps = {1 / self.fps:.4f} s)")
+        if self.rolling_shutter_line_s * self.height > 1.0 / self.fps:
+            raise ValueError(f"rolling_shutter_line_s: {self.height} rows take longer than a frame to read")
         # the radial distortion must be invertible out to the image corners, or some pixels see no ray
         k1, k2, _, _, k3 = self.dist
         f = focal_from_hfov(self.width, math.radians(self.hfov_deg))
@@ -220,6 +230,13 @@ class DatasetSpec(_Model):
     degradations: DegradationSpec = DegradationSpec()
     imu: ImuSpec = ImuSpec()
     phase_rule: PhaseRuleSpec = PhaseRuleSpec()
+
+    @model_validator(mode="after")
+    def _shutter(self):
+        if self.camera.rolling_shutter_line_s > 0 and self.degradations.blur_method != "velocity":
+            raise ValueError("camera.rolling_shutter_line_s: a rolling shutter is rendered by the velocity method "
+                             "only (degradations.blur_method: velocity)")
+        return self
 
     @model_validator(mode="after")
     def _pad_visible(self):
