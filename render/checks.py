@@ -84,6 +84,8 @@ def cell_matches(gray: np.ndarray, tmpl: np.ndarray, X: np.ndarray, Y: np.ndarra
         ys, xs = np.nonzero(cell == c)
         if len(ys) < MIN_CELL_PX:
             continue
+        if np.mean(g[ys, xs] >= 250) > 0.3:  # blown out (glare): nothing left to correlate with
+            continue
         t = tmpl[ys, xs]
         t = t - t.mean()
         tn = float(np.sqrt(t @ t))

@@ -38,6 +38,7 @@ POSE = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
 LOCK_NAME = ".hvloc.lock"
 SEQUENCE_FILES = ("frames.csv", "groundtruth.tum", "imu.csv", "camera.json", "pad.json", "meta.json")
 PAD_TEXTURE = "pad.png"  # at the dataset's root: one copy per dataset, named by every pad.json
+AIRFRAME_MASK = "airframe_mask.png"  # per sequence, when the camera sees the drone's legs: 255 where it does
 
 # frames.csv: every column and what it holds (the README's table is made from this)
 COLUMN_DOCS = {
@@ -350,6 +351,9 @@ class SequenceWriter:
         row = layers.labels
         self.rows.append(row)
         self._writes[row["image"]] = self._pool.submit(write_image, self.dir / row["image"], layers.rgb)
+        if layers.airframe_mask is not None and AIRFRAME_MASK not in self._writes:  # rigid with the camera: once
+            mask = np.repeat((layers.airframe_mask.astype(np.uint8) * 255)[..., None], 3, axis=2)
+            self._writes[AIRFRAME_MASK] = self._pool.submit(write_image, self.dir / AIRFRAME_MASK, mask)
 
     def close(self, *, camera_info: dict, pad_document: dict, imu_columns, imu_rows, meta: dict) -> dict:
         """Write the label files and meta.json; returns ``{path: sha256}`` of every file."""

@@ -8,6 +8,7 @@
 * ``motion_px`` ``(H, W, 2)`` float32: each pixel's image motion from the shutter's opening to
   its closing (``None`` when the frame has no motion blur).
 * ``labels``    ``{column: value}``: the frame's row of ``frames.csv`` (:data:`render.dataset.FRAME_COLUMNS`).
+* ``airframe_mask`` ``(H, W)`` bool: where the camera sees the drone's own legs (``None``: none).
 
 Each frame is rasterised once with its depth at the frame time; the depth gives the labels'
 occlusion (what the camera really sees) and each pixel's image motion, from which the motion
@@ -19,6 +20,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from hvloc.geometry import continuous_quaternions, invert, tum_from_transform
@@ -38,6 +40,7 @@ class FrameLayers:
     depth_m: np.ndarray
     motion_px: np.ndarray | None
     labels: dict
+    airframe_mask: np.ndarray | None = None
 
 
 class SequenceRenderer:
@@ -63,10 +66,22 @@ class SequenceRenderer:
         self.floor = 1 if d.blur_subframes == "auto" else int(d.blur_subframes)
         self.method = d.blur_method
         self.imaging = ImageFormation(camera, spec.camera.supersample, plan.imaging, 1.0, plan.seed)
+        from .textures import dirty_texture
+
+        a = spec.airframe
+        self.legs = []
+        for i in range(a.legs):
+            az = np.radians(a.leg_azimuth_deg + 360.0 * i / a.legs)
+            xy = a.leg_spread_m * np.array([np.cos(az), np.sin(az)])
+            self.legs.append(((xy[0], xy[1], -a.leg_length_m), (xy[0], xy[1], 0.0), a.leg_diameter_m, a.leg_color))
+        self.material = plan.material
         self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
                                   self.imaging.render_camera, pad.spec.border_color,
                                   np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,
-                                  znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m))
+                                  znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m),
+                                  pad_texture=dirty_texture(pad.texture_rgb, self.material["dirt"],
+                                                            self.material["dirt_seed"]),
+                                  legs=self.legs)
         self.samples = PadSamples.of(pad.geometry)
         self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames
         traj = plan.trajectory
@@ -97,6 +112,7 @@ class SequenceRenderer:
         self._quats = continuous_quaternions([tum_from_transform(self.cam2pad(k))[3:] for k in range(len(self.times))])
         self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])
         self.exposure_gain = self._auto_exposure(spec.camera.auto_exposure_lag_s)
+        self.airframe_mask = self._airframe_mask() if self.legs else None
 
     # ------------------------------------------------------------------ poses
     def __len__(self) -> int:
@@ -144,6 +160,8 @@ class SequenceRenderer:
             linear = self.imaging.linear(rgb_r)
             if self.ground is not None:
                 self.ground.apply(linear, depth, cam2world, T_W_P)
+            if self.material["gloss"] > 0:
+                self._glare(linear, depth, cam2pad)
             t3 = time.perf_counter()
             if self.line_s > 0:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base, self.row_dt / half,
@@ -158,19 +176,60 @@ class SequenceRenderer:
         for name, dt in (("raster+readback", t1 - t0), ("visibility+flow", t2 - t1), ("lens+linear", t3 - t2),
                          ("blur", t4 - t3), ("noise+tone", t5 - t4), ("labels", t6 - t5)):
             clock[name] = clock.get(name, 0.0) + dt
-        return FrameLayers(k, t, rgb, depth, None if flows is None else flows[1] - flows[0], labels)
+        return FrameLayers(k, t, rgb, depth, None if flows is None else flows[1] - flows[0], labels,
+                           self.airframe_mask)
 
     def _classify(self, cam2pad):
-        if not self.platform_moves:
-            return lambda P: np.zeros(len(P), np.int8)
+        """Which points (camera frame, frame time) move with the platform (1), are rigid with the
+        camera (2: the airframe) or still in the world (0)."""
         R, tr = cam2pad[:3, :3], cam2pad[:3, 3]
         half, floor = self._moving_half, self._moving_floor
+        T_C_B = invert(self.T_B_C)
+        legs = [(T_C_B[:3, :3] @ np.array(b) + T_C_B[:3, 3], T_C_B[:3, :3] @ np.array(t) + T_C_B[:3, 3], d / 2 + 0.01)
+                for b, t, d, _ in self.legs]
 
         def classify(points_C):
-            P = points_C @ R.T + tr
-            return ((np.abs(P[:, 0]) <= half) & (np.abs(P[:, 1]) <= half) & (P[:, 2] > floor)).astype(np.int8)
+            cls = np.zeros(len(points_C), np.int8)
+            if self.platform_moves:
+                P = points_C @ R.T + tr
+                cls[(np.abs(P[:, 0]) <= half) & (np.abs(P[:, 1]) <= half) & (P[:, 2] > floor)] = mo.MOVING
+            for a, b, r in legs:  # within a leg's radius of its axis
+                ab = b - a
+                s = np.clip((points_C - a) @ ab / (ab @ ab), 0.0, 1.0)
+                near = np.linalg.norm(points_C - (a + s[:, None] * ab), axis=1) <= r
+                cls[near] = mo.ATTACHED
+            return cls
 
         return classify
+
+    def _airframe_mask(self) -> np.ndarray:
+        """``(H, W)`` bool: where the camera sees its own airframe (rigid with it: one per sequence)."""
+        self.scene.airframe_only(True)
+        try:
+            cam2world = self.body2world[0] @ self.T_B_C
+            self.scene.set_drone(self.body2world[0])
+            _, z = self.scene.render_with_depth(cam2world)
+        finally:
+            self.scene.airframe_only(False)
+        return np.isfinite(self.imaging.depth_to_pixels(z))
+
+    def _glare(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
+        """The sun's specular glare on a glossy pad (Blinn-Phong), added in linear light."""
+        xn, yn = self.rays
+        zc = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
+        X = cv2.merge([xn * zc, yn * zc, zc])
+        P = cv2.transform(X, cam2pad[:3, :].astype(np.float32))
+        h = self.pad.side_m / 2
+        on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (np.abs(P[..., 2]) < 0.003) & (zc > 0)
+        if not on.any():
+            return
+        view = cam2pad[:3, 3][None, :] - P[on]  # toward the camera, pad frame
+        view /= np.linalg.norm(view, axis=1, keepdims=True)
+        half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
+        half_v /= np.linalg.norm(half_v, axis=1, keepdims=True)
+        r = max(self.material["gloss_roughness"], 0.02)
+        lobe = np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)
+        linear[on] += (self.material["gloss"] * lobe)[:, None].astype(np.float32)
 
     def _flows(self, depth, cam2world, cam2pad, T_W_P, t, half: float) -> tuple:
         """``((2, H, W, 2), longest path px)``: every pixel's image motion to ``t - half`` and

@@ -26,7 +26,7 @@ import numpy as np
 
 from hvloc.geometry import Camera, invert
 
-STATIC, MOVING = 0, 1
+STATIC, MOVING, ATTACHED = 0, 1, 2  # still in the world, moving with the platform, rigid with the camera
 MAX_SAMPLES = 256
 SAMPLE_SPACING_PX = 0.5
 
@@ -145,6 +145,7 @@ class FlowField:
                         u, v = _project(self.camera, xn[sel], yn[sel], zz[sel], Ms[i])
                         out[i, ys[sel], xs[sel], 0] = u - xs[sel]
                         out[i, ys[sel], xs[sel], 1] = v - ys[sel]
+                out[i, ys[cls == ATTACHED], xs[cls == ATTACHED]] = 0.0  # the airframe does not move in the image
             if S == 2:
                 longest = max(longest, float(path_length_px(out[0, ys, xs], out[1, ys, xs]).max()))
         return out, longest

@@ -67,6 +67,7 @@ class SequencePlan:
     imaging: object
     frame_times: np.ndarray
     imu: np.ndarray = field(repr=False)
+    material: dict = field(default_factory=dict)  # the pad's gloss, glare spread and dirt drawn for it
 
 
 def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
@@ -97,4 +98,9 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     n = int(math.floor(traj.duration * cam.fps + 1e-9)) + 1
     times = np.arange(n) / cam.fps
     imu = synthesize_imu(traj, spec.imu, np.random.default_rng(rng.integers(2**63)), times[-1])
-    return SequencePlan(index, seed, family, traj, draw, imaging, times, imu)
+    r3 = np.random.default_rng(rng.integers(2**63))  # drawn after everything older: their draws stay as they were
+    m = spec.pad_material
+    u3 = lambda r: float(r3.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731
+    material = {"gloss": u3(m.gloss), "gloss_roughness": u3(m.gloss_roughness), "dirt": u3(m.dirt),
+                "dirt_seed": int(r3.integers(2**31))}
+    return SequencePlan(index, seed, family, traj, draw, imaging, times, imu, material)

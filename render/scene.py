@@ -111,7 +111,10 @@ class LandingScene:
 
     def __init__(self, pad, draw: SceneDraw, platform_height: float, platform_size: float,
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
-                 znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45):
+                 znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
+                 pad_texture: np.ndarray | None = None, legs: list | None = None):
+        """``pad_texture``: what the pad looks like here (default: its design); ``legs``: the
+        airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame."""
         pr = import_pyrender()
         self.pr = pr
         self.camera = camera
@@ -196,7 +199,8 @@ class LandingScene:
             self._add(box((platform_size, platform_size, platform_height), (110, 112, 118)),
                       pose=pose_xy(0, 0, platform_height / 2), parent=self.platform_node)
         # the pad's outline is a labelled feature: soft (texture-filtered) edges, not aliased ones
-        self.pad_node = self._add(textured_quad(pad.texture_rgb, pad.side_m, pad.side_m, soft_edge_px=16),
+        tex = pad.texture_rgb if pad_texture is None else pad_texture
+        self.pad_node = self._add(textured_quad(tex, pad.side_m, pad.side_m, soft_edge_px=16),
                                   pose=pose_xy(0, 0, self.pad_surface_z), parent=self.platform_node)
         for x, y, yaw, sx, sy, sz, col in draw.boxes:
             self._add(box((sx, sy, sz), col, yaw), pose=pose_xy(x, y, sz / 2, yaw))
@@ -217,6 +221,18 @@ class LandingScene:
         if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
             self._add_box_shadows([(0.0, 0.0, 0.0, platform_size, platform_size, platform_height, None)],
                                   parent=self.platform_node, m_per_px=0.01)
+        # the drone's own legs: children of the body node (set_drone moves them)
+        self.body_node = pr.Node(name="body", matrix=np.eye(4))
+        scene.add_node(self.body_node)
+        self.airframe_nodes = []
+        for bottom, top, diameter, rgb in legs or []:
+            import trimesh
+
+            seg = np.array([bottom, top], float)
+            m = trimesh.creation.cylinder(radius=diameter / 2, segment=seg, sections=16)
+            m.visual.face_colors = np.array([*rgb, 255], np.uint8)
+            self.airframe_nodes.append(self._add(pr.Mesh.from_trimesh(m, smooth=False), np.eye(4), "airframe",
+                                                 parent=self.body_node))
         self.drone_size = drone_size_m
         self.drone_shadow = None
         if shadows and self.shadow_alpha > 0:
@@ -282,7 +298,9 @@ class LandingScene:
         self.scene.set_pose(self.platform_node, make_transform(np.eye(3), (*self.platform_xy, 0.0)))
 
     def set_drone(self, body2world: np.ndarray) -> None:
-        """Move the drone's shadow: its body (a flat square) cast along the sun onto the surface below."""
+        """Move the drone: its legs, and its shadow (a flat square cast along the sun onto the
+        surface below)."""
+        self.scene.set_pose(self.body_node, np.asarray(body2world, np.float64))
         if self.drone_shadow is None:
             return
         s = self.draw.sun_dir_W
@@ -302,6 +320,11 @@ class LandingScene:
         """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""
         self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
         return render_color(self.renderer, self.scene, self.pr.RenderFlags.FLAT)
+
+    def airframe_only(self, only: bool) -> None:
+        """Hide everything but the airframe (``True``), or show everything again."""
+        for node in self.scene.mesh_nodes:
+            node.mesh.is_visible = (not only) or node in self.airframe_nodes
 
     def render_with_depth(self, cam2world: np.ndarray) -> tuple:
         """``(rgb (H, W, 3) uint8, z (H, W) float32)``: colour and depth along the optical axis in

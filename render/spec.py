@@ -109,6 +109,26 @@ class PlatformSpec(_Model):
     velocity_mps: tuple[float, float] = Field((0.0, 0.0), description="constant platform velocity (east, north)")
 
 
+class AirframeSpec(_Model):
+    """What of the drone itself the camera can see: landing legs under the body (FLU body frame)."""
+
+    legs: int = Field(0, ge=0, le=8, description="landing legs: vertical tubes spread evenly around the body centre")
+    leg_length_m: float = Field(0.18, gt=0.0, le=1.0, description="from the body origin down")
+    leg_diameter_m: float = Field(0.02, gt=0.0, le=0.2)
+    leg_spread_m: float = Field(0.16, gt=0.0, le=1.0, description="horizontal distance of each leg from the body centre")
+    leg_azimuth_deg: float = Field(45.0, description="azimuth of the first leg from the body's x axis (forward)")
+    leg_color: tuple[int, int, int] = Field((34, 34, 38), description="sRGB colour of the legs")
+
+
+class PadMaterialSpec(_Model):
+    """The printed pad as it really is: glossy and dirty (drawn per sequence)."""
+
+    gloss: NonNegRange = Field((0.0, 0.0), description="specular glare of the sun on the pad: peak added light "
+                               "relative to a sunlit white (0: matte)")
+    gloss_roughness: Range = Field((0.15, 0.3), description="spread of the glare (Blinn-Phong, 0 mirror-like to 1)")
+    dirt: NonNegRange = Field((0.0, 0.0), description="share of the pad's area covered by stains and wear")
+
+
 Family = Literal["straight", "spiral", "hover_correct", "manoeuvres"]
 
 
@@ -225,6 +245,8 @@ class DatasetSpec(_Model):
     pad: PadSpec = PadSpec()
     pad_ppm: float = Field(2000.0, gt=100.0, le=10000.0, description="texture resolution of the pad")
     platform: PlatformSpec = PlatformSpec()
+    pad_material: PadMaterialSpec = PadMaterialSpec()
+    airframe: AirframeSpec = AirframeSpec()
     trajectory: TrajectorySpec = TrajectorySpec()
     environment: EnvironmentSpec = EnvironmentSpec()
     degradations: DegradationSpec = DegradationSpec()

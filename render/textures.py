@@ -81,3 +81,24 @@ def aruco_image(marker_id: int, modules_px: int = 16) -> np.ndarray:
     img = cv2.aruco.generateImageMarker(d, int(marker_id) % 50, 6 * modules_px, borderBits=1)
     img = cv2.copyMakeBorder(img, modules_px, modules_px, modules_px, modules_px, cv2.BORDER_CONSTANT, value=255)
     return np.repeat(img[..., None], 3, axis=2)
+
+
+def dirty_texture(rgb: np.ndarray, share: float, seed: int) -> np.ndarray:
+    """The pad's texture with stains and wear over about ``share`` of its area: brownish-grey
+    blotches of varying opacity (mud, scuffs), fine specks, and a lightening of the black
+    (wear).  A new image; the design stays as it is."""
+    if share <= 0:
+        return rgb
+    rng = np.random.default_rng(seed)
+    n = rgb.shape[0]
+    small = 256
+    field = cv2.resize(fbm(small, rng, 2.4), (n, n), interpolation=cv2.INTER_CUBIC)
+    thresh = np.quantile(field, 1.0 - share)
+    alpha = np.clip((field - thresh) / 0.08, 0.0, 1.0) * rng.uniform(0.35, 0.7)
+    specks = cv2.resize((rng.random((small, small)) < 0.02 * share).astype(np.float32), (n, n),
+                        interpolation=cv2.INTER_LINEAR) * 0.8
+    a = np.clip(alpha + specks, 0.0, 0.85)[..., None]
+    stain = np.array([118, 100, 78], np.float32)
+    out = rgb.astype(np.float32) * (1 - a) + stain * a
+    out = out + (255 - out) * (0.15 * share)  # wear: the dark ink fades a little
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)

@@ -36,6 +36,7 @@ def _int(lo, hi):
 
 
 TILTED = {"camera.mount.rpy_deg": [200.0, 0.0, -90.0]}
+WIDE = {"camera.hfov_deg": 110.0}  # the legs are in view of a wide lens
 BLUR = {"camera.exposure_s": 0.02, "trajectory.gust_accel_mps2": [0.8, 0.8]}
 DISTRACTORS = {"environment.distractors.boxes": [2, 2], "environment.distractors.decoy_patches": [1, 1],
                "environment.distractors.decoy_markers": [1, 1]}
@@ -76,6 +77,16 @@ FIELDS = {
     "pad.texture_min_feature_m": (_uniform(0.004, 0.006), 0.006, {}),
     "pad.texture_max_feature_m": (_uniform(0.02, 0.04), 0.04, {}),
     "pad.texture_density": (_uniform(0.15, 0.3), 0.15, {}),
+    "pad_material.gloss": (_rng_range(0.0, 0.8), [0.8, 0.8], {"environment.sun_elevation_deg": [85.0, 85.0]}),
+    "pad_material.gloss_roughness": (_rng_range(0.1, 0.4), [0.05, 0.05], {"pad_material.gloss": [0.8, 0.8],
+                                                                        "environment.sun_elevation_deg": [85.0, 85.0]}),
+    "pad_material.dirt": (_rng_range(0.0, 0.4), [0.4, 0.4], {}),
+    "airframe.legs": (_choice([0, 0, 2, 4]), 4, WIDE),
+    "airframe.leg_length_m": (_uniform(0.15, 0.25), 0.3, {**WIDE, "airframe.legs": 4}),
+    "airframe.leg_diameter_m": (_uniform(0.015, 0.03), 0.04, {**WIDE, "airframe.legs": 4}),
+    "airframe.leg_spread_m": (_uniform(0.12, 0.2), 0.12, {**WIDE, "airframe.legs": 4}),
+    "airframe.leg_azimuth_deg": (_uniform(0.0, 90.0), 10.0, {**WIDE, "airframe.legs": 4}),
+    "airframe.leg_color": (_choice([[34, 34, 38], [200, 40, 40]]), [220, 220, 60], {**WIDE, "airframe.legs": 4}),
     "pad_ppm": (_choice([500.0, 700.0]), 600.0, {}),
     "platform.height_m": (_choice([0.0, 0.5]), 0.3, {}),
     "platform.size_m": (_uniform(1.0, 1.6), 1.5, {}),

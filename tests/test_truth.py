@@ -80,29 +80,33 @@ def test_every_spec_field_changes_what_is_rendered(path):
 
 # ----------------------------------------------------------------------------- labels against images
 
-@pytest.mark.parametrize("seed", range(6))
-def test_random_specs_render_what_their_labels_say(seed):
+def test_random_specs_render_what_their_labels_say():
     """Random valid specs (mounts off nadir, lenses, moving platforms, sun, distractors, blur,
-    supersampling...): where the pad is near and sharp, the image shows it at the labelled pose."""
-    rng = np.random.default_rng(1000 + seed)
-    spec = _spec(random_spec(rng))
-    with SequenceRenderer(spec, 0) as r:
-        f = min(r.camera.fx, r.camera.fy)
-        across = np.array([r.pad.side_m * f / r.cam2pad(k)[2, 3] for k in range(len(r))])
-        cand = np.nonzero((across >= 60) & (across <= 0.8 * min(r.camera.width, r.camera.height)))[0]
-        tested = 0
-        for k in cand[np.linspace(0, len(cand) - 1, min(3, len(cand))).round().astype(int)] if len(cand) else []:
-            layers = r.render(int(k))
-            L = layers.labels
-            if L["blur_px"] > 1.5 or L["pad_visible_fraction"] < 0.5:
-                continue
-            matched, cells, required = check_image(r.camera, r.pad, r.cam2pad(int(k)), layers.rgb,
-                                                   L["pad_visible_fraction"])
-            assert matched >= required, (f"spec {seed} frame {k}: {matched} of {cells} pad cells match "
-                                         f"({required} needed): {spec.canonical_json()}")
-            tested += 1
-    if seed < 3:  # most draws have near, sharp frames: the property is not vacuous
-        assert tested >= 1 or len(cand) == 0
+    rolling shutter, airframes, glossy dirty pads, supersampling...): where the pad is near and
+    sharp, the image shows it at the labelled pose."""
+    tested = 0
+    for seed in range(6):
+        rng = np.random.default_rng(1000 + seed)
+        spec = _spec(random_spec(rng))
+        with SequenceRenderer(spec, 0) as r:
+            f = min(r.camera.fx, r.camera.fy)
+            across = np.array([r.pad.side_m * f / r.cam2pad(k)[2, 3] for k in range(len(r))])
+            cand = np.nonzero((across >= 60) & (across <= 0.8 * min(r.camera.width, r.camera.height)))[0]
+            here = 0
+            for k in cand[np.linspace(0, len(cand) - 1, min(8, len(cand))).round().astype(int)] if len(cand) else []:
+                if here == 3:
+                    break
+                layers = r.render(int(k))
+                L = layers.labels
+                if L["blur_px"] > 1.5 or L["pad_visible_fraction"] < 0.5:
+                    continue
+                matched, cells, required = check_image(r.camera, r.pad, r.cam2pad(int(k)), layers.rgb,
+                                                       L["pad_visible_fraction"])
+                assert matched >= required, (f"spec {seed} frame {k}: {matched} of {cells} pad cells match "
+                                             f"({required} needed): {spec.canonical_json()}")
+                here += 1
+            tested += here
+    assert tested >= 8, f"only {tested} frames of 6 random specs were near and sharp enough to check"
 
 
 def _seg_hits_box(C, X, box, grow):
