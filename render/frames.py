@@ -215,21 +215,35 @@ class SequenceRenderer:
 
     def _glare(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
         """The sun's specular glare on a glossy pad (Blinn-Phong), added in linear light."""
-        xn, yn = self.rays
-        zc = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
-        X = cv2.merge([xn * zc, yn * zc, zc])
-        P = cv2.transform(X, cam2pad[:3, :].astype(np.float32))
+        px = self.camera.project_from(cam2pad, self.pad.outer_corners_P)
+        H, W = depth.shape
+        if not np.isfinite(px).all():
+            r0, r1, c0, c1 = 0, H, 0, W
+        else:
+            (c0, r0), (c1, r1) = np.floor(px.min(axis=0)).astype(int) - 2, np.ceil(px.max(axis=0)).astype(int) + 3
+            r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1, H), min(c1, W)
+            if r1 <= r0 or c1 <= c0:
+                return
+        xn, yn = self.rays[0][r0:r1, c0:c1], self.rays[1][r0:r1, c0:c1]
+        z = depth[r0:r1, c0:c1]
+        zc = np.where(np.isfinite(z), z, 0.0).astype(np.float32)
+        P = cv2.transform(cv2.merge([xn * zc, yn * zc, zc]), cam2pad[:3, :].astype(np.float32))
         h = self.pad.side_m / 2
         on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (np.abs(P[..., 2]) < 0.003) & (zc > 0)
         if not on.any():
             return
-        view = cam2pad[:3, 3][None, :] - P[on]  # toward the camera, pad frame
-        view /= np.linalg.norm(view, axis=1, keepdims=True)
+        # the lobe varies slowly over the pad: evaluated on every 8th pixel, interpolated between
+        Q = P[::8, ::8].reshape(-1, 3).astype(np.float64)
+        view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
+        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
         half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
-        half_v /= np.linalg.norm(half_v, axis=1, keepdims=True)
+        half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
         r = max(self.material["gloss_roughness"], 0.02)
-        lobe = np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)
-        linear[on] += (self.material["gloss"] * lobe)[:, None].astype(np.float32)
+        lobe = (np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::8, ::8].shape[:2]).astype(np.float32)
+        lobe = cv2.resize(lobe, (lobe.shape[1] * 8, lobe.shape[0] * 8), interpolation=cv2.INTER_LINEAR)
+        lobe = lobe[:r1 - r0, :c1 - c0] * (on * np.float32(self.material["gloss"]))
+        roi = linear[r0:r1, c0:c1]
+        roi += lobe[..., None]
 
     def _flows(self, depth, cam2world, cam2pad, T_W_P, t, half: float) -> tuple:
         """``((2, H, W, 2), longest path px)``: every pixel's image motion to ``t - half`` and

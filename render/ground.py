@@ -149,75 +149,115 @@ class GroundDetail:
 
     def __init__(self, kind: str, seed: int, camera, xn: np.ndarray, yn: np.ndarray, flat_objects=()):
         self.kind = kind
-        self.tile = detail_tile(kind, int(seed) % 2**31)
-        self.mip = [self.tile]
-        while self.mip[-1].shape[0] > 4:  # box-filtered halvings: the octave's prefiltered levels
-            self.mip.append(cv2.resize(self.mip[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+        tile = detail_tile(kind, int(seed) % 2**31)
         rng = np.random.default_rng([int(seed) % 2**31, 99])
+        # octaves pre-summed in groups (a mipmap of a sum is the sum of the mipmaps): each group is
+        # one tile over its coarsest octave's period at its finest octave's texel, the octaves in it
+        # turned by right angles, mirrored and shifted (so the sum stays tileable), and the group
+        # turned by a free angle when it is read
         self.octaves = []
-        for lam in OCTAVES_M:
+        for group in (OCTAVES_M[:3], OCTAVES_M[3:]):
+            period, fine = group[0], group[-1]
+            n = int(round(TILE_PX * period / fine))
+            acc = np.zeros((n, n), np.float32)
+            for lam in group:
+                t = np.rot90(tile, int(rng.integers(4)))
+                t = t[:, ::-1] if rng.random() < 0.5 else t
+                t = np.roll(t, tuple(int(v) for v in rng.integers(0, TILE_PX, 2)), axis=(0, 1))
+                px = int(round(TILE_PX * lam / fine))  # this octave's tile, in the group's texels
+                up = cv2.resize(np.ascontiguousarray(t), (px, px), interpolation=cv2.INTER_CUBIC) if px != TILE_PX else t
+                acc += AMPLITUDE[kind] * np.tile(up, (n // px, n // px))
+            mip = [acc]
+            while mip[-1].shape[0] > 4:  # box-filtered halvings: the group's prefiltered levels
+                mip.append(cv2.resize(mip[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
             ang = rng.uniform(0, 2 * math.pi)
-            self.octaves.append((lam, AMPLITUDE[kind], math.cos(ang), math.sin(ang), *rng.uniform(0, TILE_PX, 2)))
+            self.octaves.append((period, fine / TILE_PX, math.cos(ang), math.sin(ang), *rng.uniform(0, n, 2), mip))
         self.f = float(min(camera.fx, camera.fy))
         self.xn, self.yn = xn, yn
         self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
         self.flat_objects = list(flat_objects)
-        self.texel_m = np.array([lam / TILE_PX for lam, *_ in self.octaves])
+        self.texel_m = np.array([texel for _, texel, *_ in self.octaves])
 
     def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
         """``(H, W)`` float32 albedo factor (1 off the ground), or ``None`` where nothing would change."""
         finite = np.isfinite(z)
         if not finite.any():
             return None
-        R = cam2world[:3, :3]
-        up_C = R.T @ np.array([0.0, 0.0, 1.0])  # world up in the camera frame
-        zc = np.where(finite, z, 0.0).astype(np.float32)
-        # the pixel's footprint on a horizontal surface (m), along its most stretched direction
-        cos_in = np.abs(up_C[0] * self.xn + up_C[1] * self.yn + up_C[2]) / np.sqrt(self.r2)
-        footprint = zc * self.r2 / (self.f * np.maximum(cos_in, 0.05) * np.sqrt(self.r2))
-        fp = float(np.median(footprint[finite]))
-        if not any(self._level(fp, texel) is not None for texel in self.texel_m):
+        up = cam2world[2, :3]  # world up in the camera frame
+        zc = np.where(finite, z, np.float32(0.0)).astype(np.float32)
+        # the pixel's footprint on a horizontal surface (m): z |r|^2 / (f |up . r|), r = (xn, yn, 1)
+        dot = cv2.addWeighted(self.xn, float(up[0]), self.yn, float(up[1]), float(up[2]))
+        cv2.max(np.abs(dot), 0.05 * np.sqrt(self.r2), dst=dot)
+        footprint = cv2.divide(cv2.multiply(zc, self.r2), dot, scale=1.0 / self.f)
+        fp_all = float(np.median(footprint[::8, ::8][finite[::8, ::8]]))
+        if not any(self._level(fp_all, o[1], o[-1]) is not None for o in self.octaves):
             return None  # every octave averages out within a pixel
-        X = cv2.merge([self.xn * zc, self.yn * zc, zc])
-        W = cv2.transform(X, cam2world[:3, :].astype(np.float32))
+        W = cv2.transform(cv2.merge([self.xn * zc, self.yn * zc, zc]), cam2world[:3, :].astype(np.float32))
         wx, wy, wz = cv2.split(W)
         ground = (finite & (np.abs(wz) < GROUND_Z_TOL_M)).astype(np.float32)
+        H, Wd = z.shape
         for x0, y0, yaw, sx, sy, moves in self.flat_objects:  # fade out within 2 px of their edges
             ox, oy = (x0 + pad2world[0, 3], y0 + pad2world[1, 3]) if moves else (x0, y0)
+            roi = self._image_box(cam2world, ox, oy, yaw, sx, sy, H, Wd)
+            if roi is None:
+                continue
+            r0, r1, c0, c1 = roi
             c, s = math.cos(yaw), math.sin(yaw)
-            u = np.abs(c * (wx - ox) + s * (wy - oy)) - sx / 2
-            v = np.abs(-s * (wx - ox) + c * (wy - oy)) - sy / 2
-            ground *= np.clip(np.maximum(u, v) / np.maximum(footprint, 1e-9) - 1.0, 0.0, 1.0)
+            X, Y = wx[r0:r1, c0:c1] - np.float32(ox), wy[r0:r1, c0:c1] - np.float32(oy)
+            u = np.abs(c * X + s * Y) - sx / 2
+            v = np.abs(-s * X + c * Y) - sy / 2
+            ground[r0:r1, c0:c1] *= np.clip(np.maximum(u, v) / np.maximum(footprint[r0:r1, c0:c1], 1e-9) - 1.0, 0.0, 1.0)
         if not ground.any():
             return None
         logf = np.zeros_like(zc)
         cx, cy = cam2world[0, 3], cam2world[1, 3]
-        fp = float(np.median(footprint[ground > 0]))
-        for (lam, amp, c, s, ox, oy), texel in zip(self.octaves, self.texel_m):
-            level = self._level(fp, texel)
+        fp = float(np.median(footprint[::4, ::4][ground[::4, ::4] > 0])) if (ground[::4, ::4] > 0).any() else fp_all
+        for (period, texel, c, s, ox, oy, mip) in self.octaves:
+            level = self._level(fp, texel, mip)
             if level is None:
                 continue
-            tile = self.mip[level]
-            k = tile.shape[0] / lam
-            n = tile.shape[0]
+            tile = mip[level]
+            n, n0 = tile.shape[0], mip[0].shape[0]
+            k = n / period
             # texel coordinates near the camera stay small (remap's fixed point has 16-bit integers):
             # shift by whole tiles, which leaves the world-fixed pattern as it is
-            u0 = TILE_PX / lam * (c * cx - s * cy) + ox
-            v0 = TILE_PX / lam * (s * cx + c * cy) + oy
+            u0 = n0 / period * (c * cx - s * cy) + ox
+            v0 = n0 / period * (s * cx + c * cy) + oy
             # into the level's texels (centres: level texel i covers base texels [2i, 2i + 1])
-            u0, v0, ox, oy = (q * n / TILE_PX for q in (u0, v0, ox, oy))
-            ox, oy = ox + 0.5 * n / TILE_PX - 0.5, oy + 0.5 * n / TILE_PX - 0.5
-            mx = cv2.addWeighted(wx, c * k, wy, -s * k, ox - n * math.floor(u0 / n))
-            my = cv2.addWeighted(wx, s * k, wy, c * k, oy - n * math.floor(v0 / n))
-            logf += amp * cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-        logf *= ground
-        return np.exp(logf)
+            u0, v0, lx, ly = (q * n / n0 for q in (u0, v0, ox, oy))
+            lx, ly = lx + 0.5 * n / n0 - 0.5, ly + 0.5 * n / n0 - 0.5
+            mx = cv2.addWeighted(wx, c * k, wy, -s * k, lx - n * math.floor(u0 / n))
+            my = cv2.addWeighted(wx, s * k, wy, c * k, ly - n * math.floor(v0 / n))
+            logf += cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        cv2.multiply(logf, ground, dst=logf)
+        return cv2.exp(logf)
 
-    def _level(self, footprint_m: float, texel_m: float):
-        """The mipmap level whose texels match the footprint, or None when the octave's tile is
-        down to 16 texels or fewer there (it averages out within a pixel or two)."""
+    def _image_box(self, cam2world, ox, oy, yaw, sx, sy, H, W):
+        """Rows and columns ``(r0, r1, c0, c1)`` around where a flat rectangle on the ground shows
+        (a generous box; ``None`` when it is out of view)."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        m = 0.6 * max(sx, sy) + 0.05
+        pts = np.array([[ox + dx * c - dy * s, oy + dx * s + dy * c, 0.0] for dx in (-m, m) for dy in (-m, m)])
+        Pc = (pts - cam2world[:3, 3]) @ cam2world[:3, :3]
+        if np.all(Pc[:, 2] <= 1e-3):
+            return None
+        if np.any(Pc[:, 2] <= 1e-3):
+            return 0, H, 0, W  # partly behind the camera: look everywhere
+        xn, yn = Pc[:, 0] / Pc[:, 2], Pc[:, 1] / Pc[:, 2]
+        xs, ys = self.xn[::16, ::16], self.yn[::16, ::16]
+        cols = np.nonzero((xs >= xn.min()) & (xs <= xn.max()))[1]
+        rows = np.nonzero((ys >= yn.min()) & (ys <= yn.max()))[0]
+        if not len(cols) or not len(rows):
+            return None
+        return (max(0, 16 * rows.min() - 16), min(H, 16 * rows.max() + 32),
+                max(0, 16 * cols.min() - 16), min(W, 16 * cols.max() + 32))
+
+    @staticmethod
+    def _level(footprint_m: float, texel_m: float, mip: list):
+        """The mipmap level whose texels match the footprint (the finer of the two around it), or
+        None when the tile is down to 16 texels or fewer there (it averages out within a pixel)."""
         level = max(0, int(math.floor(math.log2(max(footprint_m / texel_m, 1e-9)))))
-        return level if self.mip[level if level < len(self.mip) else -1].shape[0] > 16 and level < len(self.mip) else None
+        return level if level < len(mip) and mip[level].shape[0] > 16 else None
 
     def apply(self, linear: np.ndarray, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray:
         f = self.factor(z, cam2world, pad2world)
