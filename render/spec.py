@@ -287,7 +287,11 @@ class DatasetSpec(_Model):
         return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
 
     def sha256(self) -> str:
-        return hashlib.sha256(self.canonical_json().encode()).hexdigest()
+        """The spec's identity: a hash of the fields that differ from their defaults, so that adding an
+        optional field (whose default renders as before) leaves every existing spec, cached dataset and
+        frozen suite with the same hash.  The manifest keeps the full spec (``canonical_json``)."""
+        ident = json.dumps(self.model_dump(mode="json", exclude_defaults=True), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(ident.encode()).hexdigest()
 
 
 def load_dataset_spec(path) -> DatasetSpec:

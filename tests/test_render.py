@@ -256,6 +256,20 @@ def test_shipped_specs_validate_and_schemas_are_current():
                 f"{committed} is stale: run python -m render.spec"
 
 
+def test_spec_identity_ignores_defaults_and_sees_every_change():
+    """A spec's hash names the dataset folder and freezes suites: writing a default value out, or a
+    future field arriving with its default, must not change it; changing any value must."""
+    base = load_dataset_spec(REPO / "data_specs" / "tiny.yaml")
+    raw = json.loads(base.canonical_json())  # every field written out, defaults included
+    assert DatasetSpec.model_validate(raw).sha256() == base.sha256()
+    raw2 = json.loads(base.canonical_json())
+    raw2["imu"]["gyro_noise_rad_s"] += 0.001  # a nested field
+    assert DatasetSpec.model_validate(raw2).sha256() != base.sha256()
+    raw3 = json.loads(base.canonical_json())
+    raw3["seed"] = raw3["seed"] + 1
+    assert DatasetSpec.model_validate(raw3).sha256() != base.sha256()
+
+
 def test_a_lens_that_folds_back_before_the_corners_is_refused():
     from pad_design.errors import InputError
     from pad_design.errors import validate_model
