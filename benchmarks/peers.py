@@ -11,15 +11,13 @@ would add.  Markers with ids the pad does not carry are ignored.
 """
 from __future__ import annotations
 
-import time
-import traceback
 
 import cv2
 import numpy as np
 
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import Camera, invert, make_transform
-from hvloc.localizer import Estimate, check_image
+from hvloc.localizer import Estimate, check_image, guarded_process
 
 PHASE = "adjustment"  # it is a marker method: reported in the markers' phase
 
@@ -44,17 +42,9 @@ class ArucoLocalizer:
         pass
 
     def process(self, image, t: float, imu=None) -> Estimate:
-        t0 = time.perf_counter()
-        try:
-            est = self._process(image, float(t))
-        except Exception as err:  # never raise on an image
-            est = Estimate(float(t) if np.isfinite(t) else float("nan"), PHASE, "lost", None,
-                           reason=f"internal error: {type(err).__name__}: {err}",
-                           extras={"traceback": traceback.format_exc(limit=3)})
-        est.ms = (time.perf_counter() - t0) * 1000.0
-        return est
+        return guarded_process(self._process, image, t, imu, PHASE)
 
-    def _process(self, image, t: float) -> Estimate:
+    def _process(self, image, t: float, imu=None) -> Estimate:
         _, gray, why = check_image(image)
         if gray is None:
             return Estimate(t, PHASE, "lost", None, reason=why)

@@ -126,18 +126,65 @@ def check_image(image) -> tuple:
     return rgb, cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), ""
 
 
+def frame_time(t) -> tuple:
+    """``(t as a float, "")``, or ``(nan, why)`` when ``t`` is not a finite number of seconds."""
+    if isinstance(t, (str, bytes, bool, np.bool_)):
+        return float("nan"), f"timestamp {t!r} is a {type(t).__name__}, not a number of seconds"
+    try:
+        f = float(t)
+    except (TypeError, ValueError, OverflowError):
+        return float("nan"), f"timestamp {t!r} is not a number of seconds"
+    if not math.isfinite(f):
+        return float("nan"), f"timestamp {f} is not finite"
+    return f, ""
+
+
+def guarded_process(process, image, t, imu, phase: str) -> "Estimate":
+    """Run ``process(image, t_float, imu)`` so that it never raises: a bad timestamp or an internal
+    error gives ``status="lost"`` with the reason; the time spent is in ``ms``.  Shared by every
+    localizer behind the ``process(image, t, imu) -> Estimate`` protocol."""
+    t0 = time.perf_counter()
+    tf, why = frame_time(t)
+    if why:
+        est = Estimate(tf, phase, "lost", None, reason=why)
+    else:
+        try:
+            est = process(image, tf, imu)
+        except Exception as err:  # never raise on an image: report it
+            est = Estimate(tf, phase, "lost", None, reason=f"internal error: {type(err).__name__}: {err}",
+                           extras={"traceback": traceback.format_exc(limit=3)})
+    est.ms = (time.perf_counter() - t0) * 1000.0
+    return est
+
+
 def imu_rotation(imu) -> np.ndarray | None:
-    """``R_W_B`` from an IMU sample: a 3x3 matrix, a quaternion (qx, qy, qz, qw), or an imu.csv row."""
+    """``R_W_B`` from an IMU sample: a 3x3 matrix, a quaternion (qx, qy, qz, qw), or an imu.csv row;
+    ``None`` for anything that is not a finite, proper rotation (NaN, a zero quaternion, a wrong
+    shape): the localizer then runs on vision alone for that frame."""
+    return imu_check(imu)[0]
+
+
+def imu_check(imu) -> tuple:
+    """``(R_W_B or None, why)``: what :func:`imu_rotation` gives, with the reason when it is unusable."""
     if imu is None:
-        return None
-    a = np.asarray(imu, np.float64)
-    if a.shape == (3, 3):
-        return a
-    if a.shape == (4,):
-        return matrix_from_quat_xyzw(a)
+        return None, ""
+    try:
+        a = np.asarray(imu, np.float64)
+    except (TypeError, ValueError):
+        return None, f"imu sample of type {type(imu).__name__} is not numeric"
     if a.shape == (11,):
-        return matrix_from_quat_xyzw(a[7:11])
-    return None
+        a = a[7:11]
+    if a.shape not in ((3, 3), (4,)):
+        return None, f"imu sample has shape {a.shape} (a 3x3 rotation, an (x, y, z, w) quaternion or an imu.csv row)"
+    if not np.isfinite(a).all():
+        return None, "imu attitude is not finite"
+    if a.shape == (4,):
+        if not 0.5 < np.linalg.norm(a) < 2.0:
+            return None, f"imu quaternion has norm {np.linalg.norm(a):.3g} (not a rotation)"
+        return matrix_from_quat_xyzw(a), ""
+    if np.abs(a @ a.T - np.eye(3)).max() > 1e-3 or np.linalg.det(a) < 0:
+        return None, "imu attitude matrix is not a rotation"
+    return a, ""
 
 
 class HierarchicalLocalizer:
@@ -154,31 +201,48 @@ class HierarchicalLocalizer:
     def reset(self) -> None:
         self.phase = "approaching"
         self.last: Estimate | None = None       # last accepted estimate
+        self.last_t: float | None = None         # time of the last frame processed (any status)
         self.R_W_P: np.ndarray | None = None     # running vision-IMU rotation offset
         self.imu_rejects = 0
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks)
 
     # ------------------------------------------------------------------ public
     def process(self, image, t: float, imu=None) -> Estimate:
-        t0 = time.perf_counter()
-        try:
-            est = self._process(image, float(t), imu)
-        except Exception as err:  # never raise on an image: report it
-            est = Estimate(float(t) if np.isfinite(t) else float("nan"), self.phase, "lost", None,
-                           reason=f"internal error: {type(err).__name__}: {err}",
-                           extras={"traceback": traceback.format_exc(limit=3)})
-        est.ms = (time.perf_counter() - t0) * 1000.0
-        return est
+        return guarded_process(self._process, image, t, imu, self.phase)
 
     # ------------------------------------------------------------------ internals
+    def _clock(self, t: float) -> str:
+        """Keep the state consistent with time: a frame older than the last one starts a new run
+        (a new sequence on the same localizer, a replay); a prior older than ``prior_timeout_s``
+        is dropped, so that neither the gates nor the ROI nor the tracker reason from it."""
+        note = ""
+        if self.last_t is not None and t < self.last_t:
+            note = f"time went back {self.last_t - t:.3g} s: state reset"
+            self.reset()
+        elif self.last is not None and t - self.last.t > self.config.prior_timeout_s:
+            note = f"last pose {t - self.last.t:.3g} s old: prior dropped"
+            self.last = None
+            self.flow.reset()
+        self.last_t = t
+        return note
+
     def _process(self, image, t: float, imu) -> Estimate:
+        clock = self._clock(t)
+        R_W_B, imu_why = imu_check(imu)
+        est = self._estimate(image, t, R_W_B)
+        if clock:
+            est.extras["clock"] = clock
+        if imu_why:
+            est.extras["imu"] = imu_why + ": vision alone"
+        return est
+
+    def _estimate(self, image, t: float, R_W_B) -> Estimate:
         rgb, gray, why = check_image(image)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
         if gray.shape != (self.camera.height, self.camera.width):
             return Estimate(t, self.phase, "lost", None,
                             reason=f"image is {gray.shape[1]}x{gray.shape[0]}, camera is {self.camera.width}x{self.camera.height}")
-        R_W_B = imu_rotation(imu)
         up_C = None
         if R_W_B is not None:
             R_W_C = R_W_B @ self.T_B_C[:3, :3]
