@@ -313,7 +313,8 @@ class HierarchicalLocalizer:
             if det is not None:
                 pose = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
                 if pose is not None:
-                    return (pose, len(det.pts_P), dict(det.info, roi=r is not None)), "ok"
+                    return (pose, len(det.pts_P), dict(det.info, roi=r is not None, tilt_err_deg=pose.tilt_err_deg,
+                                                       tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"
                 why = "pose failed"
         return None, why
 

@@ -25,6 +25,24 @@ class PoseResult:
     cov: np.ndarray            # 6x6 covariance of (position xyz in P [m], rotation vector [rad])
     other_rms_px: float        # RMS of the rejected flip solution (inf if none)
     flip_choice: str           # how the flip was resolved: gravity, previous, rms, single
+    tilt_err_deg: float = float("nan")    # image-only pose's pad normal vs the IMU's up (nan: no IMU)
+    tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
+
+
+def tilt_disagreement(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
+                      sigma_px: float) -> tuple:
+    """``(angle, sigma)`` in degrees: how far the pad normal of an image-only pose is from the IMU's
+    up direction, and how well the image fixes that normal (from the reprojection Jacobian with
+    pixel noise ``sigma_px`` or the fit's own residuals, whichever is larger)."""
+    z = cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # pad normal in C
+    up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
+    ang = float(np.degrees(np.arccos(np.clip(z @ up, -1.0, 1.0))))
+    cov = pose_covariance(camera, cam2pad, pts_P, px, min_sigma_px=sigma_px)[3:, 3:]  # rotation vector in P
+    if not np.isfinite(cov).all():
+        return ang, float("inf")
+    # rotation about the pad's x and y axes tilts its normal; about z it does not
+    var = float(cov[0, 0] + cov[1, 1]) / 2.0
+    return ang, float(np.degrees(np.sqrt(max(var, 0.0))))
 
 
 def normalized_dlt_homography(src_xy: np.ndarray, dst_xy: np.ndarray) -> np.ndarray | None:
@@ -99,15 +117,16 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
 
 
-def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> np.ndarray:
+def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
+                    min_sigma_px: float = 0.1) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector) from the reprojection Jacobian,
-    scaled by the residual variance (at least (0.1 px)^2)."""
+    scaled by the residual variance (at least ``min_sigma_px`` squared)."""
     eps = 1e-6
     proj = _project_poses(camera, _perturbed(cam2pad, eps), pts_P)
     r0 = (proj[0] - px).ravel()
     J = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T
     dof = max(r0.size - 6, 1)
-    sigma2 = max(float(r0 @ r0) / dof, 0.01)
+    sigma2 = max(float(r0 @ r0) / dof, min_sigma_px ** 2)
     try:
         return np.linalg.inv(J.T @ J) * sigma2
     except np.linalg.LinAlgError:
@@ -136,18 +155,27 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
         return r, J
 
     r0, J = system(T)
-    for _ in range(iterations):
+    lam = 1e-6
+    for _ in range(iterations * 3):
+        # Levenberg-Marquardt: a disagreement of many sigmas between the image-only tilt and the IMU
+        # is far from linear, and a plain Gauss-Newton step that overshoots used to stop the refinement
+        # at the image-only pose (13 degrees off with a wrong corner, the IMU ignored)
+        A = J.T @ J
         try:
-            step = -np.linalg.solve(J.T @ J + 1e-9 * np.eye(6), J.T @ r0)
+            step = -np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), J.T @ r0)
         except np.linalg.LinAlgError:
             break
         Tn = T.copy()
         Tn[:3, 3] += step[:3]
         Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:])
         rn, Jn = system(Tn)
-        if rn @ rn >= r0 @ r0:
-            break
+        if not rn @ rn < r0 @ r0:
+            lam *= 10.0
+            if lam > 1e6:
+                break
+            continue
         T, r0, J = Tn, rn, Jn
+        lam = max(lam / 10.0, 1e-9)
         if np.abs(step).max() < 1e-9:
             break
     return T
@@ -225,7 +253,10 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
                 T = T_ref
         except cv2.error:
             pass
-    if up_C is not None and gravity_sigma_deg:
-        T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, np.radians(gravity_sigma_deg))
+    tilt = (float("nan"), float("nan"))
+    if up_C is not None:
+        tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
+        if gravity_sigma_deg:
+            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, np.radians(gravity_sigma_deg))
     rms_best = reprojection_rms(camera, T, obj, px)
-    return PoseResult(T, rms_best, n, pose_covariance(camera, T, obj, px), other, choice)
+    return PoseResult(T, rms_best, n, pose_covariance(camera, T, obj, px), other, choice, *tilt)

@@ -373,3 +373,18 @@ def test_markers_are_found_on_a_pathological_background_and_its_contours_are_bou
     assert det is not None, why
     err = np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1)
     assert len(det.pts_P) >= 36 and np.median(err) < 0.2, (len(det.pts_P), np.median(err))
+
+
+def test_the_gravity_prior_wins_over_a_far_pad_whose_corners_are_a_little_off(pad):
+    """At 12 m a 1 m pad is ~50 px wide: two corners 2.5 px off (a border edge lost in shadow) tilt
+    the image-only pose by >10 degrees at sub-pixel RMS.  The AHRS knows the tilt to a fraction of
+    a degree: the refined pose follows it, and the image-only disagreement is reported."""
+    G = tilted(0.8, -0.5, 12.0, 0.6, 0.02, -0.01)
+    P = pad.geometry.outer_corners
+    px = CAM.project_from(G, P) + np.array([[0.0, 0.0], [0.0, 0.0], [2.5, -1.7], [2.1, -1.7]])
+    alone = solve_planar_pose(CAM, P, px)
+    assert pose_error(alone.cam2pad, G)[1] > 8.0  # the premise: the image alone is far off
+    res = solve_planar_pose(CAM, P, px, up_C=up_in_camera(G))
+    dp, da = pose_error(res.cam2pad, G)
+    assert da < 1.5 and dp < 0.05 * 12.0, (dp, da)
+    assert res.tilt_err_deg > 8.0 and res.tilt_sigma_deg < res.tilt_err_deg / 3

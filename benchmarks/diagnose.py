@@ -1,0 +1,95 @@
+"""Why a localizer fails on a dataset: per frame, what it returned and how wrong it was, with the
+gates' inputs (the vision-only tilt against the IMU's gravity), summarised per ground-truth phase.
+
+    python -m benchmarks.diagnose DATASET [--config CFG] [--frames N] [--show-false]
+
+A development tool: it runs hvloc's localizer in process and keeps ``Estimate.extras``, which the
+estimates files do not carry.
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import math
+
+import numpy as np
+
+from hvloc.config import LocalizerConfig, load_config
+from hvloc.geometry import rotation_angle
+
+from .metrics import FALSE_ACCEPT_DEG, FALSE_ACCEPT_REL
+from .run import imu_at, make_localizer
+
+
+def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None = None, use_imu: bool = True):
+    """Rows ``(seq, k, phase_gt, height, status, method, pos_err, rot_err, wrong, reason, extras)``."""
+    from render.dataset import Dataset
+
+    rows = []
+    for seq in Dataset(root):
+        loc = make_localizer("hierarchical", seq, config or LocalizerConfig())
+        G_all = seq.cam2pad
+        for k in range(len(seq) if max_frames is None else min(len(seq), max_frames)):
+            t = float(seq.t[k])
+            e = loc.process(seq.image(k), t, imu_at(seq.imu, t) if use_imu else None)
+            G = G_all[k]
+            pe = re = float("nan")
+            if e.cam2pad is not None:
+                pe = float(np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]))
+                re = math.degrees(rotation_angle(e.cam2pad[:3, :3], G[:3, :3]))
+            h = float(G[2, 3])
+            wrong = bool(e.cam2pad is not None and (pe > FALSE_ACCEPT_REL * h or re > FALSE_ACCEPT_DEG))
+            rows.append((seq.id, k, str(seq.columns["phase_gt"][k]), h, e.status, e.method, pe, re, wrong, e.reason,
+                         e.extras))
+    return rows
+
+
+def summarise(rows) -> str:
+    lines = []
+    by = collections.defaultdict(list)
+    for r in rows:
+        by[r[2]].append(r)
+    for ph, rs in by.items():
+        st = collections.Counter(r[4] for r in rs)
+        fa = sum(1 for r in rs if r[4] == "ok" and r[8])
+        rej_right = sum(1 for r in rs if r[4] == "rejected" and not r[8])
+        reasons = collections.Counter(r[9].split(" ")[0] + " " + " ".join(r[9].split(" ")[1:3]) for r in rs
+                                      if r[4] != "ok")
+        lines.append(f"{ph:12s} n={len(rs):4d} ok={st['ok']:4d} rejected={st['rejected']:4d} "
+                     f"(of them right {rej_right}) lost={st['lost']:4d} false_accepts={fa}")
+        for why, n in reasons.most_common(5):
+            lines.append(f"    {n:4d}  {why}")
+        tilt = np.array([[r[10].get("tilt_err_deg", np.nan), r[10].get("tilt_sigma_deg", np.nan), r[8]]
+                         for r in rs if r[4] in ("ok", "rejected")], float).reshape(-1, 3)
+        for lab, sel in (("right", tilt[:, 2] == 0), ("wrong", tilt[:, 2] == 1)):
+            t = tilt[sel]
+            if len(t) and np.isfinite(t[:, 0]).any():
+                z = t[:, 0] / np.hypot(t[:, 1], 0.3)
+                lines.append(f"    tilt vs IMU, {lab:5s} poses: err p50/p95/max {np.nanpercentile(t[:, 0], 50):.2f}/"
+                             f"{np.nanpercentile(t[:, 0], 95):.2f}/{np.nanmax(t[:, 0]):.2f} deg, sigma p50 "
+                             f"{np.nanpercentile(t[:, 1], 50):.2f}, z p50/p95/max {np.nanpercentile(z, 50):.1f}/"
+                             f"{np.nanpercentile(z, 95):.1f}/{np.nanmax(z):.1f}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.diagnose", description=__doc__.split("\n\n")[0])
+    p.add_argument("dataset")
+    p.add_argument("--config")
+    p.add_argument("--frames", type=int, help="at most this many frames per sequence")
+    p.add_argument("--no-imu", action="store_true")
+    p.add_argument("--show-false", action="store_true", help="list every false accept and wrongly rejected frame")
+    a = p.parse_args(argv)
+    rows = diagnose(a.dataset, load_config(a.config) if a.config else None, a.frames, not a.no_imu)
+    print(summarise(rows))
+    if a.show_false:
+        for r in rows:
+            if (r[4] == "ok" and r[8]) or (r[4] == "rejected" and not r[8]):
+                ex = {k: (round(v, 2) if isinstance(v, float) else v) for k, v in r[10].items() if k != "traceback"}
+                print(f"{r[0]} {r[1]:4d} {r[2]:11s} h={r[3]:5.2f} {r[4]:8s} {r[5]:8s} pos {r[6]:.3f} rot {r[7]:.2f} "
+                      f"{r[9][:60]} {ex}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
