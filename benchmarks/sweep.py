@@ -121,12 +121,12 @@ def replay(cache: FrameCache, cfg: LocalizerConfig) -> dict:
                 if got is None:
                     continue
                 pose, rms = got
-            phase_est[k] = METHOD_PHASE[method]
             if cfg.false_pose_detection and (rms > cfg.max_reprojection_px or
                                              motion_gate(pose, cache.t[k], last, last_t, cfg)):
-                status[k] = "rejected"
-                poses[k] = pose
-                break
+                if status[k] != "rejected":  # the first rejected pose is reported; the next method is tried
+                    status[k], poses[k], phase_est[k] = "rejected", pose, METHOD_PHASE[method]
+                continue
+            phase_est[k] = METHOD_PHASE[method]
             status[k], poses[k] = "ok", pose
             last, last_t, last_method = pose, cache.t[k], method
             near = pose[2, 3] < cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m

@@ -255,7 +255,10 @@ class HierarchicalLocalizer:
             order = ("flow",)
         enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}
         reasons = []
-        result = None
+        rejected = None
+        # the methods in the phase's order: the first whose pose passes the gates wins; a pose the
+        # gates reject does not stop the next method (a pad cut by the image edge must not keep
+        # the flow tracker from its turn)
         for method in order:
             if not enabled[method]:
                 continue
@@ -265,24 +268,28 @@ class HierarchicalLocalizer:
                 reasons.append("flow: no keyframe")
                 continue
             res, why = self._try(method, rgb, gray, up_C)
-            if res is not None:
-                result = (method, res)
-                break
-            reasons.append(f"{method}: {why}")
-        if result is None:
-            self.flow.skip()
-            return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
-        method, (pose, n, extras) = result
-        est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
-                       extras=extras)
-        verdict = self._gate(est, R_W_B)
-        if verdict:
-            est.status, est.reason = "rejected", verdict
-            self.flow.skip()
+            if res is None:
+                reasons.append(f"{method}: {why}")
+                continue
+            pose, n, extras = res
+            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
+                           extras=extras)
+            verdict = self._gate(est, R_W_B)
+            if verdict:
+                est.status, est.reason = "rejected", verdict
+                reasons.append(f"{method}: rejected, {verdict}")
+                rejected = rejected or est
+                continue
+            if reasons:
+                est.extras["before"] = "; ".join(reasons)
+            self.last = est
+            self._after_accept(method, est, gray)
             return est
-        self.last = est
-        self._after_accept(method, est, gray)
-        return est
+        self.flow.skip()
+        if rejected is not None:
+            rejected.reason = "; ".join(reasons)
+            return rejected
+        return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
 
     def _update_phase(self, h) -> None:
         self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)

@@ -72,15 +72,30 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     border = pad_geometry.border.segmentation_hsv
     cue = pad_geometry.cue.segmentation_hsv
-    mask = _hsv_mask(hsv, border)
-    cue_mask = _hsv_mask(hsv, cue)
-    # the cue square belongs to the pad: add every cue-coloured blob that touches the border colour
-    n_lab, labels = cv2.connectedComponents(cue_mask, connectivity=8)
+    mask = _shadowed_too(small, hsv, _hsv_mask(hsv, border), border, pad_geometry.border.color_rgb)
+    # the cue square belongs to the pad: add every cue-coloured blob (lit, or in shadow by its
+    # relative chromaticity) that touches the border colour and is small beside it (a cue square is
+    # ~3 % of the border's area; a long yellowish thing lying against the pad is not the cue)
+    cue_mask = _hsv_mask(hsv, cue) | _colour_evidence(small, hsv, cue, pad_geometry.cue.color_rgb)
+    cue_part = np.zeros_like(mask)
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(cue_mask, connectivity=8)
     if n_lab > 1:
-        touching = np.unique(labels[(cv2.dilate(mask, np.ones((5, 5), np.uint8)) > 0) & (labels > 0)])
-        cue_part = np.isin(labels, touching).astype(np.uint8) * 255 if len(touching) else np.zeros_like(mask)
-    else:
-        cue_part = np.zeros_like(mask)
+        near = cv2.dilate(mask, np.ones((5, 5), np.uint8)) > 0
+        touching = np.unique(labels[near & (labels > 0)])
+        if len(touching):
+            n_b, b_lab, b_stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+            ok = []
+            H, W = labels.shape
+            for lab in touching:
+                x, y, w, h = stats[lab, :4]
+                ys, xs = slice(max(y - 3, 0), min(y + h + 3, H)), slice(max(x - 3, 0), min(x + w + 3, W))
+                sel = (labels[ys, xs] == lab).astype(np.uint8)
+                ring = np.unique(b_lab[ys, xs][cv2.dilate(sel, np.ones((5, 5), np.uint8)) > 0])
+                ring_area = max((b_stats[r, cv2.CC_STAT_AREA] for r in ring if r > 0), default=0)
+                if stats[lab, cv2.CC_STAT_AREA] <= 0.15 * ring_area:
+                    ok.append(lab)
+            if ok:
+                cue_part = np.isin(labels, ok).astype(np.uint8) * 255
     full = cv2.morphologyEx(mask | cue_part, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     side = pad_geometry.side_m
@@ -127,36 +142,10 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             quad = sq
     # the cue: which corner region is yellow (read at full resolution: far away the cue square is
     # only a few pixels, and a downscaled copy blends it away)
-    quad_full = (quad + 0.5) * scale - 0.5
-    centre = quad_full.mean(axis=0)
-    b_share = pad_geometry.border_m / side
-    yellow = []
-    for q in quad_full:
-        p = q + (centre - q) * b_share  # middle of the border corner square (diagonal inset)
-        square_px = np.linalg.norm(q - centre) * math.sqrt(2) * b_share  # the corner square's side
-        r = max(1, int(round(0.35 * square_px)))
-        u, v = int(round(p[0])), int(round(p[1]))
-        patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
-        if patch.size == 0:
-            yellow.append(0.0)
-            continue
-        m = _hsv_mask(cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_RGB2HSV), cue)
-        yellow.append(float(m.mean()) / 255.0)
-    yellow = np.array(yellow)
-    info_yellow = [round(float(y), 2) for y in yellow]
-    order = None
-    how = "cue"
-    if yellow.max() >= 0.15 and np.sort(yellow)[-2] < 0.34 * yellow.max():
-        k = int(np.argmax(yellow))  # the BR corner
-        order = [(k + 2) % 4, (k + 3) % 4, k, (k + 1) % 4]
-    elif yaw_hint_corner0 is not None:
-        k = int(np.argmin(np.linalg.norm(quad_full + [x0, y0] - yaw_hint_corner0, axis=1)))
-        order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
-        how = "previous"
-    if order is None:
-        return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
-    quad = quad_full[order] + [x0, y0]
-    # sub-pixel: edges on a channel linear in the colours, where the border is bright
+    quad = (quad + 0.5) * scale - 0.5 + [x0, y0]
+    # sub-pixel first: edges on a channel linear in the colours, where the border is bright.  The
+    # sides' lines also restore a corner that the colour mask cut off (a cue corner in shadow), so
+    # the cue is read at the right place afterwards.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
     band_px = side_px * pad_geometry.border.solid_band_m / side
     hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
@@ -175,8 +164,74 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         refined = refined + [bx0, by0]
     if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
         refined = quad
+    # the cue: which corner region is yellow (read at full resolution: far away the cue square is
+    # only a few pixels, and a downscaled copy blends it away); lit or in shadow
+    centre = refined.mean(axis=0)
+    b_share = pad_geometry.border_m / side
+    yellow = []
+    for q in refined:
+        p = q + (centre - q) * b_share - [x0, y0]  # middle of the border corner square (diagonal inset)
+        square_px = np.linalg.norm(q - centre) * math.sqrt(2) * b_share  # the corner square's side
+        r = max(1, int(round(0.35 * square_px)))
+        u, v = int(round(p[0])), int(round(p[1]))
+        patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
+        if patch.size == 0:
+            yellow.append(0.0)
+            continue
+        patch = np.ascontiguousarray(patch)
+        phsv = cv2.cvtColor(patch, cv2.COLOR_RGB2HSV)
+        m = _hsv_mask(phsv, cue) | _colour_evidence(patch, phsv, cue, pad_geometry.cue.color_rgb)
+        yellow.append(float(m.mean()) / 255.0)
+    yellow = np.array(yellow)
+    info_yellow = [round(float(y), 2) for y in yellow]
+    order = None
+    how = "cue"
+    if yellow.max() >= 0.15 and np.sort(yellow)[-2] < 0.34 * yellow.max():
+        k = int(np.argmax(yellow))  # the BR corner
+        order = [(k + 2) % 4, (k + 3) % 4, k, (k + 1) % 4]
+    elif yaw_hint_corner0 is not None:
+        k = int(np.argmin(np.linalg.norm(refined - yaw_hint_corner0, axis=1)))
+        order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
+        how = "previous"
+    if order is None:
+        return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
+    refined = refined[order]
     pts = pad_geometry.outer_corners
     return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": side_px, "line_rms": res}), "ok"
+
+
+def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chroma: float = 0.15) -> np.ndarray:
+    """Pixels whose chromaticity relative to their own brightness says ``colour_rgb``, lit or not.
+
+    In a hard shadow the pad is lit by the sky alone: darker and much less saturated (the border is
+    sRGB (67, 51, 64) where it is (230, 40, 200) in the sun), below the segmentation range ``rng``.
+    Kept: the colour's hue (+-2x the range's half-width), chroma along the colour's direction (for
+    the magenta border about ``(R + B) / 2 - G``) at least ``min_chroma`` of the pixel's value."""
+    lo_h, hi_h = float(rng.lo[0]), float(rng.hi[0])
+    half = ((hi_h - lo_h) % 180.0) / 2.0
+    centre = (lo_h + half) % 180.0
+    dh = np.abs((hsv[..., 0].astype(np.float32) - centre + 90.0) % 180.0 - 90.0)
+    c = np.asarray(colour_rgb, np.float32)
+    d = (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
+    chroma = cv2.transform(np.ascontiguousarray(rgb).astype(np.float32), d[None, :]).reshape(rgb.shape[:2])
+    v = hsv[..., 2].astype(np.float32)
+    return ((dh <= 2.0 * half) & (chroma >= min_chroma * v) & (v >= 16.0)).astype(np.uint8) * 255
+
+
+def _shadowed_too(rgb: np.ndarray, hsv: np.ndarray, strong: np.ndarray, rng, colour_rgb,
+                  grow: np.ndarray | None = None) -> np.ndarray:
+    """A colour mask grown into its shadowed parts (hysteresis, as Canny does for edges): the
+    :func:`_colour_evidence` pixels that touch ``strong`` (or ``grow``: the shadowed cue touches
+    the border, not its sunlit self)."""
+    weak = _colour_evidence(rgb, hsv, rng, colour_rgb) | strong
+    seed = strong if grow is None else (strong | cv2.dilate(grow, np.ones((3, 3), np.uint8)))
+    n, lab = cv2.connectedComponents(weak, connectivity=8)
+    if n <= 1:
+        return strong
+    keep = np.zeros(n, bool)
+    keep[np.unique(lab[(seed > 0) & (weak > 0)])] = True
+    keep[0] = False
+    return keep[lab].astype(np.uint8) * 255
 
 
 def _border_channel(rgb: np.ndarray) -> np.ndarray:
