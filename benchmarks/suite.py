@@ -29,6 +29,8 @@ class DatasetEntry(BaseModel):
     sequences: int | None = Field(None, ge=1)
     seed: int | None = Field(None, ge=0)
     overrides: dict = Field(default_factory=dict, description="spec fields to override (nested mapping)")
+    tier: str | None = Field(None, pattern=r"^[A-Za-z0-9_-]+$", description="difficulty tier (nominal, hard, "
+                             "extreme...): every score is also given per tier")
 
 
 class LocalizerEntry(BaseModel):
@@ -140,6 +142,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
     from .run import read_estimates
 
     data_root = out / "datasets"
+    tiers = {spec.name: entry.tier for spec, entry in zip(specs, suite.datasets)}
     rows, per_seq, fes_by_loc, fes_by_ds = [], {}, {}, {}
     timing = {}
     for spec in specs:
@@ -189,6 +192,10 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
         for (n, d), dfes in fes_by_ds.items():  # per dataset, e.g. to set a peer beside hvloc on the same descents
             if n == name:
                 summary[name].update({f"{d}/{k}": v for k, v in _scopes(M.concat(dfes)).items()})
+        for tier in dict.fromkeys(t for t in tiers.values() if t):  # per difficulty tier, in suite order
+            tfes = [f for (n, d), dfes in fes_by_ds.items() if n == name and tiers[d] == tier for f in dfes]
+            if tfes:
+                summary[name].update({f"tier:{tier}/{k}": v for k, v in _scopes(M.concat(tfes)).items()})
         contact = [per_seq[k]["contact_pos_err_m"] for k in per_seq if k.startswith(name + "/")]
         contact = [c for c in contact if c is not None]
         summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None

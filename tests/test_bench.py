@@ -55,6 +55,9 @@ def test_results_schema_and_provenance(smoke):
     assert setup["hierarchical"]["datasets"] == ["tiny"] and setup["aruco_solvepnp"]["datasets"] == ["tiny_aruco"]
     assert r["summary"]["aruco_solvepnp"]["tiny_aruco/all"] == r["summary"]["aruco_solvepnp"]["all"]
     assert r["summary"]["aruco_solvepnp"]["all"]["availability"] > 0.3
+    # every score per difficulty tier too (the smoke suite has one tier: it holds every frame)
+    assert r["summary"]["hierarchical"]["tier:nominal/all"] == r["summary"]["hierarchical"]["all"]
+    assert r["summary"]["hierarchical"]["tier:nominal/gt:touchdown"] == r["summary"]["hierarchical"]["gt:touchdown"]
     report = (out / "report.md").read_text()
     assert "### `tiny_aruco`\n\n| localizer" in report and "| aruco_solvepnp | touchdown |" in report
     csv_head = (out / "results.csv").read_text().splitlines()[0]
