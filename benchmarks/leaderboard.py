@@ -2,6 +2,9 @@
 
     python -m benchmarks.leaderboard RESULTS_DIR [--note TEXT ...]
         (re)write benchmarks/leaderboard.json + LEADERBOARD.md; notes are caveats shown with the table
+    python -m benchmarks.leaderboard --mark-stale WHY
+        the suite changed since the table was made and it could not be re-run yet: say so at the top of
+        the table, with the suite's hash now (a later change to the suite is caught again)
 """
 from __future__ import annotations
 
@@ -43,6 +46,10 @@ def markdown(lb: dict) -> str:
              "is an `ok` pose off by > 10 % of height or 5 degrees.  Times are per frame on this shared machine, "
              f"with {lb.get('workers') or 1} localizer process(es) at once.  Ranked by false accepts, then availability.",
              "",
+             *([f"**Stale:** these numbers were measured on `{lb['suite']}` as it was at commit `{p.get('commit')}`; "
+                f"the suite has changed since ({lb['stale']['why']}), and the table awaits a re-run "
+                f"(`hvloc bench run {lb['suite']}`, then `python -m benchmarks.leaderboard`).", ""]
+               if lb.get("stale") else []),
              *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
              "| localizer | datasets | " + " | ".join(c[2] for c in COLUMNS) + " |",
              "|---|---|" + "---|" * len(COLUMNS)]
@@ -79,10 +86,20 @@ def main(argv=None) -> int:
     import argparse
 
     p = argparse.ArgumentParser(prog="python -m benchmarks.leaderboard", description=__doc__)
-    p.add_argument("results")
+    p.add_argument("results", nargs="?")
     p.add_argument("--note", action="append", default=[])
+    p.add_argument("--mark-stale", metavar="WHY", help="mark the committed table stale: the suite changed since")
     a = p.parse_args(sys.argv[1:] if argv is None else argv)
-    lb = build(load_results(a.results), a.note)
+    if a.mark_stale:
+        from .suite import load_suite
+
+        lb = json.loads(LEADERBOARD_JSON.read_text())
+        _, _, _, h = load_suite(REPO / "data_specs" / "suites" / f"{lb['suite']}.yaml")
+        lb["stale"] = {"why": a.mark_stale, "suite_sha256_now": h}
+    elif not a.results:
+        p.error("give a results folder (or --mark-stale WHY)")
+    else:
+        lb = build(load_results(a.results), a.note)
     LEADERBOARD_JSON.write_text(json.dumps(lb, indent=1) + "\n")
     LEADERBOARD_MD.write_text(markdown(lb))
     print(LEADERBOARD_JSON)
