@@ -302,3 +302,11 @@ def test_translucent_meshes_never_hide_the_ground():
             sc.close()
         sky = np.all(np.abs(img.astype(int) - [153, 178, 217]) <= 3, axis=2).mean()
         assert sky < 0.01, f"sequence {index}: {100 * sky:.1f} % of a nadir view at 20 m is sky"
+
+
+def test_readme_documents_every_frames_csv_column():
+    from render.dataset import COLUMN_DOCS
+
+    readme = (REPO / "README.md").read_text()
+    for k, v in COLUMN_DOCS.items():
+        assert f"| `{k}` | {v.replace('|', '/')} |" in readme, f"README.md: column {k} is not documented as in COLUMN_DOCS"
