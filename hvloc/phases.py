@@ -72,30 +72,24 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     border = pad_geometry.border.segmentation_hsv
     cue = pad_geometry.cue.segmentation_hsv
-    mask = _shadowed_too(small, hsv, _hsv_mask(hsv, border), border, pad_geometry.border.color_rgb)
-    # the cue square belongs to the pad: add every cue-coloured blob (lit, or in shadow by its
-    # relative chromaticity) that touches the border colour and is small beside it (a cue square is
-    # ~3 % of the border's area; a long yellowish thing lying against the pad is not the cue)
-    cue_mask = _hsv_mask(hsv, cue) | _colour_evidence(small, hsv, cue, pad_geometry.cue.color_rgb)
+    mask = _hsv_mask(hsv, border)
     cue_part = np.zeros_like(mask)
-    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(cue_mask, connectivity=8)
-    if n_lab > 1:
-        near = cv2.dilate(mask, np.ones((5, 5), np.uint8)) > 0
-        touching = np.unique(labels[near & (labels > 0)])
-        if len(touching):
-            n_b, b_lab, b_stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-            ok = []
-            H, W = labels.shape
-            for lab in touching:
-                x, y, w, h = stats[lab, :4]
-                ys, xs = slice(max(y - 3, 0), min(y + h + 3, H)), slice(max(x - 3, 0), min(x + w + 3, W))
-                sel = (labels[ys, xs] == lab).astype(np.uint8)
-                ring = np.unique(b_lab[ys, xs][cv2.dilate(sel, np.ones((5, 5), np.uint8)) > 0])
-                ring_area = max((b_stats[r, cv2.CC_STAT_AREA] for r in ring if r > 0), default=0)
-                if stats[lab, cv2.CC_STAT_AREA] <= 0.15 * ring_area:
-                    ok.append(lab)
-            if ok:
-                cue_part = np.isin(labels, ok).astype(np.uint8) * 255
+    box = _around(mask)
+    if box is not None:  # everything below happens around the border colour: most of a frame is not
+        sl = np.s_[box[1]:box[3], box[0]:box[2]]
+        # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
+        mask[sl] = _shadowed_too(small[sl], hsv[sl], mask[sl], border, pad_geometry.border.color_rgb)
+        # the cue square belongs to the pad: every cue-coloured blob, lit or in shadow, that touches the
+        # border colour and is small beside it (a cue square is ~3 % of the border's area; a long
+        # yellowish thing lying against the pad is not the cue)
+        cue_mask = _hsv_mask(hsv[sl], cue) | _colour_evidence(small[sl], hsv[sl], cue, pad_geometry.cue.color_rgb)
+        n_lab, labels = cv2.connectedComponents(cue_mask, connectivity=8)
+        if n_lab > 1:
+            keep = np.zeros(n_lab, np.uint8)
+            keep[labels[cv2.dilate(mask[sl], np.ones((5, 5), np.uint8)) > 0]] = 255  # touching the border
+            keep[0] = 0
+            keep[np.bincount(labels.ravel(), minlength=n_lab) > 0.15 * cv2.countNonZero(mask)] = 0
+            cue_part[sl] = keep[labels]
     full = cv2.morphologyEx(mask | cue_part, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     side = pad_geometry.side_m
@@ -206,32 +200,46 @@ def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chro
     In a hard shadow the pad is lit by the sky alone: darker and much less saturated (the border is
     sRGB (67, 51, 64) where it is (230, 40, 200) in the sun), below the segmentation range ``rng``.
     Kept: the colour's hue (+-2x the range's half-width), chroma along the colour's direction (for
-    the magenta border about ``(R + B) / 2 - G``) at least ``min_chroma`` of the pixel's value."""
+    the magenta border about ``(R + B) / 2 - G``) at least ``min_chroma`` of the pixel's value, and
+    a value of at least 16.  All in uint8 OpenCV passes (it runs on every Approaching frame)."""
     lo_h, hi_h = float(rng.lo[0]), float(rng.hi[0])
     half = ((hi_h - lo_h) % 180.0) / 2.0
-    centre = (lo_h + half) % 180.0
-    dh = np.abs((hsv[..., 0].astype(np.float32) - centre + 90.0) % 180.0 - 90.0)
+    wide = type(rng)(np.array([(lo_h - half) % 180.0, 0, 16]), np.array([(hi_h + half) % 180.0, 255, 255]),
+                     hue_wraps=bool((lo_h - half) % 180.0 > (hi_h + half) % 180.0))
+    hue_ok = _hsv_mask(hsv, wide)
     c = np.asarray(colour_rgb, np.float32)
     d = (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
-    chroma = cv2.transform(np.ascontiguousarray(rgb).astype(np.float32), d[None, :]).reshape(rgb.shape[:2])
-    v = hsv[..., 2].astype(np.float32)
-    return ((dh <= 2.0 * half) & (chroma >= min_chroma * v) & (v >= 16.0)).astype(np.uint8) * 255
+    chroma = cv2.transform(np.ascontiguousarray(rgb), d[None, :].astype(np.float32))  # uint8, negatives at 0
+    need = cv2.multiply(np.ascontiguousarray(hsv[..., 2]), min_chroma, dtype=cv2.CV_8U)
+    ev = cv2.bitwise_and(hue_ok, cv2.compare(chroma.reshape(need.shape), need, cv2.CMP_GE))
+    # lone specks of it (sensor noise on grey ground) are no shadowed pad: 2x2 opening
+    return cv2.morphologyEx(ev, cv2.MORPH_OPEN, np.ones((2, 2), np.uint8))
 
 
-def _shadowed_too(rgb: np.ndarray, hsv: np.ndarray, strong: np.ndarray, rng, colour_rgb,
-                  grow: np.ndarray | None = None) -> np.ndarray:
+def _around(mask: np.ndarray) -> tuple | None:
+    """``(x0, y0, x1, y1)``: the box of the mask's blobs (specks opened away), grown on every side by
+    twice its size (a lit corner of a mostly shadowed pad) or a tenth of the image, clipped to the
+    image; ``None`` when there is no blob."""
+    core = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((2, 2), np.uint8))
+    if not cv2.countNonZero(core):
+        return None
+    x, y, w, h = cv2.boundingRect(core)
+    H, W = mask.shape
+    m = max(2 * max(w, h), min(H, W) // 10)
+    return max(x - m, 0), max(y - m, 0), min(x + w + m, W), min(y + h + m, H)
+
+
+def _shadowed_too(rgb: np.ndarray, hsv: np.ndarray, strong: np.ndarray, rng, colour_rgb) -> np.ndarray:
     """A colour mask grown into its shadowed parts (hysteresis, as Canny does for edges): the
-    :func:`_colour_evidence` pixels that touch ``strong`` (or ``grow``: the shadowed cue touches
-    the border, not its sunlit self)."""
+    :func:`_colour_evidence` pixels connected to ``strong``."""
     weak = _colour_evidence(rgb, hsv, rng, colour_rgb) | strong
-    seed = strong if grow is None else (strong | cv2.dilate(grow, np.ones((3, 3), np.uint8)))
     n, lab = cv2.connectedComponents(weak, connectivity=8)
     if n <= 1:
         return strong
-    keep = np.zeros(n, bool)
-    keep[np.unique(lab[(seed > 0) & (weak > 0)])] = True
-    keep[0] = False
-    return keep[lab].astype(np.uint8) * 255
+    keep = np.zeros(n, np.uint8)
+    keep[lab[strong > 0]] = 255  # every component holding a strong pixel
+    keep[0] = 0
+    return keep[lab]
 
 
 def _border_channel(rgb: np.ndarray) -> np.ndarray:

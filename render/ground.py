@@ -176,7 +176,6 @@ class GroundDetail:
         self.xn, self.yn = xn, yn
         self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
         self.flat_objects = list(flat_objects)
-        self.texel_m = np.array([texel for _, texel, *_ in self.octaves])
 
     def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
         """``(H, W)`` float32 albedo factor (1 off the ground), or ``None`` where nothing would change."""
