@@ -33,6 +33,9 @@ class LocalizerConfig(BaseModel):
     imu_drift_rate: float = Field(0.05, gt=0.0, le=1.0, description="how fast the vision-IMU offset may drift "
                                   "(EMA weight per accepted frame)")
     max_reprojection_px: float = Field(3.0, gt=0.0)
+    max_tilt_error_deg: float = Field(3.0, gt=0.0, description="reject a pose whose pad normal is further than "
+                                      "this from the IMU's up (the pad lies level; the AHRS knows roll and pitch "
+                                      "to a fraction of a degree, a vision pose off by more is wrong)")
     max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
     # tracker
     flow_reanchor_scale: float = Field(1.15, gt=1.0, description="new keyframe when the scale changes by more")

@@ -243,10 +243,7 @@ class HierarchicalLocalizer:
         if gray.shape != (self.camera.height, self.camera.width):
             return Estimate(t, self.phase, "lost", None,
                             reason=f"image is {gray.shape[1]}x{gray.shape[0]}, camera is {self.camera.width}x{self.camera.height}")
-        up_C = None
-        if R_W_B is not None:
-            R_W_C = R_W_B @ self.T_B_C[:3, :3]
-            up_C = R_W_C.T @ np.array([0.0, 0.0, 1.0])
+        up_C = self._up_C(R_W_B)
         cfg = self.config
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
@@ -290,6 +287,10 @@ class HierarchicalLocalizer:
             rejected.reason = "; ".join(reasons)
             return rejected
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
+
+    def _up_C(self, R_W_B):
+        """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
+        return None if R_W_B is None else (R_W_B @ self.T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
 
     def _update_phase(self, h) -> None:
         self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)
@@ -336,6 +337,17 @@ class HierarchicalLocalizer:
         if why:
             return why
         if R_W_B is not None:
+            up_C = self._up_C(R_W_B)
+            tilt = math.degrees(math.acos(float(np.clip((est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C,
+                                                        -1.0, 1.0))))
+            if tilt > cfg.max_tilt_error_deg:
+                return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {cfg.max_tilt_error_deg})"
+            # the gravity prior pulls a refined pose toward the IMU: also ask what the image alone said,
+            # and reject when it contradicts the IMU by far more than both can err
+            alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
+            if alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
+                return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
+                        f"(+-{sigma:.1f} deg)")
             R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
             if self.R_W_P is None:
                 self.R_W_P = R_W_P

@@ -415,3 +415,17 @@ def test_outline_and_cue_are_found_under_a_hard_shadow_edge(pad, h):
             assert det is not None, (yaw, off, why)
             err = np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1).max()
             assert err < 0.6, (yaw, off, err)
+
+
+@pytest.mark.parametrize("offset_deg,accepted", [(1.5, True), (8.0, False)])
+def test_a_pose_whose_tilt_the_imu_contradicts_is_never_accepted(pad, offset_deg, accepted):
+    """The jump gate compares with a running vision-IMU offset and so cannot see a disagreement
+    that is there from the first frame; the tilt gate can: the pad lies level."""
+    views = _views(pad, 4)
+    loc = HierarchicalLocalizer(pad, CAM)
+    for k, (img, G) in enumerate(views):
+        e = loc.process(img, 0.1 * k, _imu_from(G, extra=so3_exp([math.radians(offset_deg), 0.0, 0.0])))
+        if accepted:
+            assert e.ok, e.reason
+        else:
+            assert e.status != "ok" and "disagrees with the IMU's gravity" in e.reason, e.reason
