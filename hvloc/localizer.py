@@ -317,7 +317,7 @@ class HierarchicalLocalizer:
                 det, why = ph.detect_outline(rgb, self.geometry, self.camera, roi=r, yaw_hint_corner0=hint)
             else:
                 det, why = ph.detect_markers(gray, self.geometry, self.camera, roi=r, method=cfg.binarization,
-                                             rgb=rgb if cfg.use_outline else None)
+                                             rgb=rgb if cfg.use_outline else None, up_C=up_C)
             if det is not None:
                 pose = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
                 if pose is not None:

@@ -8,6 +8,7 @@ check with area ratios (49 : 25 : 9), squareness and concentricity.
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -196,13 +197,29 @@ def name_triple(a: FinderNest, b: FinderNest, c: FinderNest):
     return MarkerTriple(top, r, b_, err), err
 
 
-def find_marker_triples(nests: list, max_error: float = 0.35, max_candidates: int = 12) -> list:
-    """Disjoint triples of nests that form a named marker set, best first."""
+def find_marker_triples(nests: list, max_error: float = 0.35, max_candidates: int = 12, rectify=None) -> list:
+    """Disjoint triples of nests that form a named marker set, best first.
+
+    ``rectify``: maps ``(N, 2)`` pixels to a view in which the pad plane is seen head-on (from the
+    lens model and the IMU's gravity): the right-isosceles test is then as strict for a camera 30
+    degrees off nadir behind a wide lens as for a nadir pinhole.  The triples hold the nests as found."""
     cands = sorted(nests, key=lambda n: -n.area_px)[:max_candidates]
+    test = cands
+    if rectify is not None and cands:
+        c = np.array([n.center_px for n in cands])
+        m = rectify(np.concatenate([c, c + [1.0, 0.0], c + [0.0, 1.0]]))
+        k = len(cands)
+        if np.isfinite(m).all():
+            jac = np.abs((m[k:2 * k, 0] - m[:k, 0]) * (m[2 * k:, 1] - m[:k, 1])
+                         - (m[k:2 * k, 1] - m[:k, 1]) * (m[2 * k:, 0] - m[:k, 0]))
+            test = [dataclasses.replace(n, center_px=m[i], area_px=n.area_px * float(jac[i]))
+                    for i, n in enumerate(cands)]
+    back = {id(t): n for t, n in zip(test, cands)}
     scored = []
     for a, b, c in itertools.combinations(range(len(cands)), 3):
-        t, err = name_triple(cands[a], cands[b], cands[c])
+        t, err = name_triple(test[a], test[b], test[c])
         if t is not None and err <= max_error:
+            t = MarkerTriple(back[id(t.top)], back[id(t.right)], back[id(t.bottom)], err)
             scored.append((err, (a, b, c), t))
     scored.sort(key=lambda s: s[0])
     used, out = set(), []

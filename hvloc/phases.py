@@ -13,7 +13,7 @@ from . import markers as mk
 from .features import refine_quad, refine_quads
 from pad_design.geometry import PadGeometry
 
-from .geometry import Camera, invert, rotation_angle, transform_points
+from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
 
 
 @dataclass
@@ -267,7 +267,7 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 # ----------------------------------------------------------------------------- Adjustment
 
 def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   method: str = "otsu", rgb: np.ndarray | None = None) -> tuple:
+                   method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None) -> tuple:
     """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
     Returns ``(Detection | None, reason)``."""
@@ -279,7 +279,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
     # defeat a global Otsu threshold, a local one copes)
     for m in (method, "adaptive" if method == "otsu" else "otsu"):
         nests = mk.find_finder_nests(mk.binarize_dark(img, m))
-        triples = mk.find_marker_triples(nests) if len(nests) >= 3 else []
+        triples = mk.find_marker_triples(nests, rectify=_head_on(camera, up_C, x0, y0)) if len(nests) >= 3 else []
         if triples:
             break
     if not triples:
@@ -353,6 +353,26 @@ def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
     if np.max(np.linalg.norm(ref - guess, axis=1)) > max(2.0, 0.02 * side_px):
         return None
     return ref
+
+
+def _head_on(camera: Camera | None, up_C: np.ndarray | None, x0: int, y0: int):
+    """``f(px) -> (N, 2)``: pixels of the (cropped) image as a camera at the same place would see them
+    looking straight down (undistorted, then turned by the least rotation that takes the IMU's up to
+    -z); ``None`` without a camera or an IMU."""
+    if camera is None or up_C is None:
+        return None
+    up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
+    down = np.array([0.0, 0.0, -1.0])
+    axis = np.cross(up, down)  # rotation taking up to -z (so the optical axis to down)
+    s, c = np.linalg.norm(axis), float(up @ down)
+    R = so3_exp(axis / s * math.atan2(s, c)) if s > 1e-9 else (np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0]))
+
+    def f(px):
+        xy = camera.normalized_from_pixels(np.asarray(px, np.float64) + [x0, y0])
+        r = np.column_stack([xy, np.ones(len(xy))]) @ R.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(r[:, 2:3] > 1e-6, r[:, :2] / r[:, 2:3], np.nan)
+    return f
 
 
 def _shifted(camera: Camera | None, x0: int, y0: int):

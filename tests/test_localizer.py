@@ -417,6 +417,31 @@ def test_outline_and_cue_are_found_under_a_hard_shadow_edge(pad, h):
             assert err < 0.6, (yaw, off, err)
 
 
+def test_markers_are_named_off_nadir_behind_a_wide_lens_with_the_imu_gravity(pad):
+    """A camera ~30 degrees off nadir behind a 100 degree barrel lens sees the marker triangle far
+    from right-isosceles in pixels; seen head-on (undistorted, turned by the IMU's gravity) it is one
+    again, and every view with the markers inside the frame is named and refined."""
+    wide = Camera.from_hfov(1280, 720, math.radians(100))
+    wide = Camera(wide.width, wide.height, wide.fx, wide.fy, wide.cx, wide.cy, (-0.2, 0.03, 0.0, 0.0, 0.0))
+    found, found_plain, views = 0, 0, 0
+    corners = np.concatenate([m.outer_corners for m in pad.geometry.markers_in(kind="finder")])
+    for pitch in (0.45, 0.55):
+        for yaw in (0.2, 1.3, 2.6, 4.0):
+            for x in (-0.8, 0.8):
+                G = tilted(x, 1.2, 2.2, yaw, 0.0, pitch)
+                c = wide.project_from(G, corners)
+                if not (np.all(c > 80) and np.all(c < [wide.width - 80, wide.height - 80])):  # the warp's lens holds
+                    continue
+                views += 1
+                gray = cv2.cvtColor(warp_pad_view(pad, wide, G, GROUND), cv2.COLOR_RGB2GRAY)
+                det, why = detect_markers(gray, pad.geometry, wide, up_C=up_in_camera(G))
+                assert det is not None, (pitch, yaw, x, why)
+                assert np.median(np.linalg.norm(det.px - wide.project_from(G, det.pts_P), axis=1)) < 0.3
+                found += 1
+                found_plain += detect_markers(gray, pad.geometry, wide)[0] is not None
+    assert views >= 8 and found == views and found_plain < views  # the premise: pixels alone miss some
+
+
 @pytest.mark.parametrize("offset_deg,accepted", [(1.5, True), (8.0, False)])
 def test_a_pose_whose_tilt_the_imu_contradicts_is_never_accepted(pad, offset_deg, accepted):
     """The jump gate compares with a running vision-IMU offset and so cannot see a disagreement
