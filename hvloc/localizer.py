@@ -342,10 +342,12 @@ class HierarchicalLocalizer:
                                                         -1.0, 1.0))))
             if tilt > cfg.max_tilt_error_deg:
                 return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {cfg.max_tilt_error_deg})"
-            # the gravity prior pulls a refined pose toward the IMU: also ask what the image alone said,
-            # and reject when it contradicts the IMU by far more than both can err
+            # the gravity prior pulls a refined pose toward the IMU: where many points fix the tilt (the
+            # markers), also ask what the image alone said, and reject when it contradicts the IMU by far
+            # more than both can err.  Not with the outline's four corners: one corner a few pixels off (a
+            # shadow across it) tilts their pose by 10 degrees or more "confidently", and the IMU is right
             alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
-            if alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
+            if est.n_corr >= 12 and alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
                 return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
                         f"(+-{sigma:.1f} deg)")
             R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
