@@ -18,6 +18,7 @@ import numpy as np
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import Camera, invert, make_transform
 from hvloc.localizer import Estimate, check_image, guarded_process
+from hvloc.pose import pose_covariance
 
 PHASE = "adjustment"  # it is a marker method: reported in the markers' phase
 
@@ -70,7 +71,8 @@ class ArucoLocalizer:
         proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
         rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
         cam2pad = invert(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
-        est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, method="aruco",
+        cov = pose_covariance(self.camera, cam2pad, obj, img, min_sigma_px=0.3)  # the same model as hvloc's
+        est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, cov, method="aruco",
                        extras={"markers": len(obj) // 4})
         if not np.isfinite(rms) or rms > self.config.max_reprojection_px:
             est.status, est.reason = "rejected", f"reprojection RMS {rms:.2f} px > {self.config.max_reprojection_px}"

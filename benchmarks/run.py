@@ -12,12 +12,32 @@ from pathlib import Path
 import numpy as np
 
 from hvloc.config import LocalizerConfig, load_config
-from hvloc.geometry import tum_from_transform
+from hvloc.geometry import continuous_quaternions, tum_from_transform
 from hvloc.localizer import Estimate, HierarchicalLocalizer
 from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, validate_model
 
+# The pose covariance: 6x6 over (camera position in P [m], rotation vector [rad] of a perturbation
+# R_P_C @ exp(d), i.e. about the camera's axes), upper triangle row by row; NaN without a pose.
+COV_AXES = ("x", "y", "z", "rx", "ry", "rz")
+COV_INDEX = [(i, j) for i in range(6) for j in range(i, 6)]
+COV_COLUMNS = [f"cov_{COV_AXES[i]}_{COV_AXES[j]}" for i, j in COV_INDEX]
 ESTIMATE_COLUMNS = ["frame", "t", "phase", "status", "tx", "ty", "tz", "qx", "qy", "qz", "qw", "ms",
-                    "method", "n_corr", "rms_px", "reason"]
+                    "method", "n_corr", "rms_px", *COV_COLUMNS, "reason"]
+
+
+def covariance_row(cov) -> list:
+    """The 21 ``COV_COLUMNS`` values of a 6x6 covariance (NaN where there is none)."""
+    if cov is None or np.shape(cov) != (6, 6):
+        return [float("nan")] * len(COV_INDEX)
+    return [float(cov[i, j]) for i, j in COV_INDEX]
+
+
+def covariance_matrix(columns: dict, k: int) -> np.ndarray:
+    """Row ``k``'s 6x6 covariance from the columns of a read ``estimates.csv``."""
+    cov = np.empty((6, 6))
+    for (i, j), name in zip(COV_INDEX, COV_COLUMNS):
+        cov[i, j] = cov[j, i] = float(columns[name][k])
+    return cov
 
 
 def imu_at(imu: np.ndarray, t: float):
@@ -65,10 +85,12 @@ def write_estimates(seq_out: Path, estimates: list) -> None:
 
     seq_out.mkdir(parents=True, exist_ok=True)
     rows, tum_t, tum_p = [], [], []
-    for k, e in enumerate(estimates):
-        pose = tum_from_transform(e.cam2pad) if e.cam2pad is not None else [float("nan")] * 7
+    poses = np.array([tum_from_transform(e.cam2pad) if e.cam2pad is not None else [np.nan] * 7 for e in estimates])
+    if len(poses):
+        poses[:, 3:] = continuous_quaternions(poses[:, 3:])  # one hemisphere from row to row (DESIGN.md)
+    for k, (e, pose) in enumerate(zip(estimates, poses.tolist())):
         rows.append([k, e.t, e.phase, e.status, *pose, round(e.ms, 3), e.method, e.n_corr, e.rms_px,
-                     e.reason.replace(",", ";").replace("\n", " ")])
+                     *covariance_row(e.cov), e.reason.replace(",", ";").replace("\n", " ")])
         if e.status == "ok":
             tum_t.append(e.t)
             tum_p.append(pose)

@@ -375,10 +375,10 @@ class HierarchicalLocalizer:
             self.flow.reset()
             return
         if method == "flow":
-            self.flow.accept(est.cam2pad, est.rms_px)
+            self.flow.accept(est.cam2pad, est.rms_px, est.cov)
             return
         f = self.flow
         f.frames_since_kf += 1
         if (f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
-            f.anchor(gray, est.cam2pad, anchored=True)
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)

@@ -421,10 +421,11 @@ class Keyframe:
     px: np.ndarray        # (N, 2) feature pixels in the keyframe
     pts_P: np.ndarray     # (N, 3) the same features on the pad plane
     anchored: bool        # made from a pad-anchored pose (markers/outline), not a chained one
+    cov: np.ndarray | None = None  # the keyframe pose's 6x6 covariance: every pose tracked from it inherits it
 
 
 def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchored: bool,
-                  max_corners: int = 150, mask: np.ndarray | None = None) -> Keyframe | None:
+                  max_corners: int = 150, mask: np.ndarray | None = None, cov: np.ndarray | None = None) -> Keyframe | None:
     """Harris corners of a frame, placed on the pad plane with the frame's pose."""
     pts = cv2.goodFeaturesToTrack(gray, max_corners, 0.005, 8, mask=mask, blockSize=5, useHarrisDetector=True, k=0.04)
     if pts is None or len(pts) < 8:
@@ -442,7 +443,7 @@ def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchore
     if ok.sum() < 8:
         return None
     P[:, 2] = 0.0
-    return Keyframe(gray.copy(), cam2pad.copy(), px[ok], P[ok], anchored)
+    return Keyframe(gray.copy(), cam2pad.copy(), px[ok], P[ok], anchored, cov)
 
 
 LK_PARAMS = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
@@ -528,8 +529,8 @@ class FlowTracker:
     def ready(self) -> bool:
         return self.kf is not None and self.prev_gray is not None
 
-    def anchor(self, gray, cam2pad, anchored: bool = True) -> bool:
-        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored)
+    def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None) -> bool:
+        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov)
         if kf is None:
             return False
         self.kf, self.tracks, self.prev_gray, self.frames_since_kf = kf, kf.px.copy(), kf.gray, 0
@@ -543,9 +544,13 @@ class FlowTracker:
         px = track_to_keyframe(self.kf, self.prev_gray, self.tracks, gray)
         self.pending = (gray, px)
         res, inl, why = pose_from_tracks(self.camera, self.kf, px, prior_cam2pad, up_C)
+        if res is not None and self.kf.cov is not None:
+            # the pad points were placed with the keyframe's pose: its error is in every tracked pose
+            # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
+            res.cov = res.cov + self.kf.cov
         return res, int(inl.sum()), why
 
-    def accept(self, cam2pad, rms_px: float = 0.0) -> None:
+    def accept(self, cam2pad, rms_px: float = 0.0, cov: np.ndarray | None = None) -> None:
         """The last tracked frame's pose was accepted: advance, and renew the keyframe (from this
         frame and pose) while tracking is still good: when the scale or the heading has changed
         enough that LK against the keyframe degrades, tracks were lost, or the fit loosens."""
@@ -559,7 +564,7 @@ class FlowTracker:
         turn = rotation_angle(self.kf.cam2pad[:3, :3], cam2pad[:3, :3])
         if (n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not (1 / self.reanchor_scale < scale < self.reanchor_scale)
                 or turn > math.radians(8.0) or rms_px > 0.5):
-            if self.anchor(gray, cam2pad, anchored=False):
+            if self.anchor(gray, cam2pad, anchored=False, cov=cov):
                 return
         self.tracks, self.prev_gray = px, gray
 

@@ -118,17 +118,26 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
 
 
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
-                    min_sigma_px: float = 0.1) -> np.ndarray:
-    """6x6 covariance of (camera position in P, rotation vector) from the reprojection Jacobian,
-    scaled by the residual variance (at least ``min_sigma_px`` squared)."""
+                    min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
+                    sigma_up_rad: float | None = None) -> np.ndarray:
+    """6x6 covariance of (camera position in P, rotation vector of ``R_P_C @ exp(d)``, i.e. about
+    the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
+    ``min_sigma_px`` squared).  With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
+    gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too."""
     eps = 1e-6
-    proj = _project_poses(camera, _perturbed(cam2pad, eps), pts_P)
+    Ts = _perturbed(cam2pad, eps)
+    proj = _project_poses(camera, Ts, pts_P)
     r0 = (proj[0] - px).ravel()
     J = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T
     dof = max(r0.size - 6, 1)
     sigma2 = max(float(r0 @ r0) / dof, min_sigma_px ** 2)
+    info = J.T @ J / sigma2
+    if up_C is not None and sigma_up_rad:
+        normal = np.einsum("kji,j->ki", Ts[:, :3, :3], np.array([0.0, 0.0, 1.0]))  # pad normal in C
+        Jp = ((normal[1:] - normal[0]) / (eps * sigma_up_rad)).T
+        info = info + Jp.T @ Jp
     try:
-        return np.linalg.inv(J.T @ J) * sigma2
+        return np.linalg.inv(info)
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
 
@@ -254,9 +263,12 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         except cv2.error:
             pass
     tilt = (float("nan"), float("nan"))
+    sigma_up = None
     if up_C is not None:
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
         if gravity_sigma_deg:
-            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, np.radians(gravity_sigma_deg))
+            sigma_up = np.radians(gravity_sigma_deg)
+            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up)
     rms_best = reprojection_rms(camera, T, obj, px)
-    return PoseResult(T, rms_best, n, pose_covariance(camera, T, obj, px), other, choice, *tilt)
+    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt)

@@ -195,3 +195,47 @@ def test_localize_cli_runs_the_peer_on_its_pad_only(smoke, tmp_path):
     s = res["summary"]["aruco_solvepnp"]["all"]
     assert len(rows) == n == s["frames"]  # the CLI and the suite: the same peer, the same poses
     assert sum(",ok," in r for r in rows) == round(s["availability"] * n) > 0
+
+
+def test_estimates_carry_the_covariance_and_one_quaternion_hemisphere(smoke, tmp_path):
+    from benchmarks.run import COV_COLUMNS, covariance_matrix, read_estimates, write_estimates
+    from render.dataset import Dataset
+    from hvloc.geometry import make_transform, so3_exp
+    from hvloc.localizer import Estimate
+
+    out, _ = smoke
+    for path in (out / "estimates" / "hierarchical").glob("*/seq_*/estimates.csv"):
+        c = read_estimates(path)
+        assert set(COV_COLUMNS) <= set(c) and len(COV_COLUMNS) == 21
+        ok = np.flatnonzero(c["status"] == "ok")
+        assert len(ok) > 0
+        for k in ok:  # a pose's covariance: symmetric positive definite, its position part in mm to m
+            cov = covariance_matrix(c, k)
+            assert np.all(np.linalg.eigvalsh(cov) > 0), (path, k)
+            assert 1e-10 < cov[0, 0] < 1.0 and 1e-10 < cov[2, 2] < 1.0
+        q = np.column_stack([c[n] for n in ("qx", "qy", "qz", "qw")]).astype(float)[ok]
+        assert np.all(np.sum(q[1:] * q[:-1], axis=1) > 0), path
+        # the covariance is honest: the normalised position error against ground truth is about
+        # chi-square with 3 dof (median 2.37; chained flow poses err on the careful side); position
+        # variance from the pixels alone, with a 0.1 px noise floor, was 7x too confident
+        seq = Dataset(out / "datasets" / path.parent.parent.name)[path.parent.name]
+        for method in ("outline", "markers", "flow"):
+            nees = []
+            for k in ok[c["method"][ok] == method]:
+                d = np.array([c[n][k] for n in ("tx", "ty", "tz")], float) - seq.frame(int(k)).cam2pad[:3, 3]
+                nees.append(d @ np.linalg.solve(covariance_matrix(c, k)[:3, :3], d))
+            assert len(nees) >= 5 and 0.1 < np.median(nees) < 6.0, (path, method, np.median(nees))
+    # a yaw sweep through 180 deg flips the sign of quat_xyzw_from_matrix's w >= 0 form: written
+    # rows must still keep one hemisphere, in estimates.csv and in estimates.tum
+    ests = [Estimate(0.1 * k, "adjustment", "ok", make_transform(so3_exp([0, 0, a]), [0, 0, 2.0]),
+                     cov=np.eye(6) * 1e-4) for k, a in enumerate(np.linspace(2.5, 3.8, 12))]
+    ests[4] = Estimate(0.4, "adjustment", "lost", None, reason="no pad")
+    write_estimates(tmp_path, ests)
+    c = read_estimates(tmp_path / "estimates.csv")
+    q = np.column_stack([c[n] for n in ("qx", "qy", "qz", "qw")]).astype(float)
+    assert np.isnan(q[4]).all() and np.isnan(c["cov_x_x"][4])
+    q = q[~np.isnan(q[:, 0])]
+    assert np.all(np.sum(q[1:] * q[:-1], axis=1) > 0)
+    tum = _read_tum(tmp_path / "estimates.tum")
+    assert len(tum) == 11 and np.all(np.sum(tum[1:, 4:] * tum[:-1, 4:], axis=1) > 0)
+    assert covariance_matrix(c, 0) == pytest.approx(np.eye(6) * 1e-4)
