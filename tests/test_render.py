@@ -310,3 +310,33 @@ def test_readme_documents_every_frames_csv_column():
     readme = (REPO / "README.md").read_text()
     for k, v in COLUMN_DOCS.items():
         assert f"| `{k}` | {v.replace('|', '/')} |" in readme, f"README.md: column {k} is not documented as in COLUMN_DOCS"
+
+
+def _halve(item):
+    """A module-level transform (spawned workers must unpickle it): half-resolution images."""
+    item["image"] = item["image"][:, ::2, ::2]
+    return item
+
+
+def test_frame_dataset_loads_in_spawned_workers(sharp_datasets):
+    """The torch Dataset pickles under ``spawn`` (the default start method on macOS and Windows):
+    two workers deliver every frame with its labels, the transform applied."""
+    import torch
+    from torch.utils.data import DataLoader
+
+    from render.dataset import frame_dataset
+
+    ds = sharp_datasets["sharpdist"]
+    fd = frame_dataset(ds.root, transform=_halve)
+    loader = DataLoader(fd, batch_size=4, num_workers=2, multiprocessing_context="spawn")
+    seen = []
+    for batch in loader:
+        assert batch["image"].shape[1:] == (3, 240, 240) and batch["image"].dtype == torch.float32
+        assert batch["K"].shape[1:] == (3, 3) and batch["dist"].shape[1:] == (5,)
+        assert batch["corners_px"].shape[1:] == (4, 2) and batch["corners_visible"].dtype == torch.bool
+        seen += list(zip(batch["sequence"], batch["frame"].tolist(), batch["height_m"].tolist(), batch["phase_gt"]))
+    assert len(seen) == len(fd) == sum(len(s) for s in ds)
+    seq = ds[0]
+    for sid, k, h, phase in seen[:len(seq)]:
+        assert sid == seq.id and h == pytest.approx(seq.frame(k).height_above_pad) and phase == seq.phase_gt[k]
+    assert np.allclose(fd[0]["dist"].numpy(), seq.camera.dist)
