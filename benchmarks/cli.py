@@ -1,4 +1,4 @@
-"""``hvloc bench run|compare``."""
+"""``hvloc bench run|sweep|compare|leaderboard|diagnose``."""
 from __future__ import annotations
 
 import json
@@ -14,29 +14,42 @@ def _executor_args(p) -> None:
     p.add_argument("--ray-address", help="Ray cluster to join (default: start one on this machine); see README")
 
 
+# subcommands whose module has its own command line (also runnable as ``python -m benchmarks.X``)
+DELEGATED = {"leaderboard": ("benchmarks.leaderboard", "rewrite benchmarks/LEADERBOARD.md from a bench_v1 run"),
+             "diagnose": ("benchmarks.diagnose", "per phase: why a dataset's frames were lost or rejected")}
+
+
 def main(argv: list) -> int:
+    if argv and argv[0] in DELEGATED:
+        import importlib
+
+        return importlib.import_module(DELEGATED[argv[0]][0]).main(argv[1:], prog=f"hvloc bench {argv[0]}")
     p = ArgumentParser(prog="hvloc bench", description="Score localizers per landing phase.")
     sub = p.add_subparsers(dest="action", required=True)
     r = sub.add_parser("run", help="generate/reuse a suite's datasets, localize, score, report")
     r.add_argument("suite", help="suite YAML, or a name in data_specs/suites/")
-    r.add_argument("--out", required=True)
+    r.add_argument("--out", required=True, help="results folder: datasets/, estimates/, results.json, report.md, plots/")
     r.add_argument("--workers", type=workers_arg, default=1, help="processes that render, then localize (one sequence each)")
     _executor_args(r)
     r.add_argument("--no-verify", action="store_true",
                    help="use datasets even if their files differ from the checksums in their manifests")
-    r.add_argument("--quiet", action="store_true", help="no progress bars")
+    r.add_quiet()
     w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
-    w.add_argument("suite")
-    w.add_argument("--adjust-heights", type=float, nargs="+", default=[3.0, 5.0, 7.0, 9.0, 12.0])
-    w.add_argument("--touchdown-heights", type=float, nargs="+", default=[0.4, 0.7, 1.0, 1.5, 2.0])
+    w.add_argument("suite", help="suite YAML, or a name in data_specs/suites/ (its first localizer is swept)")
+    w.add_argument("--adjust-heights", type=float, nargs="+", default=[3.0, 5.0, 7.0, 9.0, 12.0],
+                   help="heights (m) below which the markers take over from the outline")
+    w.add_argument("--touchdown-heights", type=float, nargs="+", default=[0.4, 0.7, 1.0, 1.5, 2.0],
+                   help="heights (m) below which flow tracking takes over from the markers")
     w.add_argument("--max-pos-err-pct", type=float, default=2.0, help="error bound for the recommendation")
-    w.add_argument("--out", required=True)
+    w.add_argument("--out", required=True, help="folder for sweep.json, the heat maps and the datasets")
     w.add_argument("--workers", type=workers_arg, default=1,
                    help="processes that render the suite's datasets")
-    w.add_argument("--quiet", action="store_true")
+    w.add_quiet()
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")
     c.add_argument("baseline", help="results.json (or its folder)")
+    for name, (_, helptext) in DELEGATED.items():
+        sub.add_parser(name, help=helptext, add_help=False)  # listed here, parsed by their own module
     a = p.parse_args(argv)
     from .suite import compare, load_results, load_suite, run_suite
 

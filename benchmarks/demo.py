@@ -10,7 +10,7 @@ def main(argv: list) -> int:
 
     p = ArgumentParser(prog="hvloc demo", description=__doc__)
     p.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_quiet()
     args = p.parse_args(argv)
     out = prepare_out_dir(args.out)
     from pad_design import make_pad, write_pad

@@ -8,13 +8,13 @@ estimates files do not carry.
 """
 from __future__ import annotations
 
-import argparse
 import collections
 import math
 
 import numpy as np
 
 from hvloc.config import LocalizerConfig, load_config
+from pad_design.errors import ArgumentParser
 from hvloc.geometry import rotation_angle
 
 from .metrics import FALSE_ACCEPT_DEG, FALSE_ACCEPT_REL
@@ -72,12 +72,12 @@ def summarise(rows) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.diagnose", description=__doc__.split("\n\n")[0])
-    p.add_argument("dataset")
-    p.add_argument("--config")
+def main(argv=None, prog: str = "python -m benchmarks.diagnose") -> int:
+    p = ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    p.add_argument("dataset", help="dataset folder")
+    p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
     p.add_argument("--frames", type=int, help="at most this many frames per sequence")
-    p.add_argument("--no-imu", action="store_true")
+    p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
     p.add_argument("--show-false", action="store_true", help="list every false accept and wrongly rejected frame")
     a = p.parse_args(argv)
     rows = diagnose(a.dataset, load_config(a.config) if a.config else None, a.frames, not a.no_imu)

@@ -82,12 +82,12 @@ def _cells(summary: dict, prefix: str) -> list:
     return cells
 
 
-def main(argv=None) -> int:
-    import argparse
+def main(argv=None, prog: str = "python -m benchmarks.leaderboard") -> int:
+    from pad_design.errors import ArgumentParser
 
-    p = argparse.ArgumentParser(prog="python -m benchmarks.leaderboard", description=__doc__)
-    p.add_argument("results", nargs="?")
-    p.add_argument("--note", action="append", default=[])
+    p = ArgumentParser(prog=prog, description=__doc__)
+    p.add_argument("results", nargs="?", help="a bench_v1 results folder (or its results.json)")
+    p.add_argument("--note", action="append", default=[], help="a line to print under the table (repeatable)")
     p.add_argument("--mark-stale", metavar="WHY", help="mark the committed table stale: the suite changed since")
     a = p.parse_args(sys.argv[1:] if argv is None else argv)
     if a.mark_stale:

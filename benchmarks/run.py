@@ -14,7 +14,7 @@ import numpy as np
 from hvloc.config import LocalizerConfig, load_config
 from hvloc.geometry import continuous_quaternions, tum_from_transform
 from hvloc.localizer import Estimate, HierarchicalLocalizer
-from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, validate_model
+from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, progress_bar, validate_model
 
 # The pose covariance: 6x6 over (camera position in P [m], rotation vector [rad] of a perturbation
 # R_P_C @ exp(d), i.e. about the camera's axes), upper triangle row by row; NaN without a pose.
@@ -116,11 +116,7 @@ def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: 
 def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind) -> dict:
     config = config or LocalizerConfig()
     total = sum(len(ds[s]) for s in ds.sequence_ids)
-    bar = None
-    if show_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=total, unit="frame", desc="localize")
+    bar = progress_bar(show_progress, total, "localize")
     t0 = time.time()
     results = {}
     try:
@@ -143,7 +139,7 @@ def read_estimates(path) -> dict:
 
 def localize_main(argv: list) -> int:
     p = ArgumentParser(prog="hvloc localize", description="Run the hierarchical localizer over a dataset.")
-    p.add_argument("dataset")
+    p.add_argument("dataset", help="dataset folder (made by hvloc generate)")
     p.add_argument("--out", required=True, help="results folder: <seq>/estimates.csv and estimates.tum")
     p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
@@ -151,7 +147,7 @@ def localize_main(argv: list) -> int:
                    help="hvloc's hierarchical localizer, or the ArUco peer (needs the aruco pad variant)")
     p.add_argument("--no-verify", action="store_true",
                    help="use a dataset even if its files differ from the checksums in its manifest")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_quiet()
     a = p.parse_args(argv)
     cfg = load_config(a.config) if a.config else LocalizerConfig()
     if not Path(a.dataset).is_dir():

@@ -134,9 +134,9 @@ def _speed_row(width, height, phase, h, ms, ok, methods, ref) -> dict:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.speed", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", default="out/speed.json")
+    p.add_argument("--out", default="out/speed.json", help="where the numbers are written as JSON")
     p.add_argument("--quick", action="store_true", help="fewer frames (a smoke run)")
-    p.add_argument("--skip-render", action="store_true")
+    p.add_argument("--skip-render", action="store_true", help="localizer speed only")
     a = p.parse_args(argv)
     import cv2
     import torch

@@ -14,7 +14,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
 from hvloc.config import LocalizerConfig
-from pad_design.errors import InputError, load_yaml_model, validate_model
+from pad_design.errors import InputError, load_yaml_model, progress_bar, validate_model
 
 from . import metrics as M
 from .run import KINDS, PAD_VARIANTS
@@ -155,11 +155,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
         if not here:
             continue
         t0 = time.time()
-        bar = None
-        if show_progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=sum(len(s) for s in ds), unit="frame", desc=f"localize x{len(here)} {spec.name}")
+        bar = progress_bar(show_progress, sum(len(s) for s in ds), f"localize x{len(here)} {spec.name}")
         setups = [(cfg.model_dump(), loc.use_imu, loc.kind) for loc, cfg in here]
         lengths = {sid: s["frames"] for sid, s in ((s["id"], s) for s in ds.manifest["sequences"])}
         jobs = [(str(droot), sid, setups, [str(out / "estimates" / loc.name / droot.name / sid) for loc, _ in here],

@@ -5,7 +5,7 @@ import json
 import time
 from pathlib import Path
 
-from pad_design.errors import InputError
+from pad_design.errors import InputError, progress_bar
 
 
 def run_sweep(a) -> int:
@@ -36,11 +36,7 @@ def run_sweep(a) -> int:
         droot = out / "datasets" / f"{spec.name}-{spec.sha256()[:10]}"
         generate(spec, droot, workers=a.workers, show_progress=not a.quiet)
         sequences += list(Dataset(droot))
-    bar = None
-    if not a.quiet:
-        from tqdm import tqdm
-
-        bar = tqdm(total=sum(len(s) for s in sequences), unit="frame", desc="sweep precompute")
+    bar = progress_bar(not a.quiet, sum(len(s) for s in sequences), "sweep precompute")
     res = sweep(sequences, base_cfg, a.adjust_heights, a.touchdown_heights, loc.use_imu, bar.update if bar else None)
     if bar:
         bar.close()

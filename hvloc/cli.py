@@ -13,7 +13,7 @@ COMMANDS = {
     # the harness that feeds datasets to the localizer reads them with render/, which hvloc/ may not
     # import (DESIGN.md layout), so it lives in benchmarks/
     "localize": ("benchmarks.run:localize_main", "run the hierarchical localizer over a dataset"),
-    "bench": ("benchmarks.cli", "score localizers: run suites, sweep switch heights, compare, leaderboard"),
+    "bench": ("benchmarks.cli", "score localizers: run suites, sweep switch heights, compare, leaderboard, diagnose"),
     "demo": ("benchmarks.demo", "render, localize and score the tiny built-in default end to end"),
 }
 

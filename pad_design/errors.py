@@ -6,6 +6,7 @@ CLI front door turns it into one line on stderr and exit code 2.  Nothing else p
 from __future__ import annotations
 
 import argparse
+import sys
 import os
 from pathlib import Path
 
@@ -70,6 +71,29 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):  # noqa: D401  (argparse's hook)
         self.exit(2, f"{self.prog}: error: {message}\n")
+
+    def add_argument(self, *args, **kwargs):
+        """Every argument says what it is for: one without ``help`` is a bug, caught when the
+        parser is built (a test builds every command's parser through ``--help``)."""
+        if not kwargs.get("help") and not (args and args[0] in ("-h", "--help")):
+            raise ValueError(f"{self.prog}: argument {'/'.join(args) or kwargs.get('dest')} has no help text")
+        return super().add_argument(*args, **kwargs)
+
+    def add_quiet(self) -> None:
+        """``-q/--quiet``, the same on every command that shows progress."""
+        self.add_argument("-q", "--quiet", action="store_true",
+                          help="no progress bars (they are only drawn when stderr is a terminal anyway)")
+
+
+def progress_bar(enabled: bool, total, desc: str, **kwargs):
+    """A tqdm bar on stderr, or ``None`` when it is not wanted or stderr is not a terminal (a log
+    file or CI gets no bar updates).  Callers pass ``bar.update if bar else None`` on.  ``total``:
+    a number, or a function giving it (only called when a bar is drawn)."""
+    if not enabled or not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total() if callable(total) else total, desc=desc, unit="frame", **kwargs)
 
 
 def workers_arg(text: str) -> int:

@@ -19,7 +19,7 @@ def generate_main(argv: list) -> int:
     p.add_argument("--executor", choices=EXECUTORS, default="local",
                    help="where sequences are rendered: local processes, or a Ray cluster")
     p.add_argument("--ray-address", help="Ray cluster to join (default: start one on this machine); see README")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_quiet()
     a = p.parse_args(argv)
     from .generate import generate
     from .spec import DatasetSpec, load_dataset_spec
@@ -45,9 +45,9 @@ def dataset_main(argv: list) -> int:
     p = ArgumentParser(prog="hvloc dataset", description="Verify or look at a dataset.")
     sub = p.add_subparsers(dest="action", required=True)
     v = sub.add_parser("verify", help="checksums, completeness, label sanity (exit 1 if anything is wrong)")
-    v.add_argument("dir")
+    v.add_argument("dir", help="dataset folder")
     s = sub.add_parser("show", help="contact sheet of a sequence with the labels drawn on its frames")
-    s.add_argument("dir")
+    s.add_argument("dir", help="dataset folder")
     s.add_argument("seq", nargs="?", help="sequence id (default: the first)")
     s.add_argument("--frames", type=int, default=12, help="frames on the sheet")
     s.add_argument("--out", help="PNG path (default DIR/show/<seq>.png)")

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pad_design.errors import InputError
+from pad_design.errors import InputError, progress_bar
 
 from . import dataset as ds
 from .executor import report_progress, run_units
@@ -128,12 +128,8 @@ def generate(spec: DatasetSpec, out, workers: int = 1, overwrite: bool = False, 
         ds.save_manifest(root, manifest)
         todo = [i for i in (only if only is not None else range(spec.sequences)) if i not in done]
         t0 = time.time()
-        bar = None
-        if show_progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=sum(len(plan_sequence(spec, i).frame_times) for i in todo), unit="frame",
-                       desc=f"render {spec.name}", smoothing=0.1)
+        bar = progress_bar(show_progress, lambda: sum(len(plan_sequence(spec, i).frame_times) for i in todo),
+                           f"render {spec.name}", smoothing=0.1)
         rendered = []
         units = [(spec.canonical_json(), i, str(root)) for i in todo]
         try:
