@@ -60,9 +60,13 @@ class Gusts:
         t = np.asarray(t, np.float64)[..., None, None]
         # a displacement whose acceleration has amplitude amp: d = -amp / w^2 sin(w t + phi)
         d = (self.amp / self.omega[:, None] ** 2 * np.sin(self.omega[:, None] * t + self.phase)).sum(axis=-2)
-        w = np.clip(t[..., 0, 0] / max(self.fade_in, 1e-9), 0, 1)
-        w = w * (1 - min_jerk((t[..., 0, 0] - self.fade_out_start) / max(self.fade_out_end - self.fade_out_start, 1e-9)))
-        return d * min_jerk(w)[..., None]
+        # the envelope is a product of two smooth ramps: smooth also where they overlap (descents
+        # shorter than fade-in plus fade-out).  It used to ramp a product of a linear ramp, whose
+        # kink then reached the acceleration as a spike: a 54 deg tilt for one frame of a 4 s descent.
+        ramp_in = min_jerk(np.clip(t[..., 0, 0] / max(self.fade_in, 1e-9), 0, 1))
+        ramp_out = min_jerk(1 - min_jerk((t[..., 0, 0] - self.fade_out_start)
+                                         / max(self.fade_out_end - self.fade_out_start, 1e-9)))
+        return d * (ramp_in * ramp_out)[..., None]
 
 
 @dataclass
