@@ -59,10 +59,37 @@ def _project(camera: Camera, xn, yn, z, M) -> tuple:
     Yp = M[1, 0] * X + M[1, 1] * Y + M[1, 2] * zc + M[1, 3]
     Zp = M[2, 0] * X + M[2, 1] * Y + M[2, 2] * zc + M[2, 3]
     Zp = np.where(Zp > 1e-6, Zp, 1e-6)
-    xy = camera.distort_normalized(np.column_stack([(Xp / Zp).ravel(), (Yp / Zp).ravel()]))
+    x1 = np.column_stack([(Xp / Zp).ravel(), (Yp / Zp).ravel()])
+    xy = camera.distort_normalized(x1)
+    if any(camera.dist):
+        xy = _guard_runaway(camera, np.column_stack([np.ravel(xn), np.ravel(yn)]), x1, xy)
     u = camera.fx * xy[:, 0] + camera.cx
     v = camera.fy * xy[:, 1] + camera.cy
     return u.reshape(np.shape(xn)), v.reshape(np.shape(xn))
+
+
+def _guard_runaway(camera: Camera, x0: np.ndarray, x1: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Distorted positions ``xy`` of rays ``x1`` that moved from ``x0`` (seen in the image), with
+    the ones the distortion polynomial sent astray replaced by its first-order step from ``x0``.
+
+    A ray that leaves the field over the exposure can pass the radius where the polynomial stops
+    growing; there it returns anything (1e10 px was seen), which made the whole frame's blur
+    samples run to the limit or its motion vanish.  A real lens is smooth there: the linear step
+    is what it does to first order.  Positions within a few pixels of the polynomial's own step
+    (every ray that stays in the field) are left exactly as they were."""
+    eps = 1e-6
+    d0 = camera.distort_normalized(x0)
+    jx = (camera.distort_normalized(x0 + [eps, 0.0]) - d0) / eps
+    jy = (camera.distort_normalized(x0 + [0.0, eps]) - d0) / eps
+    dx = x1 - x0
+    lin = d0 + jx * dx[:, :1] + jy * dx[:, 1:]
+    step = np.linalg.norm(lin - d0, axis=1)
+    tol = 2.0 * step + 2.0 / camera.fx
+    bad = ~(np.linalg.norm(xy - lin, axis=1) <= tol)  # NaN and inf count as astray
+    if bad.any():
+        xy = xy.copy()
+        xy[bad] = lin[bad]
+    return xy
 
 
 def pixel_rays(camera: Camera) -> tuple:

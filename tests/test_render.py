@@ -340,3 +340,24 @@ def test_frame_dataset_loads_in_spawned_workers(sharp_datasets):
     for sid, k, h, phase in seen[:len(seq)]:
         assert sid == seq.id and h == pytest.approx(seq.frame(k).height_above_pad) and phase == seq.phase_gt[k]
     assert np.allclose(fd[0]["dist"].numpy(), seq.camera.dist)
+
+
+def test_blur_flow_of_a_ray_leaving_a_strong_lens_does_not_run_away():
+    """Over the exposure a ray at the image corner can leave the field of a strong barrel lens,
+    past the radius where its polynomial stops growing: the flow must stay the lens's first-order
+    step (hundreds of pixels), not the polynomial's 1e8 px, while rays in the field keep the exact
+    polynomial."""
+    from hvloc.geometry import Camera, make_transform, so3_exp
+    from render import motion
+
+    cam = Camera.from_hfov(160, 120, np.radians(100), dist=(-0.25, 0.05, 0, 0, 0.02))
+    px = np.array([[0.0, 0.0], [159.0, 119.0], [80.0, 60.0], [150.0, 10.0]])
+    n = cam.normalized_from_pixels(px)
+    M = make_transform(so3_exp([0, np.radians(35), 0]), [0.1, 0, 0])
+    u, v = motion._project(cam, n[:, 0], n[:, 1], np.full(4, 5.0), M)
+    P = (M[:3, :3] @ (np.column_stack([n, np.ones(4)]) * 5.0).T).T + M[:3, 3]
+    raw = cam.project(P)
+    assert np.abs(raw[1]).max() > 1e6  # the polynomial runs away for the corner that leaves the field
+    assert np.all(np.isfinite(u)) and np.abs(np.column_stack([u, v]) - px).max() < 3000
+    kept = [0, 2]  # rays that stay in the field: exactly the lens model
+    assert np.allclose(np.column_stack([u, v])[kept], raw[kept], atol=1e-9)
