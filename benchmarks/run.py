@@ -60,12 +60,13 @@ def make_localizer(kind: str, seq, config: LocalizerConfig):
 
 
 def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None,
-                      kind: str = "hierarchical") -> list:
-    return localize_sequence_many(seq, [(config, use_imu, kind)], progress)[0]
+                      kind: str = "hierarchical", on_estimate=None) -> list:
+    return localize_sequence_many(seq, [(config, use_imu, kind)], progress, on_estimate)[0]
 
 
-def localize_sequence_many(seq, setups: list, progress=None) -> list:
-    """Several localizers ``[(config, use_imu, kind), ...]`` over one sequence, each image read once."""
+def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None) -> list:
+    """Several localizers ``[(config, use_imu, kind), ...]`` over one sequence, each image read once.
+    ``on_estimate(estimate)`` sees the first localizer's estimate of each frame as it is made."""
     locs = [make_localizer(kind, seq, cfg) for cfg, _, kind in setups]
     imu = seq.imu
     out = [[] for _ in setups]
@@ -75,6 +76,8 @@ def localize_sequence_many(seq, setups: list, progress=None) -> list:
         sample = imu_at(imu, t)
         for i, (loc, (_, use_imu, _)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))
+        if on_estimate is not None:
+            on_estimate(out[0][-1])
         if progress:
             progress(1)
     return out
@@ -103,32 +106,47 @@ def write_estimates(seq_out: Path, estimates: list) -> None:
 
 
 def localize_dataset(root, out, config: LocalizerConfig | None = None, use_imu: bool = True,
-                     show_progress: bool = True, kind: str = "hierarchical", verify: bool = True) -> dict:
+                     show_progress: bool = True, kind: str = "hierarchical", verify: bool = True,
+                     mavlink: str | None = None, mavlink_epoch_s: float = 0.0) -> dict:
     """Localize every sequence of a dataset; writes ``OUT/<seq>/estimates.{csv,tum}``.
-    ``verify``: refuse a dataset whose files differ from their checksums (checked as read)."""
+    ``verify``: refuse a dataset whose files differ from their checksums (checked as read).
+    ``mavlink``: also send each accepted pose as ``LANDING_TARGET`` (see ``benchmarks.mavlink``)."""
     from render.dataset import Dataset, FolderLock
 
     ds = Dataset(root, verify=verify)
     with FolderLock(out, "writing results into"):
-        return _localize_dataset(ds, Path(out), config, use_imu, show_progress, kind)
+        return _localize_dataset(ds, Path(out), config, use_imu, show_progress, kind, mavlink, mavlink_epoch_s)
 
 
-def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind) -> dict:
+def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind, mavlink=None, mavlink_epoch_s=0.0) -> dict:
     config = config or LocalizerConfig()
     total = sum(len(ds[s]) for s in ds.sequence_ids)
     bar = progress_bar(show_progress, total, "localize")
     t0 = time.time()
     results = {}
+    stream = None
     try:
         for seq in ds:
-            est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None, kind=kind)
+            send = None
+            if mavlink:
+                from .mavlink import LandingTargetStream
+
+                if stream is None:
+                    stream = LandingTargetStream(mavlink, seq.pad.geometry.side_m, seq.T_B_C, mavlink_epoch_s)
+                stream.T_B_C = seq.T_B_C
+                send = stream.send
+            est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None, kind=kind,
+                                    on_estimate=send)
             write_estimates(out / seq.id, est)
             results[seq.id] = est
     finally:
         if bar:
             bar.close()
+        if stream is not None:
+            stream.close()
     (out / "localizer_config.json").write_text(json.dumps(config.model_dump(), indent=1) + "\n")
-    return {"sequences": results, "seconds": time.time() - t0, "frames": total}
+    return {"sequences": results, "seconds": time.time() - t0, "frames": total,
+            "mavlink_sent": stream.sent if stream is not None else 0}
 
 
 def read_estimates(path) -> dict:
@@ -147,6 +165,10 @@ def localize_main(argv: list) -> int:
                    help="hvloc's hierarchical localizer, or the ArUco peer (needs the aruco pad variant)")
     p.add_argument("--no-verify", action="store_true",
                    help="use a dataset even if its files differ from the checksums in its manifest")
+    p.add_argument("--mavlink", metavar="TARGET",
+                   help="also send each accepted pose as a MAVLink LANDING_TARGET: udp:HOST:PORT, or a .tlog file path")
+    p.add_argument("--mavlink-epoch", type=float, default=0.0,
+                   help="seconds added to the frame time for time_usec (default 0: time since boot)")
     p.add_quiet()
     a = p.parse_args(argv)
     cfg = load_config(a.config) if a.config else LocalizerConfig()
@@ -164,10 +186,10 @@ def localize_main(argv: list) -> int:
                              f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")
     prepare_out_dir(a.out)
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
-                           kind=a.localizer, verify=not a.no_verify)
+                           kind=a.localizer, verify=not a.no_verify, mavlink=a.mavlink, mavlink_epoch_s=a.mavlink_epoch)
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)
     print(f"{a.out}: {len(res['sequences'])} sequence(s), {res['frames']} frames, {n_ok} poses ok "
-          f"({res['seconds']:.1f} s)")
+          f"({res['seconds']:.1f} s)" + (f"; {res['mavlink_sent']} LANDING_TARGET to {a.mavlink}" if a.mavlink else ""))
     return 0
 
 

@@ -459,14 +459,23 @@ class Sequence:
     def imu(self) -> np.ndarray:
         """``(M, 11)``: t, gyro xyz, accel xyz, AHRS quaternion xyzw."""
         if self._imu is None:
-            from .imu import IMU_COLUMNS
+            from .imu import IMU_BIAS_COLUMNS, IMU_COLUMNS
 
             cols = read_csv_columns(self.root / "imu.csv", ())
             missing = [c for c in IMU_COLUMNS if c not in cols]
             if missing:
                 raise InputError(f"{self.root / 'imu.csv'}: lacks columns {missing}")
             self._imu = np.column_stack([cols[k] for k in IMU_COLUMNS])
+            self._imu_bias = (np.column_stack([cols[k] for k in IMU_BIAS_COLUMNS])
+                              if all(k in cols for k in IMU_BIAS_COLUMNS) else None)
         return self._imu
+
+    @property
+    def imu_bias(self) -> np.ndarray | None:
+        """``(M, 6)`` true gyro and accelerometer biases per IMU row, or ``None`` (datasets made
+        before imu.csv carried them)."""
+        _ = self.imu
+        return self._imu_bias
 
     @property
     def pad(self):
@@ -505,7 +514,8 @@ class Sequence:
     def image_path(self, k: int) -> Path:
         return self.root / str(self.columns["image"][k])
 
-    def image(self, k: int) -> np.ndarray:
+    def image_bytes(self, k: int) -> bytes:
+        """Frame ``k``'s PNG file as stored (checked against the manifest when opened with it)."""
         rel = str(self.columns["image"][k])
         path = self.root / rel
         try:
@@ -514,7 +524,10 @@ class Sequence:
             raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
         if self.expected is not None and sha256_bytes(data) != self.expected.get(rel):
             raise InputError(f"{path}: differs from the checksum in manifest.json (the dataset was changed or damaged)")
-        return decode_image(data, path)
+        return data
+
+    def image(self, k: int) -> np.ndarray:
+        return decode_image(self.image_bytes(k), self.image_path(k))
 
     def frame(self, k: int) -> Frame:
         c = self.columns

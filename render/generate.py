@@ -26,7 +26,7 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
     Returns its record; :func:`generate` moves it into place.  The pad's texture is read from
     ``out_root/pad.png`` (the dataset's one copy) when it is there."""
     from .frames import SequenceRenderer
-    from .imu import IMU_COLUMNS
+    from .imu import IMU_FILE_COLUMNS
 
     out_root = Path(out_root)
     sid = ds.sequence_id(index)
@@ -52,7 +52,7 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
                                  "platform": spec.platform.model_dump(mode="json")},
                 "phase_rule": "render/phase.py", "min_module_px": spec.phase_rule.min_module_px}
         files = writer.close(camera_info=info, pad_document=r.pad.document(f"../{ds.PAD_TEXTURE}"),
-                             imu_columns=IMU_COLUMNS, imu_rows=plan.imu.tolist(), meta=meta)
+                             imu_columns=IMU_FILE_COLUMNS, imu_rows=plan.imu.tolist(), meta=meta)
     return {"id": sid, "index": index, "seed": plan.seed, "family": plan.family, "frames": len(r.times),
             "files": {f"{sid}/{k}": v for k, v in files.items()}}
 

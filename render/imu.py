@@ -12,6 +12,9 @@ from .trajectory import GRAVITY, Trajectory
 
 IMU_COLUMNS = ["t", "gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z",
                "ahrs_qx", "ahrs_qy", "ahrs_qz", "ahrs_qw"]
+# the true biases inside each sample (what a filter estimates; EuRoC-style ground truth carries them)
+IMU_BIAS_COLUMNS = ["gyro_bias_x", "gyro_bias_y", "gyro_bias_z", "accel_bias_x", "accel_bias_y", "accel_bias_z"]
+IMU_FILE_COLUMNS = IMU_COLUMNS + IMU_BIAS_COLUMNS
 
 
 def _random_walk(rng, n, dt, sigma0, walk):
@@ -34,22 +37,22 @@ def _ou(rng, n, dt, sigma, tau):
 
 
 def synthesize_imu(traj: Trajectory, spec, rng: np.random.Generator, duration: float) -> np.ndarray:
-    """``(N, 11)`` rows in :data:`IMU_COLUMNS` order at ``spec.rate_hz`` over ``[0, duration]``."""
+    """``(N, 17)`` rows in :data:`IMU_FILE_COLUMNS` order at ``spec.rate_hz`` over ``[0, duration]``."""
     dt = 1.0 / spec.rate_hz
     t = np.arange(0.0, duration + 1e-9, dt)
     n = len(t)
     s = traj.state(t)
-    gyro = s.omega_B + _random_walk(rng, n, dt, spec.gyro_bias_rad_s, spec.gyro_bias_walk_rad_s2) \
-        + rng.normal(0, spec.gyro_noise_rad_s, (n, 3))
+    gyro_bias = _random_walk(rng, n, dt, spec.gyro_bias_rad_s, spec.gyro_bias_walk_rad_s2)
+    gyro = s.omega_B + gyro_bias + rng.normal(0, spec.gyro_noise_rad_s, (n, 3))
     f_W = s.acc_W + np.array([0.0, 0.0, GRAVITY])
     f_B = np.einsum("nji,nj->ni", s.R_W_B, f_W)  # R_W_B^T f_W
-    accel = f_B + _random_walk(rng, n, dt, spec.accel_bias_mps2, spec.accel_bias_walk_mps3) \
-        + rng.normal(0, spec.accel_noise_mps2, (n, 3))
+    accel_bias = _random_walk(rng, n, dt, spec.accel_bias_mps2, spec.accel_bias_walk_mps3)
+    accel = f_B + accel_bias + rng.normal(0, spec.accel_noise_mps2, (n, 3))
     # AHRS error: a slow drift (most of the variance) plus a little white noise, in the body frame
     sig = np.radians([spec.ahrs_roll_pitch_deg, spec.ahrs_roll_pitch_deg, spec.ahrs_yaw_deg])
     err = _ou(rng, n, dt, sig * 0.95, spec.ahrs_drift_time_s) + rng.normal(0, sig * 0.3, (n, 3))
     q = np.stack([quat_xyzw_from_matrix(R @ so3_exp(e)) for R, e in zip(s.R_W_B, err)])
-    return np.column_stack([t, gyro, accel, q])
+    return np.column_stack([t, gyro, accel, q, gyro_bias, accel_bias])
 
 
 def ahrs_rotation(row) -> np.ndarray:
