@@ -10,11 +10,10 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
 from hvloc.config import LocalizerConfig
-from pad_design.errors import InputError, load_yaml_model, progress_bar, validate_model
+from pad_design.errors import InputError, load_yaml_model, progress_bar, validate_model, yaml_load
 
 from . import metrics as M
 from .run import KINDS, PAD_VARIANTS
@@ -71,7 +70,7 @@ def load_suite(path) -> tuple:
         sp = (path.parent / d.spec) if (path.parent / d.spec).exists() else (REPO / d.spec)
         if not sp.exists():
             raise InputError(f"{path}: datasets.{i}.spec: {d.spec} not found")
-        raw = yaml.safe_load(sp.read_text()) or {}
+        raw = yaml_load(sp.read_text()) or {}
         raw = _deep_update(raw, d.overrides)
         if d.sequences is not None:
             raw["sequences"] = d.sequences

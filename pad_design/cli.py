@@ -28,7 +28,9 @@ def main(argv: list) -> int:
     if args.action == "schema":
         import json
 
-        print(json.dumps(PadSpec.model_json_schema(), indent=1))
+        from .errors import editor_schema
+
+        print(json.dumps(editor_schema(PadSpec.model_json_schema(), "pad_spec", "hvloc pad spec"), indent=1))
         return 0
     spec = load_yaml_model(PadSpec, args.spec) if args.spec else PadSpec()
     if args.variant:

@@ -6,8 +6,10 @@ CLI front door turns it into one line on stderr and exit code 2.  Nothing else p
 from __future__ import annotations
 
 import argparse
-import sys
+import json
 import os
+import re
+import sys
 from pathlib import Path
 
 import yaml
@@ -40,9 +42,43 @@ def validate_model(model: type[BaseModel], data, source: str = ""):
     if not isinstance(data, dict):
         raise InputError(f"{source or 'spec'}: expected a mapping at the top level, got {type(data).__name__}")
     try:
-        return model.model_validate(data)
+        text = json.dumps(data, allow_nan=True, default=_not_json)
+    except _NotJson as err:
+        raise InputError(f"{source or 'spec'}: {err}") from None
+    try:
+        # strict, as JSON: what the JSON Schemas in data_specs/schema/ accept and nothing more
+        # ("320" is not a number, 1 is not true); arrays are tuples and integers are numbers
+        return model.model_validate_json(text, strict=True)
     except ValidationError as err:
         raise InputError(describe_validation_error(err, source)) from None
+
+
+class _NotJson(TypeError):
+    pass
+
+
+def _not_json(value):
+    raise _NotJson(f"{value!r} ({type(value).__name__}) is not a number, string, boolean, list or mapping")
+
+
+class _Yaml12Loader(yaml.SafeLoader):
+    """PyYAML reads YAML 1.1, where ``1e-5`` is a string; editors and JSON Schema tools read YAML
+    1.2, where it is a number.  Floats are resolved as YAML 1.2 does, so both agree."""
+
+
+_Yaml12Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                    |[-+]?\.(?:inf|Inf|INF)
+                    |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def yaml_load(text: str):
+    """YAML text -> Python data, numbers as YAML 1.2 reads them."""
+    return yaml.load(text, Loader=_Yaml12Loader)  # noqa: S506  (a SafeLoader subclass)
 
 
 def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
@@ -55,12 +91,49 @@ def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a text file (YAML must be UTF-8 text)") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml_load(text)
     except yaml.YAMLError as err:
         raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if data is None:
         raise InputError(f"{path}: the file is empty (write at least one field; every field has a default)")
     return validate_model(model, data, str(path))
+
+
+# ----------------------------------------------------------------------------- JSON Schemas
+
+DRAFT = "http://json-schema.org/draft-07/schema#"
+
+
+def schema_id(name: str) -> str:
+    return f"urn:hvloc:schema:{name}:1"
+
+
+def editor_schema(schema: dict, name: str, title: str) -> dict:
+    """A pydantic (JSON Schema 2020-12) schema in the draft-07 form that editor extensions (the
+    YAML language server and others) implement: fixed-length tuples as ``items: [...]`` rather
+    than ``prefixItems``, ``definitions`` rather than ``$defs``; with ``$schema`` and ``$id``."""
+
+    def walk(o):
+        if isinstance(o, list):
+            return [walk(v) for v in o]
+        if not isinstance(o, dict):
+            return o
+        out = {}
+        for k, v in o.items():
+            if k == "$defs":
+                out["definitions"] = walk(v)
+            elif k == "$ref" and isinstance(v, str):
+                out[k] = v.replace("#/$defs/", "#/definitions/")
+            elif k == "prefixItems":
+                out["items"] = walk(v)
+                out["additionalItems"] = False
+            else:
+                out[k] = walk(v)
+        return out
+
+    body = walk(schema)
+    body.pop("title", None)
+    return {"$schema": DRAFT, "$id": schema_id(name), "title": title, **body}
 
 
 # ----------------------------------------------------------------------------- command lines

@@ -296,24 +296,3 @@ class DatasetSpec(_Model):
 
 def load_dataset_spec(path) -> DatasetSpec:
     return load_yaml_model(DatasetSpec, path)
-
-
-def export_schemas(out_dir) -> list:
-    """Write the JSON Schemas of the spec models to ``out_dir``; returns the paths."""
-    from pathlib import Path
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, model in (("dataset_spec", DatasetSpec), ("pad_spec", PadSpec)):
-        p = out / f"{name}.schema.json"
-        p.write_text(json.dumps(model.model_json_schema(), indent=1) + "\n")
-        paths.append(p)
-    return paths
-
-
-if __name__ == "__main__":  # python -m render.spec  -> refresh data_specs/schema/
-    from pathlib import Path
-
-    for p in export_schemas(Path(__file__).resolve().parent.parent / "data_specs" / "schema"):
-        print(p)

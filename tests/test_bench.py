@@ -45,6 +45,9 @@ def test_results_schema_and_provenance(smoke):
     out, res = smoke
     r = json.loads((out / "results.json").read_text())
     assert r["schema"] == "hvloc-results/1" and len(r["suite_sha256"]) == 64
+    from benchmarks.schemas import validator
+
+    assert not [e.message for e in validator("results").iter_errors(r)]  # data_specs/schema/results.schema.json
     assert set(r["provenance"]) >= {"commit", "machine", "versions", "date"}
     s = r["summary"]["hierarchical"]
     for scope in ("all", "gt:approaching", "gt:adjustment", "gt:touchdown"):
