@@ -63,9 +63,11 @@ def write_report(out: Path, results: dict, fes_by_loc: dict, data_root: Path) ->
             sel = ok & (fe["phase_est"] == p)
             ax[0].scatter(fe["height_m"][sel], 1000 * fe["pos_err_m"][sel], s=3, c=PHASE_COLORS[p], label=p)
             ax[1].scatter(fe["height_m"][sel], fe["rot_err_deg"][sel], s=3, c=PHASE_COLORS[p], label=p)
-        for a, lab in ((ax[0], "position error (mm)"), (ax[1], "orientation error (deg)")):
-            a.set_xscale("log")
-            a.set_yscale("log")
+        for a, lab, err in ((ax[0], "position error (mm)", fe["pos_err_m"]), (ax[1], "orientation error (deg)",
+                                                                            fe["rot_err_deg"])):
+            if np.any(ok & (fe["height_m"] > 0) & (err > 0)):  # log axes need a positive value (a localizer
+                a.set_xscale("log")                             # with no pose at all has none)
+                a.set_yscale("log")
             a.set_xlabel("height above pad (m)")
             a.set_ylabel(lab)
             a.grid(True, which="both", alpha=0.3)

@@ -46,35 +46,102 @@ def imu_at(imu: np.ndarray, t: float):
     return imu[max(j, 0)]
 
 
-KINDS = ("hierarchical", "aruco")
+KINDS = ("hierarchical", "aruco")  # built in; any other localizer by entry point or import path
 PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",)}  # what each runs on by default
+ALL_VARIANTS = ("paper", "nested", "aruco")
+ENTRY_POINT_GROUP = "hvloc.localizers"
 
 
-def make_localizer(kind: str, seq, config: LocalizerConfig):
-    """hvloc's localizer, or a peer from ``benchmarks.peers``, for one sequence's pad and camera."""
+def localizer_class(kind: str):
+    """The class a suite's ``kind`` names: ``hierarchical``, ``aruco``, a name registered under the
+    ``hvloc.localizers`` entry point group, or an import path ``package.module:Class``.
+
+    The protocol (README, "Bring your own localizer"): ``Class(pad, camera, config, T_B_C=...)``
+    and ``.process(image, t, imu=None) -> hvloc.localizer.Estimate``; optionally ``PAD_VARIANTS``
+    (the pad variants it runs on by default) and ``reset()``."""
     if kind == "hierarchical":
-        return HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
-    from .peers import LOCALIZERS
+        return HierarchicalLocalizer
+    if kind == "aruco":
+        from .peers import ArucoLocalizer
 
-    return LOCALIZERS[kind](seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+        return ArucoLocalizer
+    import importlib
+    import importlib.metadata as md
+
+    eps = {ep.name: ep for ep in md.entry_points(group=ENTRY_POINT_GROUP)}
+    try:
+        if kind in eps:
+            cls = eps[kind].load()
+        elif ":" in kind:
+            mod, _, attr = kind.partition(":")
+            cls = importlib.import_module(mod)
+            for part in attr.split("."):
+                cls = getattr(cls, part)
+        else:
+            raise InputError(f"localizer kind {kind!r}: not hierarchical or aruco, not an entry point of "
+                             f"{ENTRY_POINT_GROUP} ({', '.join(sorted(eps)) or 'none installed'}), and not an "
+                             "import path package.module:Class")
+    except (ImportError, AttributeError) as err:
+        raise InputError(f"localizer kind {kind!r}: cannot be imported ({type(err).__name__}: {err})") from None
+    if not callable(cls) or not callable(getattr(cls, "process", None)):
+        raise InputError(f"localizer kind {kind!r}: not a class with a process(image, t, imu) method")
+    return cls
+
+
+def pad_variants(kind: str) -> tuple:
+    """The pad variants a localizer runs on by default."""
+    if kind in PAD_VARIANTS:
+        return PAD_VARIANTS[kind]
+    return tuple(getattr(localizer_class(kind), "PAD_VARIANTS", ALL_VARIANTS))
+
+
+def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False):
+    """A localizer for one sequence's pad and camera; ``gates``: hvloc's false-pose gates in front
+    of it (:class:`hvloc.localizer.GatedLocalizer`; hvloc's own localizer has them built in).
+    A localizer from elsewhere always runs behind ``guarded_process``: it never raises."""
+    from hvloc.localizer import GatedLocalizer
+
+    loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+    if gates and kind != "hierarchical":
+        return GatedLocalizer(loc, config, seq.T_B_C)
+    if kind not in KINDS:
+        return _Guarded(loc)
+    return loc
+
+
+class _Guarded:
+    """A localizer from elsewhere behind hvloc's "never raises" contract: an exception, a wrong
+    return value or a bad timestamp becomes ``lost`` with the reason."""
+
+    def __init__(self, inner):
+        self.inner = inner
+
+    def reset(self) -> None:
+        if hasattr(self.inner, "reset"):
+            self.inner.reset()
+
+    def process(self, image, t, imu=None):
+        from hvloc.localizer import guarded_process
+
+        return guarded_process(self.inner.process, image, t, imu, "")
 
 
 def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None,
                       kind: str = "hierarchical", on_estimate=None) -> list:
-    return localize_sequence_many(seq, [(config, use_imu, kind)], progress, on_estimate)[0]
+    return localize_sequence_many(seq, [(config, use_imu, kind, False)], progress, on_estimate)[0]
 
 
 def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None) -> list:
-    """Several localizers ``[(config, use_imu, kind), ...]`` over one sequence, each image read once.
+    """Several localizers ``[(config, use_imu, kind[, gates]), ...]`` over one sequence, each image read once.
     ``on_estimate(estimate)`` sees the first localizer's estimate of each frame as it is made."""
-    locs = [make_localizer(kind, seq, cfg) for cfg, _, kind in setups]
+    locs = [make_localizer(s[2], seq, s[0], bool(s[3]) if len(s) > 3 else False) for s in setups]
     imu = seq.imu
     out = [[] for _ in setups]
     for k in range(len(seq)):
         t = float(seq.t[k])
         img = seq.image(k)
         sample = imu_at(imu, t)
-        for i, (loc, (_, use_imu, _)) in enumerate(zip(locs, setups)):
+        for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))
         if on_estimate is not None:
             on_estimate(out[0][-1])
@@ -161,8 +228,9 @@ def localize_main(argv: list) -> int:
     p.add_argument("--out", required=True, help="results folder: <seq>/estimates.csv and estimates.tum")
     p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
-    p.add_argument("--localizer", choices=KINDS, default="hierarchical",
-                   help="hvloc's hierarchical localizer, or the ArUco peer (needs the aruco pad variant)")
+    p.add_argument("--localizer", default="hierarchical",
+                   help="hierarchical (hvloc's), aruco (the cv2.aruco peer, aruco pad variant), a name registered "
+                        "under the hvloc.localizers entry point group, or an import path package.module:Class")
     p.add_argument("--no-verify", action="store_true",
                    help="use a dataset even if its files differ from the checksums in its manifest")
     p.add_argument("--mavlink", metavar="TARGET",
@@ -175,15 +243,16 @@ def localize_main(argv: list) -> int:
     if not Path(a.dataset).is_dir():
         raise InputError(f"{a.dataset}: no such dataset folder")
     if a.localizer != "hierarchical":
+        localizer_class(a.localizer)  # a kind that cannot be imported is refused before anything is written
         from render.dataset import Dataset
 
         ds = Dataset(a.dataset, verify=not a.no_verify)
         if len(ds) == 0:
             raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
         variant = ds[0].pad.geometry.variant
-        if variant not in PAD_VARIANTS[a.localizer]:
+        if variant not in pad_variants(a.localizer):
             raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the "
-                             f"{' or '.join(PAD_VARIANTS[a.localizer])} pad variant, this one has the {variant!r} pad")
+                             f"{' or '.join(pad_variants(a.localizer))} pad variant, this one has the {variant!r} pad")
     prepare_out_dir(a.out)
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
                            kind=a.localizer, verify=not a.no_verify, mavlink=a.mavlink, mavlink_epoch_s=a.mavlink_epoch)

@@ -7,7 +7,6 @@ import platform
 import subprocess
 import time
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -16,7 +15,7 @@ from hvloc.config import LocalizerConfig
 from pad_design.errors import InputError, load_yaml_model, progress_bar, validate_model, yaml_load
 
 from . import metrics as M
-from .run import KINDS, PAD_VARIANTS
+from .run import localizer_class, pad_variants
 
 RESULTS_SCHEMA = "hvloc-results/1"
 REPO = Path(__file__).resolve().parent.parent
@@ -35,7 +34,11 @@ class DatasetEntry(BaseModel):
 class LocalizerEntry(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
     name: str
-    kind: Literal[KINDS] = Field("hierarchical", description="hvloc's localizer, or a peer (benchmarks/peers.py)")
+    kind: str = Field("hierarchical", pattern=r"^[A-Za-z_][\w.]*(:[A-Za-z_][\w.]*)?$",
+                      description="hierarchical, aruco (benchmarks/peers.py), a name registered under the "
+                                  "hvloc.localizers entry point group, or an import path package.module:Class")
+    gates: bool = Field(False, description="hvloc's false-pose gates (reprojection, motion, IMU tilt and "
+                                           "rotation) in front of a peer; hvloc's own localizer has them built in")
     config: dict = Field(default_factory=dict, description="fields of hvloc's LocalizerConfig")
     use_imu: bool = True
     datasets: list[str] | None = Field(None, description="names of the suite's datasets it runs on (default: all "
@@ -83,6 +86,10 @@ def load_suite(path) -> tuple:
         raise InputError(f"{path}: datasets: two datasets are named alike ({', '.join(names)}); "
                          "give one another name with overrides: {name: ...}")
     for i, loc in enumerate(suite.localizers):
+        try:
+            localizer_class(loc.kind)
+        except InputError as err:
+            raise InputError(f"{path}: localizers.{i}.kind: {err}") from None
         configs.append((loc, validate_model(LocalizerConfig, loc.config, f"{path}: localizers.{i}.config")))
         for n in loc.datasets or []:
             if n not in names:
@@ -90,9 +97,11 @@ def load_suite(path) -> tuple:
                                  f"{', '.join(names)})")
         if not any(runs_on(loc, s) for s in specs):
             raise InputError(f"{path}: localizers.{i} ({loc.name}): no dataset of the pad variant it needs "
-                             f"({', '.join(PAD_VARIANTS[loc.kind])})")
+                             f"({', '.join(pad_variants(loc.kind))})")
     h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [c.model_dump_json() for _, c in configs]
-                                  + [l.model_dump_json() for l, _ in configs]).encode()).hexdigest()
+                                  # gates off leaves the entry as it was before the field existed
+                                  + [l.model_dump_json(exclude=None if l.gates else {"gates"}) for l, _ in configs]
+                                  ).encode()).hexdigest()
     return suite, specs, configs, h
 
 
@@ -100,7 +109,7 @@ def runs_on(loc: LocalizerEntry, spec) -> bool:
     """Whether a suite's localizer runs on a dataset: the ones it names, else those of its pad variant."""
     if loc.datasets is not None:
         return spec.name in loc.datasets
-    return spec.pad.variant in PAD_VARIANTS[loc.kind]
+    return spec.pad.variant in pad_variants(loc.kind)
 
 
 def provenance() -> dict:
@@ -155,7 +164,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
             continue
         t0 = time.time()
         bar = progress_bar(show_progress, sum(len(s) for s in ds), f"localize x{len(here)} {spec.name}")
-        setups = [(cfg.model_dump(), loc.use_imu, loc.kind) for loc, cfg in here]
+        setups = [(cfg.model_dump(), loc.use_imu, loc.kind, loc.gates) for loc, cfg in here]
         lengths = {sid: s["frames"] for sid, s in ((s["id"], s) for s in ds.manifest["sequences"])}
         jobs = [(str(droot), sid, setups, [str(out / "estimates" / loc.name / droot.name / sid) for loc, _ in here],
                  verify) for sid in sorted(ds.sequence_ids, key=lambda s: -lengths[s])]  # longest first
@@ -220,7 +229,7 @@ def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bo
     from .run import localize_sequence_many, write_estimates
 
     seq = Dataset(droot, verify=verify)[seq_id]
-    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(c), u, k) for c, u, k in setups],
+    ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(s[0]), *s[1:]) for s in setups],
                                   report_progress)
     for d, est in zip(dirs, ests):
         write_estimates(Path(d), est)

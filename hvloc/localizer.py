@@ -150,6 +150,8 @@ def guarded_process(process, image, t, imu, phase: str) -> "Estimate":
     else:
         try:
             est = process(image, tf, imu)
+            if not isinstance(est, Estimate):  # a localizer from elsewhere that broke the protocol
+                raise TypeError(f"process returned {type(est).__name__}, not an Estimate")
         except Exception as err:  # never raise on an image: report it
             est = Estimate(tf, phase, "lost", None, reason=f"internal error: {type(err).__name__}: {err}",
                            extras={"traceback": traceback.format_exc(limit=3)})
@@ -187,6 +189,65 @@ def imu_check(imu) -> tuple:
     return a, ""
 
 
+def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
+    """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
+    return None if R_W_B is None else (R_W_B @ T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+
+
+class FalsePoseGates:
+    """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
+    possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
+    the vision-IMU rotation offset that must not jump.  Stateful (the running offset)."""
+
+    def __init__(self, config: LocalizerConfig, T_B_C: np.ndarray):
+        self.config, self.T_B_C = config, np.asarray(T_B_C, np.float64)
+        self.reset()
+
+    def reset(self) -> None:
+        self.R_W_P: np.ndarray | None = None  # running vision-IMU rotation offset
+        self.imu_rejects = 0
+
+    def check(self, est: "Estimate", R_W_B, last: "Estimate | None") -> str:
+        """Why ``est`` (an ``ok`` pose) must be rejected, or ``""``; ``last``: the last accepted one."""
+        cfg = self.config
+        if not cfg.false_pose_detection:
+            return ""
+        if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
+            return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
+        why = motion_gate(est.cam2pad, est.t, last.cam2pad if last else None, last.t if last else 0.0, cfg)
+        if why:
+            return why
+        if R_W_B is not None:
+            up_C = up_in_camera(R_W_B, self.T_B_C)
+            tilt = math.degrees(math.acos(float(np.clip((est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C,
+                                                        -1.0, 1.0))))
+            if tilt > cfg.max_tilt_error_deg:
+                return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {cfg.max_tilt_error_deg})"
+            # the gravity prior pulls a refined pose toward the IMU: where many points fix the tilt (the
+            # markers), also ask what the image alone said, and reject when it contradicts the IMU by far
+            # more than both can err.  Not with the outline's four corners: one corner a few pixels off (a
+            # shadow across it) tilts their pose by 10 degrees or more "confidently", and the IMU is right
+            alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
+            if est.n_corr >= 12 and alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
+                return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
+                        f"(+-{sigma:.1f} deg)")
+            R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
+            if self.R_W_P is None:
+                self.R_W_P = R_W_P
+            else:
+                jump = math.degrees(rotation_angle(self.R_W_P, R_W_P))
+                if jump > cfg.imu_jump_deg:
+                    self.imu_rejects += 1
+                    if self.imu_rejects >= 8:  # the reference itself was wrong: start again
+                        self.R_W_P, self.imu_rejects = R_W_P, 0
+                    return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
+                # slow drift: move the reference a little toward the new offset
+                d = so3_log(self.R_W_P.T @ R_W_P)
+                self.R_W_P = self.R_W_P @ so3_exp(cfg.imu_drift_rate * d)
+            self.imu_rejects = 0
+        return ""
+
+
 class HierarchicalLocalizer:
     """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``."""
 
@@ -202,8 +263,7 @@ class HierarchicalLocalizer:
         self.phase = "approaching"
         self.last: Estimate | None = None       # last accepted estimate
         self.last_t: float | None = None         # time of the last frame processed (any status)
-        self.R_W_P: np.ndarray | None = None     # running vision-IMU rotation offset
-        self.imu_rejects = 0
+        self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks)
 
     # ------------------------------------------------------------------ public
@@ -289,8 +349,7 @@ class HierarchicalLocalizer:
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
 
     def _up_C(self, R_W_B):
-        """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
-        return None if R_W_B is None else (R_W_B @ self.T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+        return up_in_camera(R_W_B, self.T_B_C)
 
     def _update_phase(self, h) -> None:
         self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)
@@ -327,44 +386,7 @@ class HierarchicalLocalizer:
         return None, why
 
     def _gate(self, est: Estimate, R_W_B) -> str:
-        cfg = self.config
-        if not cfg.false_pose_detection:
-            return ""
-        if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
-            return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
-        why = motion_gate(est.cam2pad, est.t, self.last.cam2pad if self.last else None,
-                          self.last.t if self.last else 0.0, cfg)
-        if why:
-            return why
-        if R_W_B is not None:
-            up_C = self._up_C(R_W_B)
-            tilt = math.degrees(math.acos(float(np.clip((est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C,
-                                                        -1.0, 1.0))))
-            if tilt > cfg.max_tilt_error_deg:
-                return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {cfg.max_tilt_error_deg})"
-            # the gravity prior pulls a refined pose toward the IMU: where many points fix the tilt (the
-            # markers), also ask what the image alone said, and reject when it contradicts the IMU by far
-            # more than both can err.  Not with the outline's four corners: one corner a few pixels off (a
-            # shadow across it) tilts their pose by 10 degrees or more "confidently", and the IMU is right
-            alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
-            if est.n_corr >= 12 and alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
-                return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
-                        f"(+-{sigma:.1f} deg)")
-            R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
-            if self.R_W_P is None:
-                self.R_W_P = R_W_P
-            else:
-                jump = math.degrees(rotation_angle(self.R_W_P, R_W_P))
-                if jump > cfg.imu_jump_deg:
-                    self.imu_rejects += 1
-                    if self.imu_rejects >= 8:  # the reference itself was wrong: start again
-                        self.R_W_P, self.imu_rejects = R_W_P, 0
-                    return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
-                # slow drift: move the reference a little toward the new offset
-                d = so3_log(self.R_W_P.T @ R_W_P)
-                self.R_W_P = self.R_W_P @ so3_exp(cfg.imu_drift_rate * d)
-            self.imu_rejects = 0
-        return ""
+        return self.gates.check(est, R_W_B, self.last)
 
     def _after_accept(self, method: str, est: Estimate, gray) -> None:
         """Keep the flow tracker ready near the ground: a keyframe from an anchored (markers or
@@ -382,3 +404,53 @@ class HierarchicalLocalizer:
         if (f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
             f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+
+
+class GatedLocalizer:
+    """Any localizer behind the ``process(image, t, imu) -> Estimate`` protocol with hvloc's
+    false-pose gates (:class:`FalsePoseGates`) in front: an ``ok`` pose they refuse becomes
+    ``rejected`` with the reason.  So a benchmark can tell what a pad design is worth apart from
+    what the gating is worth.  The gates see the IMU only when the caller passes it."""
+
+    def __init__(self, inner, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None):
+        self.inner = inner
+        self.config = config or LocalizerConfig()
+        self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
+        self.gates = FalsePoseGates(self.config, self.T_B_C)
+        self.last: Estimate | None = None
+        self.last_t: float | None = None
+
+    def reset(self) -> None:
+        if hasattr(self.inner, "reset"):
+            self.inner.reset()
+        self.gates.reset()
+        self.last, self.last_t = None, None
+
+    def process(self, image, t: float, imu=None) -> Estimate:
+        t0 = time.perf_counter()
+        est = guarded_process(self.inner.process, image, t, imu, "")
+        if est.status == "ok":
+            try:
+                self._gate(est, float(est.t), imu)
+            except Exception as err:  # never raise on an image
+                est.status, est.reason = "lost", f"internal error in the gates: {type(err).__name__}: {err}"
+        est.ms = (time.perf_counter() - t0) * 1000.0
+        return est
+
+    def _gate(self, est: Estimate, t: float, imu) -> Estimate:
+        if self.last_t is not None and t < self.last_t:  # a new run: no prior from the old one
+            self.gates.reset()
+            self.last = None
+        elif self.last is not None and t - self.last.t > self.config.prior_timeout_s:
+            self.last = None
+        self.last_t = t
+        if est.cam2pad is None or np.shape(est.cam2pad) != (4, 4) or not np.all(np.isfinite(est.cam2pad)):
+            est.status, est.reason = "lost", "the localizer said ok without a finite pose"
+            return est
+        R_W_B, _ = imu_check(imu)
+        verdict = self.gates.check(est, R_W_B, self.last)
+        if verdict:
+            est.status, est.reason = "rejected", verdict
+        else:
+            self.last = est
+        return est
