@@ -48,6 +48,8 @@ def main(argv: list) -> int:
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")
     c.add_argument("baseline", help="results.json (or its folder)")
+    c.add_argument("--significant", action="store_true",
+                   help="count a worse metric only beyond the baseline's 95 %% interval over descents (ci95)")
     for name, (_, helptext) in DELEGATED.items():
         sub.add_parser(name, help=helptext, add_help=False)  # listed here, parsed by their own module
     a = p.parse_args(argv)
@@ -71,7 +73,7 @@ def main(argv: list) -> int:
     new, base = load_results(a.new), load_results(a.baseline)
     if new.get("suite_sha256") != base.get("suite_sha256"):
         raise InputError("results are of different suites (suite_sha256 differs); nothing to compare")
-    worse = compare(new, base)
+    worse = compare(new, base, significant=a.significant)
     if not worse:
         print("no metric got worse than the baseline")
         return 0

@@ -31,6 +31,7 @@ def build(results: dict, notes: list | None = None) -> dict:
     entries = []
     for name, s in results["summary"].items():
         entries.append({"localizer": name, "config": results["localizers"].get(name), "summary": s,
+                        "ci95": results.get("ci95", {}).get(name),
                         "contact_pos_err_m_max": s.get("contact_pos_err_m_max")})
     return {"schema": SCHEMA, "suite": results["suite"], "suite_sha256": results["suite_sha256"],
             "provenance": results["provenance"], "workers": results.get("workers"), "notes": list(notes or []),
@@ -51,6 +52,8 @@ def markdown(lb: dict) -> str:
                 f"(`hvloc bench run {lb['suite']}`, then `python -m benchmarks.leaderboard`).", ""]
                if lb.get("stale") else []),
              *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
+             *(["Brackets: 95 % bootstrap interval over descents (a descent is resampled whole).", ""]
+               if any(e.get("ci95") for e in lb["entries"]) else []),
              "| localizer | datasets | " + " | ".join(c[2] for c in COLUMNS) + " |",
              "|---|---|" + "---|" * len(COLUMNS)]
     # ranked by safety first (false accepts), then by availability
@@ -58,7 +61,7 @@ def markdown(lb: dict) -> str:
                                                    -(e["summary"]["all"].get("availability") or 0)))
     for e in entries:
         lines.append(f"| {e['localizer']} | {', '.join(e['summary'].get('datasets', []))} | "
-                     + " | ".join(_cells(e["summary"], "")) + " |")
+                     + " | ".join(_cells(e["summary"], "", e.get("ci95"))) + " |")
     datasets = sorted({d for e in entries for d in e["summary"].get("datasets", [])})
     if len(datasets) > 1:
         lines += ["", "## Per dataset", "",
@@ -74,11 +77,17 @@ def markdown(lb: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _cells(summary: dict, prefix: str) -> list:
+def _cells(summary: dict, prefix: str, ci95: dict | None = None) -> list:
+    """Table cells; with ``ci95`` (the entry's intervals over descents) each value that has one is
+    followed by its 95 % interval, so two entries whose intervals overlap read as not separated."""
     cells = []
     for scope, key, _, scale, fmt in COLUMNS:
         v = summary.get(prefix + scope, {}).get(key)
-        cells.append("-" if v is None else fmt.format(v * scale))
+        ci = (ci95 or {}).get(prefix + scope, {}).get(key)
+        cell = "-" if v is None else fmt.format(v * scale)
+        if v is not None and ci is not None:
+            cell += f" [{fmt.format(ci[0] * scale)}, {fmt.format(ci[1] * scale)}]"
+        cells.append(cell)
     return cells
 
 

@@ -125,3 +125,44 @@ def score_sequence(fe: dict) -> dict:
 
 def concat(fes: list) -> dict:
     return {k: np.concatenate([f[k] for f in fes]) for k in fes[0]}
+
+
+# ----------------------------------------------------------------------------- confidence intervals
+
+CI_METRICS = ("availability", "pos_err_m_rmse", "rot_err_deg_rmse", "false_accepts")
+
+
+def sufficient_stats(fe: dict, mask: np.ndarray | None = None) -> np.ndarray:
+    """``[frames, ok, sum of squared position errors, sum of squared rotation errors, false accepts]``
+    of one sequence's frames in ``mask``: what :data:`CI_METRICS` over several sequences add up from."""
+    m = np.ones_like(fe["pos_err_m"], bool) if mask is None else mask
+    ok = (fe["status"] == "ok") & m
+    pe, re, h = fe["pos_err_m"][ok], fe["rot_err_deg"][ok], fe["height_m"][ok]
+    wrong = (pe > FALSE_ACCEPT_REL * h) | (re > FALSE_ACCEPT_DEG)
+    return np.array([m.sum(), ok.sum(), float(np.sum(pe * pe)), float(np.sum(re * re)), wrong.sum()], np.float64)
+
+
+def metrics_from_stats(S: np.ndarray) -> dict:
+    """:data:`CI_METRICS` from summed sufficient statistics ``(..., 5)`` (arrays broadcast)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {"availability": S[..., 1] / S[..., 0], "pos_err_m_rmse": np.sqrt(S[..., 2] / S[..., 1]),
+                "rot_err_deg_rmse": np.sqrt(S[..., 3] / S[..., 1]), "false_accepts": S[..., 4]}
+
+
+def bootstrap_ci(stats: np.ndarray, level: float = 0.95, n_boot: int = 4000, seed: int = 0) -> dict:
+    """Percentile bootstrap over descents: ``stats`` ``(n_sequences, 5)`` rows of
+    :func:`sufficient_stats`; sequences are resampled with replacement (a descent is the unit that
+    varies: its trajectory, scene and light), each metric recomputed from the resampled sums.
+    ``{metric: [lo, hi]}`` (``None`` where undefined); deterministic for a given ``seed``."""
+    stats = np.asarray(stats, np.float64).reshape(-1, 5)
+    n = len(stats)
+    if n == 0:
+        return {k: None for k in CI_METRICS}
+    counts = np.random.default_rng(seed).multinomial(n, np.full(n, 1.0 / n), size=n_boot)
+    boot = metrics_from_stats(counts @ stats)
+    a = (1.0 - level) / 2.0
+    out = {}
+    for k, v in boot.items():
+        v = v[np.isfinite(v)]
+        out[k] = [float(np.quantile(v, a)), float(np.quantile(v, 1 - a))] if len(v) > n_boot // 2 else None
+    return out

@@ -53,6 +53,11 @@ def results_schema() -> dict:
                             "properties": {"datasets": {"type": "array", "items": {"type": "string"}},
                                            "contact_pos_err_m_max": {"type": ["number", "null"]}},
                             "additionalProperties": {"$ref": "#/definitions/metrics"}}},
+            "ci95": {"description": "per localizer and scope: 95 % bootstrap interval over descents [lo, hi]",
+                     "type": "object", "additionalProperties": {"type": "object", "additionalProperties": {
+                         "type": "object", "additionalProperties": {
+                             "anyOf": [{"type": "null"}, {"type": "array", "items": {"type": "number"},
+                                                          "minItems": 2, "maxItems": 2}]}}}},
             "sequences": {"description": "per <localizer>/<dataset>/<sequence>", "type": "object",
                           "additionalProperties": {
                               "type": "object", "required": ["all"],

@@ -203,8 +203,20 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
         contact = [per_seq[k]["contact_pos_err_m"] for k in per_seq if k.startswith(name + "/")]
         contact = [c for c in contact if c is not None]
         summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None
+    ci95 = {}  # bootstrap over descents (benchmarks/metrics.py: bootstrap_ci), per localizer and scope
+    for name, fes in fes_by_loc.items():
+        groups = {"all": fes}
+        for tier in dict.fromkeys(t for t in tiers.values() if t):
+            groups[f"tier:{tier}"] = [f for (n, d), dfes in fes_by_ds.items() if n == name and tiers[d] == tier
+                                      for f in dfes]
+        ci95[name] = {}
+        for g, gfes in groups.items():
+            for scope in ("all", *(f"gt:{p}" for p in M.PHASES)):
+                key = scope if g == "all" else f"{g}/{scope}"
+                stats = [M.sufficient_stats(f, None if scope == "all" else f["phase_gt"] == scope[3:]) for f in gfes]
+                ci95[name][key] = M.bootstrap_ci(stats)
     results = {"schema": RESULTS_SCHEMA, "suite": suite.name, "suite_sha256": suite_hash,
-               "provenance": provenance(), "workers": workers, "summary": summary, "sequences": per_seq,
+               "provenance": provenance(), "workers": workers, "summary": summary, "ci95": ci95, "sequences": per_seq,
                "timing_s": timing,
                "localizers": {l.name: c.model_dump() for l, c in configs},
                "localizer_setup": {l.name: {"kind": l.kind, "use_imu": l.use_imu,
@@ -276,9 +288,12 @@ TOLERANCES = {
 }
 
 
-def compare(new: dict, base: dict, tolerances: dict = TOLERANCES) -> list:
-    """Rows (localizer, scope, metric, baseline, new) of everything that got worse beyond tolerance."""
+def compare(new: dict, base: dict, tolerances: dict = TOLERANCES, significant: bool = False) -> list:
+    """Rows (localizer, scope, metric, baseline, new) of everything that got worse beyond tolerance.
+    ``significant``: where the baseline has a 95 % interval over descents for the metric (``ci95``),
+    only a new value beyond that interval counts (a change the descents' spread cannot explain)."""
     worse = []
+    cis = base.get("ci95", {})
     for loc, scopes in base["summary"].items():
         if loc not in new["summary"]:
             worse.append((loc, "-", "missing in new results", None, None))
@@ -294,5 +309,8 @@ def compare(new: dict, base: dict, tolerances: dict = TOLERANCES) -> list:
                 if n is None:
                     worse.append((loc, scope, m, b, n))
                 elif (direction == "lower" and n > b + tol) or (direction == "higher" and n < b - tol):
+                    ci = cis.get(loc, {}).get(scope, {}).get(m) if significant else None
+                    if ci is not None and ci[0] <= n <= ci[1]:
+                        continue
                     worse.append((loc, scope, m, b, n))
     return worse

@@ -242,3 +242,40 @@ def test_estimates_carry_the_covariance_and_one_quaternion_hemisphere(smoke, tmp
     tum = _read_tum(tmp_path / "estimates.tum")
     assert len(tum) == 11 and np.all(np.sum(tum[1:, 4:] * tum[:-1, 4:], axis=1) > 0)
     assert covariance_matrix(c, 0) == pytest.approx(np.eye(6) * 1e-4)
+
+
+def test_intervals_over_descents_and_a_compare_that_knows_them(smoke, tmp_path):
+    """ci95 comes from resampling whole descents; its sums reproduce the summary exactly, the
+    interval holds the point value, and compare --significant ignores a change inside it."""
+    import benchmarks.metrics as M
+    from benchmarks.suite import compare
+
+    out, res = smoke
+    r = json.loads((out / "results.json").read_text())
+    ci = r["ci95"]["hierarchical"]["all"]
+    s = r["summary"]["hierarchical"]["all"]
+    lo, hi = ci["availability"]
+    assert lo <= s["availability"] <= hi and lo < hi
+    assert ci["pos_err_m_rmse"][0] <= s["pos_err_m_rmse"] <= ci["pos_err_m_rmse"][1]
+    # the sufficient statistics add up to the summary's own numbers
+    stats = np.array([[100, 90, 0.9, 9.0, 1], [50, 50, 0.5, 2.0, 0]], float)
+    point = M.metrics_from_stats(stats.sum(axis=0))
+    assert point["availability"] == pytest.approx(140 / 150) and point["pos_err_m_rmse"] == pytest.approx(math.sqrt(1.4 / 140))
+    # more descents alike: a narrower interval
+    rng = np.random.default_rng(1)
+    few = [[100, rng.integers(80, 100), 1.0, 1.0, 0] for _ in range(4)]
+    many = few * 8
+    w = lambda c: c["availability"][1] - c["availability"][0]  # noqa: E731
+    assert w(M.bootstrap_ci(np.array(many, float))) < 0.6 * w(M.bootstrap_ci(np.array(few, float)))
+    # compare: with descents spread as in `few` (an interval several points wide), 2 points less
+    # availability is within it (not significant), 30 points is not; without --significant both count
+    r["ci95"]["hierarchical"]["all"]["availability"] = M.bootstrap_ci(np.array(few, float))["availability"]
+    lo, hi = r["ci95"]["hierarchical"]["all"]["availability"]
+    s["availability"] = (lo + hi) / 2
+    assert hi - lo > 0.05
+    for drop, flagged in ((0.02, False), (0.3, True)):
+        new = json.loads(json.dumps(r))
+        new["summary"]["hierarchical"]["all"]["availability"] = max(s["availability"] - drop, 0.0)
+        rows = [w for w in compare(new, r, significant=True) if w[:3] == ("hierarchical", "all", "availability")]
+        plain = [w for w in compare(new, r) if w[:3] == ("hierarchical", "all", "availability")]
+        assert bool(plain) and bool(rows) == flagged, (drop, rows)
