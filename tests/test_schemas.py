@@ -78,7 +78,7 @@ BAD = [
     ("localizer_config", "max_reprojection_px: 2\nunknown_knob: 1\n", "unknown_knob"),
     ("suite", "name: s\ndatasets: []\nlocalizers: [{name: h}]\n", "datasets"),
     ("suite", "name: s\ndatasets: [{spec: data_specs/tiny.yaml, sequences: '2'}]\nlocalizers: [{name: h}]\n", "sequences"),
-    ("suite", "name: s\ndatasets: [{spec: data_specs/tiny.yaml}]\nlocalizers: [{name: h, kind: orb}]\n", "kind"),
+    ("suite", "name: s\ndatasets: [{spec: data_specs/tiny.yaml}]\nlocalizers: [{name: h, kind: 'two words'}]\n", "kind"),
     ("suite", "name: s\ndatasets: [{spec: data_specs/tiny.yaml}]\nlocalizers: [{name: h, config: {use_imu_gate: 1}}]\n",
      "use_imu_gate"),
 ]
