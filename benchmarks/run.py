@@ -48,7 +48,6 @@ def imu_at(imu: np.ndarray, t: float):
 
 KINDS = ("hierarchical", "aruco")  # built in; any other localizer by entry point or import path
 PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",)}  # what each runs on by default
-ALL_VARIANTS = ("paper", "nested", "aruco")
 ENTRY_POINT_GROUP = "hvloc.localizers"
 
 
@@ -92,7 +91,9 @@ def pad_variants(kind: str) -> tuple:
     """The pad variants a localizer runs on by default."""
     if kind in PAD_VARIANTS:
         return PAD_VARIANTS[kind]
-    return tuple(getattr(localizer_class(kind), "PAD_VARIANTS", ALL_VARIANTS))
+    from pad_design.geometry import VARIANTS
+
+    return tuple(getattr(localizer_class(kind), "PAD_VARIANTS", VARIANTS))
 
 
 def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False):

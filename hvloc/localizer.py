@@ -189,6 +189,18 @@ def imu_check(imu) -> tuple:
     return a, ""
 
 
+def clock_event(last_t: float | None, last: "Estimate | None", t: float, prior_timeout_s: float) -> tuple:
+    """``(event, note)`` keeping a localizer's state consistent with time: ``"reset"`` when ``t`` is
+    older than the last frame (a new run: a new sequence on the same localizer, a replay),
+    ``"drop"`` when the last accepted pose is older than ``prior_timeout_s`` (no gate, ROI or
+    tracker may reason from it), else ``""``."""
+    if last_t is not None and t < last_t:
+        return "reset", f"time went back {last_t - t:.3g} s: state reset"
+    if last is not None and t - last.t > prior_timeout_s:
+        return "drop", f"last pose {t - last.t:.3g} s old: prior dropped"
+    return "", ""
+
+
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
     """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
     return None if R_W_B is None else (R_W_B @ T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
@@ -272,15 +284,10 @@ class HierarchicalLocalizer:
 
     # ------------------------------------------------------------------ internals
     def _clock(self, t: float) -> str:
-        """Keep the state consistent with time: a frame older than the last one starts a new run
-        (a new sequence on the same localizer, a replay); a prior older than ``prior_timeout_s``
-        is dropped, so that neither the gates nor the ROI nor the tracker reason from it."""
-        note = ""
-        if self.last_t is not None and t < self.last_t:
-            note = f"time went back {self.last_t - t:.3g} s: state reset"
+        event, note = clock_event(self.last_t, self.last, t, self.config.prior_timeout_s)
+        if event == "reset":
             self.reset()
-        elif self.last is not None and t - self.last.t > self.config.prior_timeout_s:
-            note = f"last pose {t - self.last.t:.3g} s old: prior dropped"
+        elif event == "drop":
             self.last = None
             self.flow.reset()
         self.last_t = t
@@ -303,7 +310,7 @@ class HierarchicalLocalizer:
         if gray.shape != (self.camera.height, self.camera.width):
             return Estimate(t, self.phase, "lost", None,
                             reason=f"image is {gray.shape[1]}x{gray.shape[0]}, camera is {self.camera.width}x{self.camera.height}")
-        up_C = self._up_C(R_W_B)
+        up_C = up_in_camera(R_W_B, self.T_B_C)
         cfg = self.config
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
@@ -347,9 +354,6 @@ class HierarchicalLocalizer:
             rejected.reason = "; ".join(reasons)
             return rejected
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
-
-    def _up_C(self, R_W_B):
-        return up_in_camera(R_W_B, self.T_B_C)
 
     def _update_phase(self, h) -> None:
         self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)
@@ -429,28 +433,28 @@ class GatedLocalizer:
     def process(self, image, t: float, imu=None) -> Estimate:
         t0 = time.perf_counter()
         est = guarded_process(self.inner.process, image, t, imu, "")
+        tf, bad_time = frame_time(est.t)
+        if not bad_time:
+            event, _ = clock_event(self.last_t, self.last, tf, self.config.prior_timeout_s)
+            if event == "reset":
+                self.gates.reset()
+            if event:
+                self.last = None
+            self.last_t = tf
         if est.status == "ok":
             try:
-                self._gate(est, float(est.t), imu)
+                self._gate(est, imu)
             except Exception as err:  # never raise on an image
                 est.status, est.reason = "lost", f"internal error in the gates: {type(err).__name__}: {err}"
         est.ms = (time.perf_counter() - t0) * 1000.0
         return est
 
-    def _gate(self, est: Estimate, t: float, imu) -> Estimate:
-        if self.last_t is not None and t < self.last_t:  # a new run: no prior from the old one
-            self.gates.reset()
-            self.last = None
-        elif self.last is not None and t - self.last.t > self.config.prior_timeout_s:
-            self.last = None
-        self.last_t = t
+    def _gate(self, est: Estimate, imu) -> None:
         if est.cam2pad is None or np.shape(est.cam2pad) != (4, 4) or not np.all(np.isfinite(est.cam2pad)):
             est.status, est.reason = "lost", "the localizer said ok without a finite pose"
-            return est
-        R_W_B, _ = imu_check(imu)
-        verdict = self.gates.check(est, R_W_B, self.last)
+            return
+        verdict = self.gates.check(est, imu_check(imu)[0], self.last)
         if verdict:
             est.status, est.reason = "rejected", verdict
         else:
             self.last = est
-        return est

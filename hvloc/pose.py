@@ -117,6 +117,17 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
 
 
+def _linearised(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, eps: float = 1e-6) -> tuple:
+    """The reprojection and gravity-prior problems linearised at ``cam2pad`` by forward differences
+    over (position, rotation vector of ``R_P_C @ exp(d)``): ``(pixel residuals (2n,), their
+    Jacobian (2n, 6), the pad's normal in C (3,), its Jacobian (3, 6))``."""
+    Ts = _perturbed(cam2pad, eps)
+    proj = _project_poses(camera, Ts, pts_P)
+    normal = np.einsum("kji,j->ki", Ts[:, :3, :3], np.array([0.0, 0.0, 1.0]))  # R^T z
+    return ((proj[0] - px).ravel(), ((proj[1:] - proj[0]).reshape(6, -1) / eps).T,
+            normal[0], ((normal[1:] - normal[0]) / eps).T)
+
+
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
                     sigma_up_rad: float | None = None) -> np.ndarray:
@@ -124,18 +135,12 @@ def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
     the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
     ``min_sigma_px`` squared).  With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
     gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too."""
-    eps = 1e-6
-    Ts = _perturbed(cam2pad, eps)
-    proj = _project_poses(camera, Ts, pts_P)
-    r0 = (proj[0] - px).ravel()
-    J = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T
+    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
     dof = max(r0.size - 6, 1)
     sigma2 = max(float(r0 @ r0) / dof, min_sigma_px ** 2)
     info = J.T @ J / sigma2
     if up_C is not None and sigma_up_rad:
-        normal = np.einsum("kji,j->ki", Ts[:, :3, :3], np.array([0.0, 0.0, 1.0]))  # pad normal in C
-        Jp = ((normal[1:] - normal[0]) / (eps * sigma_up_rad)).T
-        info = info + Jp.T @ Jp
+        info = info + Jn.T @ Jn / sigma_up_rad ** 2
     try:
         return np.linalg.inv(info)
     except np.linalg.LinAlgError:
@@ -152,16 +157,11 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
     """
     T = cam2pad.copy()
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
-    z = np.array([0.0, 0.0, 1.0])
-    eps = 1e-6
 
-    def system(T):
-        Ts = _perturbed(T, eps)
-        proj = _project_poses(camera, Ts, pts_P)
-        pr = (np.einsum("kji,j->ki", Ts[:, :3, :3], z) - up) / sigma_up_rad  # pad normal in C minus up
-        r = np.concatenate([((proj[0] - px) / sigma_px).ravel(), pr[0]])
-        J = np.concatenate([((proj[1:] - proj[0]).reshape(6, -1) / sigma_px).T, (pr[1:] - pr[0]).T], axis=0) / eps
-        return r, J
+    def system(T):  # whitened residuals and Jacobian: pixels, then the normal's distance from up
+        r, J, n, Jn = _linearised(camera, T, pts_P, px)
+        return (np.concatenate([r / sigma_px, (n - up) / sigma_up_rad]),
+                np.concatenate([J / sigma_px, Jn / sigma_up_rad], axis=0))
 
     r0, J = system(T)
     lam = 1e-6

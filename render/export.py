@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hvloc.geometry import invert, quat_xyzw_from_matrix, transform_from_tum
+from hvloc.geometry import quat_xyzw_from_matrix, transform_from_tum
 from pad_design.errors import ArgumentParser, InputError, prepare_out_dir, progress_bar
 
-from .dataset import POSE, Dataset, FolderLock
+from .dataset import POSE, Dataset, FolderLock, finalize_sequence, write_csv
 
 DEFAULT_EPOCH_S = 1_700_000_000  # 2023-11-14T22:13:20Z
 FORMATS = ("euroc", "rosbag2", "coco")
@@ -50,12 +50,6 @@ def stamps_ns(t, epoch_s: float = DEFAULT_EPOCH_S) -> np.ndarray:
 def _poses(seq, prefix: str = "") -> np.ndarray:
     """``(N, 7)`` poses ``tx ty tz qx qy qz qw`` of a frames.csv pose group (``""``: T_P_C)."""
     return np.column_stack([seq.columns[prefix + c].astype(np.float64) for c in POSE])
-
-
-def _finish(tmp: Path, final: Path) -> None:
-    if final.exists():
-        shutil.rmtree(final)
-    os.replace(tmp, final)
 
 
 def _fresh(path: Path) -> Path:
@@ -89,11 +83,8 @@ def _matrix_yaml(T) -> str:
 
 
 def _write_csv(path: Path, header: str, rows) -> None:
-    with open(path, "w") as f:
-        f.write(header + "\n")
-        for r in rows:
-            f.write(",".join(v if isinstance(v, str) else (str(int(v)) if isinstance(v, (int, np.integer))
-                                                            else repr(float(v))) for v in r) + "\n")
+    """EuRoC's CSV: its header line as the spec writes it, then the rows (``write_csv``'s numbers)."""
+    write_csv(path, header.split(","), rows)
 
 
 def export_euroc_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> None:
@@ -358,7 +349,7 @@ def coco_annotations(seq, geometry, image_id0: int, ann_id0: int, rel: str) -> t
 MARKER_CATEGORY = {"finder": 2, "aruco": 3}
 
 
-def export_coco(ds: Dataset, out: Path, sequence_ids: list, show_progress: bool) -> Path:
+def export_coco(ds: Dataset, out: Path, sequence_ids: list) -> Path:
     geometry = ds[sequence_ids[0]].pad.geometry
     names = pad_keypoint_names(geometry)
     doc = {"info": {"description": f"hvloc dataset {ds.manifest['name']} (spec {ds.manifest['spec_sha256'][:12]})",
@@ -406,7 +397,7 @@ def export_dataset(fmt: str, root, out, epoch_s: float = DEFAULT_EPOCH_S, sequen
     paths = []
     with FolderLock(out, "exporting into"):
         if fmt == "coco":
-            paths.append(export_coco(ds, out, ids, show_progress))
+            paths.append(export_coco(ds, out, ids))
         else:
             imu_spec = _imu_spec(ds)
             write = export_euroc_sequence if fmt == "euroc" else export_rosbag2_sequence
@@ -420,7 +411,7 @@ def export_dataset(fmt: str, root, out, epoch_s: float = DEFAULT_EPOCH_S, sequen
                 except BaseException:
                     shutil.rmtree(tmp, ignore_errors=True)
                     raise
-                _finish(tmp, out / sid)
+                finalize_sequence(tmp, out / sid)
                 paths.append(out / sid)
                 if bar:
                     bar.update(1)
