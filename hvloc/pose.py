@@ -37,11 +37,14 @@ def tilt_disagreement(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px
     z = cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # pad normal in C
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
     ang = float(np.degrees(np.arccos(np.clip(z @ up, -1.0, 1.0))))
-    cov = pose_covariance(camera, cam2pad, pts_P, px, min_sigma_px=sigma_px)[3:, 3:]  # rotation vector in P
+    cov = pose_covariance(camera, cam2pad, pts_P, px, min_sigma_px=sigma_px)[3:, 3:]  # rotation about C's axes
     if not np.isfinite(cov).all():
         return ang, float("inf")
-    # rotation about the pad's x and y axes tilts its normal; about z it does not
-    var = float(cov[0, 0] + cov[1, 1]) / 2.0
+    # a rotation tilts the normal by its part across the normal (about the normal it does nothing):
+    # the covariance projected on the plane across the normal, per axis.  Any camera mount: the
+    # normal is C's z only for a camera looking straight down
+    P = np.eye(3) - np.outer(z, z)
+    var = float(np.trace(P @ cov @ P)) / 2.0
     return ang, float(np.degrees(np.sqrt(max(var, 0.0))))
 
 

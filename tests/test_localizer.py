@@ -455,3 +455,34 @@ def test_a_pose_whose_tilt_the_imu_contradicts_is_never_accepted(pad, offset_deg
             assert e.ok, e.reason
         else:
             assert e.status != "ok" and "disagrees with the IMU's gravity" in e.reason, e.reason
+
+
+@pytest.mark.parametrize("off_nadir_deg", [30.0, 60.0])
+def test_image_only_tilt_sigma_is_calibrated_off_nadir(off_nadir_deg):
+    """The tilt gate weighs the image-only tilt by its predicted sigma: for a camera looking at the
+    pad obliquely that prediction must match the spread of the tilt under pixel noise."""
+    import math
+
+    from hvloc.geometry import Camera, make_transform
+    from hvloc.pose import solve_planar_pose, tilt_disagreement
+    from pad_design import make_pad
+
+    cam = Camera.from_hfov(640, 480, math.radians(70))
+    pts = np.concatenate([m.points for m in make_pad().geometry.markers])
+    a = math.radians(off_nadir_deg)
+    eye = np.array([0.0, -2.5 * math.sin(a), 2.5 * math.cos(a)])
+    z = -eye / np.linalg.norm(eye)
+    x = np.array([1.0, 0.0, 0.0])
+    R = np.column_stack([x, np.cross(z, x), z])
+    px0 = cam.project_from(make_transform(R, eye), pts)
+    up = R.T @ np.array([0.0, 0.0, 1.0])
+    rng = np.random.default_rng(0)
+    tilts, sig = [], []
+    for _ in range(200):
+        px = px0 + rng.normal(0, 0.3, px0.shape)
+        res = solve_planar_pose(cam, pts, px)
+        n = res.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        tilts.append(math.degrees(math.acos(np.clip(n @ up, -1, 1))))
+        sig.append(tilt_disagreement(cam, res.cam2pad, pts, px, up, 0.3)[1])
+    measured = math.sqrt(np.mean(np.square(tilts)) / 2)  # per axis: the tilt angle is 2-D
+    assert np.median(sig) == pytest.approx(measured, rel=0.2)
