@@ -334,8 +334,13 @@ class SequenceRenderer:
                "blur_subframes": n}
         for i in range(4):
             row[f"c{i}u"], row[f"c{i}v"] = px[i]
+        # a rolling shutter can carry a corner seen at the frame time out of the image at its row's
+        # time: then it is not in view, whatever the frame-time visibility said
+        in_view = np.isfinite(px).all(axis=1)
         for i in range(4):
-            row[f"c{i}_visible"] = bool(facts["corner_visible"][i])
+            row[f"c{i}_visible"] = bool(facts["corner_visible"][i]) and bool(in_view[i])
+        if not in_view.all():
+            row["pad_fully_visible"] = False
         for name, vis in facts["marker_visible"].items():
             row[f"marker_{name.lower()}_visible"] = vis
         row["pad_visible_fraction"] = facts["pad_visible_fraction"]
