@@ -34,7 +34,7 @@ def main(argv: list) -> int:
     r.add_argument("--no-verify", action="store_true",
                    help="use datasets even if their files differ from the checksums in their manifests")
     r.add_quiet()
-    w = sub.add_parser("sweep", help="grid over the two switch heights, ~ the cost of one localizer pass")
+    w = sub.add_parser("sweep", help="grid over the two switch heights: every point a live run, image work shared")
     w.add_argument("suite", help="suite YAML, or a name in data_specs/suites/ (its first localizer is swept)")
     w.add_argument("--adjust-heights", type=float, nargs="+", default=[3.0, 5.0, 7.0, 9.0, 12.0],
                    help="heights (m) below which the markers take over from the outline")
@@ -43,7 +43,7 @@ def main(argv: list) -> int:
     w.add_argument("--max-pos-err-pct", type=float, default=2.0, help="error bound for the recommendation")
     w.add_argument("--out", required=True, help="folder for sweep.json, the heat maps and the datasets")
     w.add_argument("--workers", type=workers_arg, default=1,
-                   help="processes that render the suite's datasets")
+                   help="processes that render the suite's datasets, then localize (one sequence each)")
     w.add_quiet()
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")

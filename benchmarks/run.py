@@ -96,13 +96,17 @@ def pad_variants(kind: str) -> tuple:
     return tuple(getattr(localizer_class(kind), "PAD_VARIANTS", VARIANTS))
 
 
-def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False):
+def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False, work=None):
     """A localizer for one sequence's pad and camera; ``gates``: hvloc's false-pose gates in front
     of it (:class:`hvloc.localizer.GatedLocalizer`; hvloc's own localizer has them built in).
-    A localizer from elsewhere always runs behind ``guarded_process``: it never raises."""
+    A localizer from elsewhere always runs behind ``guarded_process``: it never raises.
+    ``work``: an :class:`hvloc.work.ImageWork` that hvloc's localizers of this sequence share."""
     from hvloc.localizer import GatedLocalizer
 
-    loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
+    if kind == "hierarchical":
+        loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C, work=work)
+    else:
+        loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
     if gates and kind != "hierarchical":
         return GatedLocalizer(loc, config, seq.T_B_C)
     if kind not in KINDS:
@@ -132,15 +136,22 @@ def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progre
     return localize_sequence_many(seq, [(config, use_imu, kind, False)], progress, on_estimate)[0]
 
 
-def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None) -> list:
+def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, share_work: bool = True) -> list:
     """Several localizers ``[(config, use_imu, kind[, gates]), ...]`` over one sequence, each image read once.
-    ``on_estimate(estimate)`` sees the first localizer's estimate of each frame as it is made."""
-    locs = [make_localizer(s[2], seq, s[0], bool(s[3]) if len(s) > 3 else False) for s in setups]
+    ``on_estimate(estimate)`` sees the first localizer's estimate of each frame as it is made.
+    ``share_work``: hvloc's localizers share their image work (:mod:`hvloc.work`; each one's estimates
+    are exactly what it makes alone, for less work where their states agree)."""
+    from hvloc.work import ImageWork
+
+    work = ImageWork() if share_work and sum(s[2] == "hierarchical" for s in setups) > 1 else None
+    locs = [make_localizer(s[2], seq, s[0], bool(s[3]) if len(s) > 3 else False, work=work) for s in setups]
     imu = seq.imu
     out = [[] for _ in setups]
     for k in range(len(seq)):
         t = float(seq.t[k])
         img = seq.image(k)
+        if work is not None:
+            work.begin(k)
         sample = imu_at(imu, t)
         for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))

@@ -232,7 +232,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
     return results
 
 
-def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bool) -> int:
+def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bool, share_work: bool = True) -> int:
     """Every setup over one sequence (each image read once), estimates written; returns the frame
     count.  A unit of work for :func:`render.executor.run_units`."""
     from render.dataset import Dataset
@@ -242,7 +242,7 @@ def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bo
 
     seq = Dataset(droot, verify=verify)[seq_id]
     ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(s[0]), *s[1:]) for s in setups],
-                                  report_progress)
+                                  report_progress, share_work=share_work)
     for d, est in zip(dirs, ests):
         write_estimates(Path(d), est)
     return len(seq)

@@ -19,6 +19,7 @@ from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
 from .pose import PoseResult, solve_planar_pose
+from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
 METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown"}
@@ -263,11 +264,15 @@ class FalsePoseGates:
 class HierarchicalLocalizer:
     """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``."""
 
-    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None):
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
+                 work: ImageWork | None = None):
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
         self.camera = camera
         self.config = config or LocalizerConfig()
         self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
+        # the image work; localizers of one pad and camera that see the same frames may share one
+        # (hvloc.work): their estimates are exactly what each would make alone
+        self.work = work if work is not None else ImageWork()
         self.outer_P = self.geometry.outer_corners
         self.reset()
 
@@ -276,7 +281,7 @@ class HierarchicalLocalizer:
         self.last: Estimate | None = None       # last accepted estimate
         self.last_t: float | None = None         # time of the last frame processed (any status)
         self.gates = FalsePoseGates(self.config, self.T_B_C)
-        self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks)
+        self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
 
     # ------------------------------------------------------------------ public
     def process(self, image, t: float, imu=None) -> Estimate:
@@ -304,7 +309,7 @@ class HierarchicalLocalizer:
         return est
 
     def _estimate(self, image, t: float, R_W_B) -> Estimate:
-        rgb, gray, why = check_image(image)
+        rgb, gray, why = self.work(("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
         if gray.shape != (self.camera.height, self.camera.width):
@@ -373,16 +378,23 @@ class HierarchicalLocalizer:
         attempts = [roi, None] if roi is not None else [None]
         why = ""
         for r in attempts:
+            # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
+            # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                hint = None
-                if prior is not None:
-                    hint = self.camera.project_from(prior, self.outer_P[:1])[0]
-                det, why = ph.detect_outline(rgb, self.geometry, self.camera, roi=r, yaw_hint_corner0=hint)
+                found, why = self.work(("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
+                det = None
+                if found is not None:
+                    hint = self.camera.project_from(prior, self.outer_P[:1])[0] if prior is not None else None
+                    det, why = ph.name_outline(found, self.geometry, hint)
             else:
-                det, why = ph.detect_markers(gray, self.geometry, self.camera, roi=r, method=cfg.binarization,
-                                             rgb=rgb if cfg.use_outline else None, up_C=up_C)
+                use_rgb = rgb if cfg.use_outline else None
+                det, why = self.work(("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C)),
+                                     ph.detect_markers, gray, self.geometry, self.camera, roi=r,
+                                     method=cfg.binarization, rgb=use_rgb, up_C=up_C)
             if det is not None:
-                pose = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
+                pose = self.work(("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
+                                  array_key(prior) if up_C is None else None),
+                                 solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
                 if pose is not None:
                     return (pose, len(det.pts_P), dict(det.info, roi=r is not None, tilt_err_deg=pose.tilt_err_deg,
                                                        tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"

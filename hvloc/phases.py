@@ -14,6 +14,7 @@ from .features import refine_quad, refine_quads
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
+from .work import ImageWork, array_key
 
 
 @dataclass
@@ -50,6 +51,17 @@ def _hsv_mask(hsv: np.ndarray, rng) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- Approaching
 
+@dataclass
+class OutlineQuad:
+    """The pad's outline found in an image, not yet named: ``quad_px`` (4, 2) sub-pixel corners in
+    image order (counter-clockwise on screen), ``cue`` (4,) the share of cue colour at each corner."""
+
+    quad_px: np.ndarray
+    cue: np.ndarray
+    side_px: float
+    line_rms: object
+
+
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    yaw_hint_corner0: np.ndarray | None = None, max_scale: int = 8) -> tuple:
     """The pad's outer corners (TL, TR, BR, BL) by colour segmentation.
@@ -59,6 +71,16 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     and the corner order comes from the yellow cue corner (bottom-right), or, when the cue cannot
     be read, from ``yaw_hint_corner0``: the predicted pixel of the TL corner.
     """
+    found, why = find_outline(rgb, pad_geometry, camera, roi, max_scale)
+    if found is None:
+        return None, why
+    return name_outline(found, pad_geometry, yaw_hint_corner0)
+
+
+def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
+                 max_scale: int = 8) -> tuple:
+    """``(OutlineQuad | None, reason)``: the image work of :func:`detect_outline` (segmentation,
+    quad, sub-pixel sides, the cue colour at each corner), which no prior influences."""
     img, x0, y0 = _crop(rgb, roi)
     if img.shape[0] < 8 or img.shape[1] < 8:
         return None, "image too small"
@@ -122,12 +144,12 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             best, best_score = quad, score
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return detect_outline(rgb, pad_geometry, camera, roi, yaw_hint_corner0, max_scale=1)
+            return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
         return None, "no pad-coloured quadrilateral"
     quad = best
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return detect_outline(rgb, pad_geometry, camera, roi, yaw_hint_corner0, max_scale=1)
+        return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
@@ -176,7 +198,13 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         phsv = cv2.cvtColor(patch, cv2.COLOR_RGB2HSV)
         m = _hsv_mask(phsv, cue) | _colour_evidence(patch, phsv, cue, pad_geometry.cue.color_rgb)
         yellow.append(float(m.mean()) / 255.0)
-    yellow = np.array(yellow)
+    return OutlineQuad(refined, np.array(yellow), side_px, res), "ok"
+
+
+def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None) -> tuple:
+    """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
+    (bottom-right), or, when it cannot be read, by ``yaw_hint_corner0`` (the predicted TL pixel)."""
+    refined, yellow = found.quad_px, found.cue
     info_yellow = [round(float(y), 2) for y in yellow]
     order = None
     how = "cue"
@@ -191,7 +219,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     refined = refined[order]
     pts = pad_geometry.outer_corners
-    return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": side_px, "line_rms": res}), "ok"
+    return Detection(pts, refined, "outline", {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}), "ok"
 
 
 def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chroma: float = 0.15) -> np.ndarray:
@@ -422,15 +450,23 @@ class Keyframe:
     pts_P: np.ndarray     # (N, 3) the same features on the pad plane
     anchored: bool        # made from a pad-anchored pose (markers/outline), not a chained one
     cov: np.ndarray | None = None  # the keyframe pose's 6x6 covariance: every pose tracked from it inherits it
+    tag: object = None    # the frame it was made from, as :class:`ImageWork` names frames
+
+
+def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None) -> np.ndarray | None:
+    """``(N, 2)`` pixels of a frame's strongest Harris corners, or ``None``."""
+    pts = cv2.goodFeaturesToTrack(gray, max_corners, 0.005, 8, mask=mask, blockSize=5, useHarrisDetector=True, k=0.04)
+    return None if pts is None else pts[:, 0, :].astype(np.float64)
 
 
 def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchored: bool,
-                  max_corners: int = 150, mask: np.ndarray | None = None, cov: np.ndarray | None = None) -> Keyframe | None:
-    """Harris corners of a frame, placed on the pad plane with the frame's pose."""
-    pts = cv2.goodFeaturesToTrack(gray, max_corners, 0.005, 8, mask=mask, blockSize=5, useHarrisDetector=True, k=0.04)
-    if pts is None or len(pts) < 8:
+                  max_corners: int = 150, mask: np.ndarray | None = None, cov: np.ndarray | None = None,
+                  corners_px: np.ndarray | None = None) -> Keyframe | None:
+    """Harris corners of a frame (``corners_px`` when already found), placed on the pad plane with
+    the frame's pose."""
+    px = harris_corners(gray, max_corners, mask) if corners_px is None else corners_px
+    if px is None or len(px) < 8:
         return None
-    px = pts[:, 0, :].astype(np.float64)
     rays = np.column_stack([camera.normalized_from_pixels(px), np.ones(len(px))])  # camera frame
     R, t = cam2pad[:3, :3], cam2pad[:3, 3]
     d = rays @ R.T  # ray directions in P
@@ -512,15 +548,18 @@ class FlowTracker:
     too much (scale, too few tracks).  Drift grows only at keyframe renewals.
     """
 
-    def __init__(self, camera: Camera, reanchor_scale: float = 1.15, min_tracks: int = 30):
+    def __init__(self, camera: Camera, reanchor_scale: float = 1.15, min_tracks: int = 30,
+                 work: ImageWork | None = None):
         self.camera = camera
         self.reanchor_scale = reanchor_scale
         self.min_tracks = min_tracks
+        self.work = work if work is not None else ImageWork()
         self.reset()
 
     def reset(self) -> None:
         self.kf: Keyframe | None = None
         self.prev_gray = None
+        self.prev_tag = None
         self.tracks = None
         self.pending = None
         self.frames_since_kf = 0
@@ -529,11 +568,16 @@ class FlowTracker:
     def ready(self) -> bool:
         return self.kf is not None and self.prev_gray is not None
 
-    def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None) -> bool:
-        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov)
+    def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None) -> bool:
+        """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
+        :class:`ImageWork` is at) and its pose."""
+        tag = self.work.frame if tag is None else tag
+        corners = self.work(("harris", tag), harris_corners, gray)
+        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners)
         if kf is None:
             return False
-        self.kf, self.tracks, self.prev_gray, self.frames_since_kf = kf, kf.px.copy(), kf.gray, 0
+        kf.tag = tag
+        self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
         self.pending = None
         return True
 
@@ -541,13 +585,18 @@ class FlowTracker:
         """``(PoseResult | None, n_inliers, reason)`` for ``gray``."""
         if not self.ready:
             return None, 0, "no keyframe"
-        px = track_to_keyframe(self.kf, self.prev_gray, self.tracks, gray)
-        self.pending = (gray, px)
-        res, inl, why = pose_from_tracks(self.camera, self.kf, px, prior_cam2pad, up_C)
-        if res is not None and self.kf.cov is not None:
+        w, kf = self.work, self.kf
+        px = w(("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks)),
+               track_to_keyframe, kf, self.prev_gray, self.tracks, gray)
+        self.pending = (gray, px, w.frame)
+        # the prior only breaks IPPE's tie when there is no gravity (see solve_planar_pose)
+        res, inl, why = w(("tracks_pose", array_key(kf.pts_P), array_key(px), array_key(up_C),
+                           array_key(prior_cam2pad) if up_C is None else None),
+                          pose_from_tracks, self.camera, kf, px, prior_cam2pad, up_C)
+        if res is not None and kf.cov is not None:
             # the pad points were placed with the keyframe's pose: its error is in every tracked pose
             # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
-            res.cov = res.cov + self.kf.cov
+            res.cov = res.cov + kf.cov
         return res, int(inl.sum()), why
 
     def accept(self, cam2pad, rms_px: float = 0.0, cov: np.ndarray | None = None) -> None:
@@ -556,7 +605,7 @@ class FlowTracker:
         enough that LK against the keyframe degrades, tracks were lost, or the fit loosens."""
         if self.pending is None:
             return
-        gray, px = self.pending
+        gray, px, tag = self.pending
         self.pending = None
         self.frames_since_kf += 1
         n_ok = int(np.isfinite(px).all(axis=1).sum())
@@ -564,15 +613,15 @@ class FlowTracker:
         turn = rotation_angle(self.kf.cam2pad[:3, :3], cam2pad[:3, :3])
         if (n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not (1 / self.reanchor_scale < scale < self.reanchor_scale)
                 or turn > math.radians(8.0) or rms_px > 0.5):
-            if self.anchor(gray, cam2pad, anchored=False, cov=cov):
+            if self.anchor(gray, cam2pad, anchored=False, cov=cov, tag=tag):
                 return
-        self.tracks, self.prev_gray = px, gray
+        self.tracks, self.prev_gray, self.prev_tag = px, gray, tag
 
     def skip(self) -> None:
         """The last tracked frame's pose was not accepted: keep its tracks (the next frame is
         closer to it than to the older one), keep the keyframe."""
         if self.pending is not None:
-            self.prev_gray, self.tracks = self.pending
+            self.prev_gray, self.tracks, self.prev_tag = self.pending
             self.pending = None
 
 
