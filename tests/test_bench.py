@@ -63,6 +63,10 @@ def test_results_schema_and_provenance(smoke):
     assert r["summary"]["hierarchical"]["tier:nominal/gt:touchdown"] == r["summary"]["hierarchical"]["gt:touchdown"]
     report = (out / "report.md").read_text()
     assert "### `tiny_aruco`\n\n| localizer" in report and "| aruco_solvepnp | touchdown |" in report
+    # per descent: the peer beside hvloc on the same flight (its own pad), one landing figure each
+    assert "| tiny/seq_0000 | hierarchical | straight |" in report and "| tiny/seq_0000 | aruco_solvepnp |" in report
+    assert "| tiny/seq_0001 | aruco_solvepnp |" not in report  # the peer flew only the first descent
+    assert (out / "plots" / "landing_tiny_seq_0000.png").stat().st_size > 20_000
     csv_head = (out / "results.csv").read_text().splitlines()[0]
     assert csv_head.startswith("localizer,dataset,sequence,frame,t,height_m,phase_gt,phase_est,status")
 
@@ -334,3 +338,21 @@ def test_intervals_over_descents_and_a_compare_that_knows_them(smoke, tmp_path):
         plain = [w for w in compare(new, r) if w[:3] == ("hierarchical", "all", "availability")]
         assert bool(plain) and bool(rows) == flagged, (drop, rows)
 
+
+def test_report_gives_every_tier_its_own_table(tmp_path):
+    s = tmp_path / "tiers.yaml"
+    s.write_text("name: tiers\ndatasets:\n"
+                 "  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 1, tier: nominal}\n"
+                 "  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 2, tier: hard,"
+                 " overrides: {name: tiny_dusk, environment: {sun_intensity: [0.6, 0.8]}}}\n"
+                 "localizers: [{name: hierarchical}]\n")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o"), "-q"],
+                       capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    res = json.loads((tmp_path / "o" / "results.json").read_text())["summary"]["hierarchical"]
+    report = (tmp_path / "o" / "report.md").read_text()
+    for tier in ("nominal", "hard"):
+        section = report.split(f"### tier `{tier}`", 1)[1].split("###", 1)[0]
+        a = res[f"tier:{tier}/all"]
+        assert f"| hierarchical | all | {a['frames']} | {100 * a['availability']:.1f} % |" in section
+    assert res["tier:nominal/all"]["frames"] + res["tier:hard/all"]["frames"] == res["all"]["frames"]
