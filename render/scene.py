@@ -216,6 +216,9 @@ class LandingScene:
         k = amb / horizontal
         self.shadow_alpha = float(np.clip(1 - k ** (1 / 2.2), 0.0, 0.95)) if shadows else 0.0
         self._shade = lambda sx, sy: flat_quad((0, 0, 0), sx, sy, self.shadow_alpha)
+        # the layer that shadows on the ground lie in: above the pad when the pad lies on the ground
+        # (a shadow in the pad's own plane z-fights with it: the depth test then draws it in stripes)
+        self.ground_shadow_z = SHADOW_LIFT_M + (0.0 if self.has_platform_box else self.pad_surface_z)
         if shadows and self.shadow_alpha > 0 and draw.boxes:
             self._add_box_shadows(draw.boxes)
         if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
@@ -288,7 +291,7 @@ class LandingScene:
         normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
         prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv, material=mat,
                             indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
-        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, SHADOW_LIFT_M * 2)), "shadow_boxes",
+        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, self.ground_shadow_z)), "shadow_boxes",
                   parent=parent)
 
     def set_platform(self, pad2world: np.ndarray) -> None:
@@ -313,7 +316,8 @@ class LandingScene:
             on_platform = max(abs(rel[0]), abs(rel[1])) <= max(self.platform_size, 0.0) / 2 and self.platform_height > 0
             if surface == 0.0 or on_platform:
                 break
-        z = surface + SHADOW_LIFT_M if surface > 0 else SHADOW_LIFT_M * 3
+        # one layer above the others (a translucent layer in another's plane z-fights with it too)
+        z = surface + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
         self.scene.set_pose(self.drone_shadow, make_transform(rotation_z(yaw), (xy[0], xy[1], z)))
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
