@@ -10,6 +10,7 @@ COMMANDS = {
     "pad": ("pad_design.cli", "design a landing pad: texture, pad.json geometry, printable PDFs"),
     "generate": ("render.cli:generate_main", "render labelled landing sequences from a dataset spec"),
     "dataset": ("render.cli:dataset_main", "verify or look at a generated dataset"),
+    "camera": ("render.cli:camera_main", "import a camera calibration (Kalibr, ROS CameraInfo, OpenCV) into a spec"),
     "export": ("render.export:export_main", "write a dataset as EuRoC/ASL folders, ROS 2 bags or COCO keypoints"),
     # the harness that feeds datasets to the localizer reads them with render/, which hvloc/ may not
     # import (DESIGN.md layout), so it lives in benchmarks/

@@ -70,3 +70,46 @@ def dataset_main(argv: list) -> int:
     path = contact_sheet(a.dir, a.seq, a.frames, a.out)
     print(path)
     return 0
+
+
+def camera_main(argv: list) -> int:
+    p = ArgumentParser(prog="hvloc camera", description="Cameras from the calibration files people have.")
+    sub = p.add_subparsers(dest="action", required=True)
+    i = sub.add_parser("import", help="a Kalibr camchain, ROS CameraInfo or OpenCV calibration as a spec's camera")
+    i.add_argument("calibration", help="calibration file: Kalibr camchain YAML, ROS CameraInfo YAML, OpenCV "
+                                       "FileStorage (YAML, XML, JSON)")
+    i.add_argument("--name", help="the camera of a Kalibr camchain (default: the first, cam0)")
+    i.add_argument("--spec", help="a dataset spec whose camera to replace (with --out): its other fields stay")
+    i.add_argument("--out", help="where to write that spec (with --spec); without, the camera block is printed")
+    a = p.parse_args(argv)
+    import yaml
+
+    from .calibration import read_calibration
+
+    if (a.spec is None) != (a.out is None):
+        raise InputError("--spec and --out go together (a spec to change, and where to write it)")
+    cal = read_calibration(a.calibration, a.name)
+    fields = cal.spec_fields()
+    header = (f"# {cal.source} from {a.calibration}: {cal.width}x{cal.height}, fx {cal.fx:.6g}, fy {cal.fy:.6g}, "
+              f"cx {cal.cx:.6g}, cy {cal.cy:.6g}, k1 k2 p1 p2 k3 {list(cal.dist)}\n")
+    if a.spec is None:
+        print(header + yaml.safe_dump({"camera": fields}, sort_keys=False, default_flow_style=None), end="")
+        return 0
+    from pad_design.errors import yaml_load
+
+    from .dataset import atomic_write_text
+    from .spec import DatasetSpec
+
+    try:
+        doc = yaml_load(Path(a.spec).read_text(encoding="utf-8")) or {}
+    except OSError as err:
+        raise InputError(f"{a.spec}: cannot read ({err.strerror or err})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{a.spec}: not a dataset spec (expected a mapping at the top)")
+    doc["camera"] = {**(doc.get("camera") or {}), **fields}
+    validate_model(DatasetSpec, doc, f"{a.spec} with the camera of {a.calibration}")  # refused before written
+    if Path(a.out).exists():
+        raise InputError(f"{a.out}: exists; choose a new file")
+    atomic_write_text(Path(a.out), header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+    print(f"{a.out}: {a.spec} with the camera of {a.calibration}")
+    return 0
