@@ -81,15 +81,21 @@ def yaml_load(text: str):
     return yaml.load(text, Loader=_Yaml12Loader)  # noqa: S506  (a SafeLoader subclass)
 
 
-def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
-    """Read a YAML file into a validated pydantic model; every failure is an :class:`InputError`."""
+def read_user_text(path, what: str = "YAML") -> str:
+    """A user's text file; a file that cannot be read or is not UTF-8 text is an :class:`InputError`."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except OSError as err:
         raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file (YAML must be UTF-8 text)") from None
+        raise InputError(f"{path}: not a text file ({what} must be UTF-8 text)") from None
+
+
+def load_yaml_model(model: type[BaseModel], path) -> BaseModel:
+    """Read a YAML file into a validated pydantic model; every failure is an :class:`InputError`."""
+    path = Path(path)
+    text = read_user_text(path)
     try:
         data = yaml_load(text)
     except yaml.YAMLError as err:

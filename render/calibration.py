@@ -18,30 +18,30 @@ from pathlib import Path
 
 import numpy as np
 
-from pad_design.errors import InputError
+from hvloc.geometry import Camera
+from pad_design.errors import InputError, read_user_text
 
 
 @dataclass(frozen=True)
 class Calibration:
-    """A pinhole with radial-tangential distortion: pixels, OpenCV's convention."""
+    """A calibrated camera (:class:`hvloc.geometry.Camera`: pinhole, radial-tangential, OpenCV's
+    pixels) and what it was read from."""
 
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    dist: tuple  # k1 k2 p1 p2 k3
-    source: str  # what it was read from, for the record
+    camera: Camera
+    source: str
+
+    def __getattr__(self, name):  # cal.fx, cal.width, ...: the camera's
+        return getattr(self.__dict__["camera"], name)
 
     def spec_fields(self) -> dict:
         """The ``camera:`` fields of a dataset spec that give exactly this camera
         (``render.plan.camera_from_spec`` reads them back to the same fx, fy, cx, cy)."""
-        return {"width": self.width, "height": self.height,
-                "hfov_deg": math.degrees(2.0 * math.atan((self.width / 2.0) / self.fx)),
-                "fy_over_fx": self.fy / self.fx,
-                "principal_offset_px": [self.cx - (self.width - 1) / 2.0, self.cy - (self.height - 1) / 2.0],
-                "dist": [float(d) for d in self.dist]}
+        c = self.camera
+        return {"width": c.width, "height": c.height,
+                "hfov_deg": math.degrees(2.0 * math.atan((c.width / 2.0) / c.fx)),
+                "fy_over_fx": c.fy / c.fx,
+                "principal_offset_px": [c.cx - (c.width - 1) / 2.0, c.cy - (c.height - 1) / 2.0],
+                "dist": [float(d) for d in c.dist]}
 
 
 def _radtan(coeffs, where: str) -> tuple:
@@ -65,14 +65,15 @@ def _camera_matrix(K, where: str) -> tuple:
     return float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
 
 
-def _checked(cal: Calibration, where: str) -> Calibration:
-    if cal.width < 16 or cal.height < 16:
-        raise InputError(f"{where}: image size {cal.width}x{cal.height} is too small")
-    if not (cal.fx > 0 and cal.fy > 0 and math.isfinite(cal.fx) and math.isfinite(cal.fy)):
-        raise InputError(f"{where}: focal lengths must be positive (fx {cal.fx}, fy {cal.fy})")
-    if not all(math.isfinite(v) for v in (cal.cx, cal.cy, *cal.dist)):
+def _checked(w: int, h: int, fx: float, fy: float, cx: float, cy: float, dist: tuple, source: str,
+             where: str) -> Calibration:
+    if w < 16 or h < 16:
+        raise InputError(f"{where}: image size {w}x{h} is too small")
+    if not (fx > 0 and fy > 0 and math.isfinite(fx) and math.isfinite(fy)):
+        raise InputError(f"{where}: focal lengths must be positive (fx {fx}, fy {fy})")
+    if not all(math.isfinite(v) for v in (cx, cy, *dist)):
         raise InputError(f"{where}: the calibration has a number that is not finite")
-    return cal
+    return Calibration(Camera(w, h, fx, fy, cx, cy, dist), source)
 
 
 def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:
@@ -96,7 +97,7 @@ def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:
         raise InputError(f"{where}: needs intrinsics [fu, fv, pu, pv] and resolution [width, height]") from None
     dist = _radtan(c.get("distortion_coeffs", [0, 0, 0, 0]) if dmodel == "radtan" else [0, 0, 0, 0],
                    f"{where}.distortion_coeffs")
-    return _checked(Calibration(w, h, fx, fy, cx, cy, dist, f"Kalibr {name}"), where)
+    return _checked(w, h, fx, fy, cx, cy, dist, f"Kalibr {name}", where)
 
 
 def _ros(doc: dict, path: str) -> Calibration:
@@ -112,8 +113,7 @@ def _ros(doc: dict, path: str) -> Calibration:
         raise InputError(f"{path}: a ROS CameraInfo YAML needs image_width, image_height and camera_matrix.data") from None
     fx, fy, cx, cy = _camera_matrix(K, f"{path}: camera_matrix")
     dist = _radtan(D or [0, 0, 0, 0], f"{path}: distortion_coefficients")
-    return _checked(Calibration(w, h, fx, fy, cx, cy, dist, f"ROS CameraInfo {doc.get('camera_name', '')}".strip()),
-                    path)
+    return _checked(w, h, fx, fy, cx, cy, dist, f"ROS CameraInfo {doc.get('camera_name', '')}".strip(), path)
 
 
 def _opencv(path: str) -> Calibration:
@@ -149,19 +149,14 @@ def _opencv(path: str) -> Calibration:
             size = (int(v[0]), int(v[1]))
     finally:
         fs.release()
-    return _checked(Calibration(size[0], size[1], fx, fy, cx, cy, dist, "OpenCV FileStorage"), path)
+    return _checked(size[0], size[1], fx, fy, cx, cy, dist, "OpenCV FileStorage", path)
 
 
 def read_calibration(path, name: str | None = None) -> Calibration:
     """The calibration in ``path`` (format told by its content); ``name``: the camera of a Kalibr
     camchain (default: the first, ``cam0``).  Any problem is an :class:`InputError` naming the field."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"{path}: cannot read ({err.strerror or err})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file") from None
+    text = read_user_text(p, "a calibration")
     head = text.lstrip()[:200]
     if head.startswith("%YAML") or head.startswith("<?xml") or "opencv-matrix" in text or p.suffix.lower() == ".xml":
         return _opencv(str(p))
