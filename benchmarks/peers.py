@@ -1,13 +1,18 @@
 """Peer localizers for the leaderboard, behind the same interface as hvloc's:
 ``Localizer(pad, camera, config, T_B_C).process(image, t, imu=None) -> Estimate``.
 
-``ArucoLocalizer`` is what a practitioner would reach for instead of hvloc: OpenCV's ArUco
-detector (``cv2.aruco.ArucoDetector``, sub-pixel corner refinement) on the ``aruco`` pad variant,
-whose three markers have the finder markers' outer size and place, and one ``cv2.solvePnP``
-(IPPE, the planar solver, on every detected corner, with the lens model) refined by
-``cv2.solvePnPRefineLM``.  Left as OpenCV ships it: no phases, no IMU, no tracking; the only
-gate is the reprojection RMS (``max_reprojection_px`` of the config), which any user of solvePnP
-would add.  Markers with ids the pad does not carry are ignored.
+What a practitioner would reach for instead of hvloc, left as its library ships it: a fiducial
+detector, then one ``cv2.solvePnP`` (IPPE, the planar solver) over every corner of every marker of
+the pad it found, with the lens model, refined by ``cv2.solvePnPRefineLM``.  No phases, no IMU, no
+tracking; the only gate is the reprojection RMS (``max_reprojection_px`` of the config), which any
+user of solvePnP would add.  Markers with ids the pad does not carry are ignored.  A suite entry
+with ``gates: true`` puts hvloc's false-pose gates in front (``hvloc.localizer.GatedLocalizer``).
+
+* ``ArucoLocalizer``: OpenCV's ArUco detector (``cv2.aruco.ArucoDetector``, sub-pixel corner
+  refinement) on the ``aruco`` pad variant, three markers with the finder markers' size and place.
+* ``AprilTagLocalizer``: AprilTag 3 (``pupil_apriltags``, the AprilTag library's binding, at its
+  defaults) on the ``apriltag`` variant: the recursive pad of precision-landing projects, a large
+  ``tagCustom48h12`` tag with a small one nested in its centre; the pose from every tag in view.
 """
 from __future__ import annotations
 
@@ -20,22 +25,18 @@ from hvloc.geometry import Camera, invert, make_transform
 from hvloc.localizer import Estimate, check_image, guarded_process
 from hvloc.pose import pose_covariance
 
-PHASE = "adjustment"  # it is a marker method: reported in the markers' phase
+PHASE = "adjustment"  # a marker method: reported in the markers' phase
 
 
-class ArucoLocalizer:
-    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
-        geometry = pad.geometry if hasattr(pad, "geometry") else pad
-        markers = geometry.markers_in(kind="aruco")
-        if not markers:
-            raise ValueError(f"the ArUco peer needs the 'aruco' pad variant; this pad is {geometry.variant!r}")
+class _FiducialPeer:
+    """Detector in, one solvePnP over every detected corner out.  Subclasses give ``_detect(gray)
+    -> ([(corners_P (4, 3), corners_px (4, 2)), ...], reason)`` and ``METHOD``."""
+
+    METHOD = ""
+
+    def __init__(self, camera: Camera, config: LocalizerConfig | None):
         self.camera = camera
         self.config = config or LocalizerConfig()
-        self.corners_P = {m.aruco_id: m.outer_corners for m in markers}
-        name = geometry.spec["aruco_dictionary"]
-        params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-        self.detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params)
         self.K = camera.K
         self.dist = np.asarray(camera.dist, np.float64)
 
@@ -52,31 +53,75 @@ class ArucoLocalizer:
         if gray.shape != (self.camera.height, self.camera.width):
             return Estimate(t, PHASE, "lost", None, reason=f"image is {gray.shape[1]}x{gray.shape[0]}, "
                             f"camera is {self.camera.width}x{self.camera.height}")
-        corners, ids, _ = self.detector.detectMarkers(gray)
-        if ids is None:
-            return Estimate(t, PHASE, "lost", None, reason="aruco: no marker")
-        obj, img = [], []
-        for c, i in zip(corners, ids.ravel()):
-            if int(i) in self.corners_P:
-                obj.append(self.corners_P[int(i)])
-                img.append(c.reshape(4, 2))
-        if not obj:
-            return Estimate(t, PHASE, "lost", None, reason="aruco: no marker of this pad")
-        obj = np.concatenate(obj)
-        img = np.concatenate(img).astype(np.float64)
+        found, why = self._detect(gray)
+        if not found:
+            return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: {why}")
+        obj = np.concatenate([o for o, _ in found])
+        img = np.concatenate([i for _, i in found]).astype(np.float64)
         ok, rvec, tvec = cv2.solvePnP(obj, img, self.K, self.dist, flags=cv2.SOLVEPNP_IPPE)
         if not ok:
-            return Estimate(t, PHASE, "lost", None, reason="aruco: solvePnP failed")
+            return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: solvePnP failed")
         rvec, tvec = cv2.solvePnPRefineLM(obj, img, self.K, self.dist, rvec, tvec)
         proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
         rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
         cam2pad = invert(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
         cov = pose_covariance(self.camera, cam2pad, obj, img, min_sigma_px=0.3)  # the same model as hvloc's
-        est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, cov, method="aruco",
-                       extras={"markers": len(obj) // 4})
+        est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, cov, method=self.METHOD,
+                       extras={"markers": len(found)})
         if not np.isfinite(rms) or rms > self.config.max_reprojection_px:
             est.status, est.reason = "rejected", f"reprojection RMS {rms:.2f} px > {self.config.max_reprojection_px}"
         return est
 
 
-LOCALIZERS = {"aruco": ArucoLocalizer}
+class ArucoLocalizer(_FiducialPeer):
+    METHOD = "aruco"
+
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
+        geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        markers = geometry.markers_in(kind="aruco")
+        if not markers:
+            raise ValueError(f"the ArUco peer needs the 'aruco' pad variant; this pad is {geometry.variant!r}")
+        super().__init__(camera, config)
+        self.corners_P = {m.aruco_id: m.outer_corners for m in markers}
+        name = geometry.spec["aruco_dictionary"]
+        params = cv2.aruco.DetectorParameters()
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        self.detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params)
+
+    def _detect(self, gray) -> tuple:
+        corners, ids, _ = self.detector.detectMarkers(gray)
+        if ids is None:
+            return [], "no marker"
+        found = [(self.corners_P[int(i)], c.reshape(4, 2)) for c, i in zip(corners, ids.ravel())
+                 if int(i) in self.corners_P]
+        return found, "no marker of this pad"
+
+
+class AprilTagLocalizer(_FiducialPeer):
+    METHOD = "apriltag"
+
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
+        from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
+
+        geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        tags = geometry.markers_in(kind="apriltag")
+        if not tags:
+            raise ValueError(f"the AprilTag peer needs the 'apriltag' pad variant; this pad is {geometry.variant!r}")
+        try:
+            from pupil_apriltags import Detector
+        except ImportError as err:  # an optional dependency: say which
+            raise ValueError("the AprilTag peer needs pupil-apriltags (pip install pupil-apriltags)") from err
+        super().__init__(camera, config)
+        order = list(DETECTOR_TO_PAD_CORNERS)
+        self.corners_P = {m.aruco_id: m.outer_corners[order] for m in tags}  # in the detector's corner order
+        self.detector = Detector(families=FAMILY, nthreads=1)
+
+    def _detect(self, gray) -> tuple:
+        tags = self.detector.detect(np.ascontiguousarray(gray))
+        # the AprilTag library puts the centre of the top-left pixel at (0.5, 0.5), OpenCV (and hvloc) at (0, 0)
+        found = [(self.corners_P[d.tag_id], np.asarray(d.corners, np.float64) - 0.5) for d in tags
+                 if d.tag_id in self.corners_P and d.hamming == 0]
+        return found, "no tag of this pad" if tags else "no tag"
+
+
+LOCALIZERS = {"aruco": ArucoLocalizer, "apriltag": AprilTagLocalizer}

@@ -46,8 +46,8 @@ def imu_at(imu: np.ndarray, t: float):
     return imu[max(j, 0)]
 
 
-KINDS = ("hierarchical", "aruco")  # built in; any other localizer by entry point or import path
-PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",)}  # what each runs on by default
+KINDS = ("hierarchical", "aruco", "apriltag")  # built in; any other localizer by entry point or import path
+PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",), "apriltag": ("apriltag",)}  # by default
 ENTRY_POINT_GROUP = "hvloc.localizers"
 
 
@@ -60,10 +60,10 @@ def localizer_class(kind: str):
     (the pad variants it runs on by default) and ``reset()``."""
     if kind == "hierarchical":
         return HierarchicalLocalizer
-    if kind == "aruco":
-        from .peers import ArucoLocalizer
+    if kind in ("aruco", "apriltag"):
+        from .peers import LOCALIZERS
 
-        return ArucoLocalizer
+        return LOCALIZERS[kind]
     import importlib
     import importlib.metadata as md
 
@@ -77,7 +77,7 @@ def localizer_class(kind: str):
             for part in attr.split("."):
                 cls = getattr(cls, part)
         else:
-            raise InputError(f"localizer kind {kind!r}: not hierarchical or aruco, not an entry point of "
+            raise InputError(f"localizer kind {kind!r}: not hierarchical, aruco or apriltag, not an entry point of "
                              f"{ENTRY_POINT_GROUP} ({', '.join(sorted(eps)) or 'none installed'}), and not an "
                              "import path package.module:Class")
     except (ImportError, AttributeError) as err:
@@ -241,7 +241,7 @@ def localize_main(argv: list) -> int:
     p.add_argument("--config", help="localizer config YAML (fields of hvloc/config.py)")
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
     p.add_argument("--localizer", default="hierarchical",
-                   help="hierarchical (hvloc's), aruco (the cv2.aruco peer, aruco pad variant), a name registered "
+                   help="hierarchical (hvloc's), aruco (the cv2.aruco peer, aruco pad), apriltag (the AprilTag 3 peer, apriltag pad), a name registered "
                         "under the hvloc.localizers entry point group, or an import path package.module:Class")
     p.add_argument("--no-verify", action="store_true",
                    help="use a dataset even if its files differ from the checksums in its manifest")

@@ -14,8 +14,9 @@ import numpy as np
 from .errors import InputError
 
 MARKER_NAMES = ("Top", "Right", "Bottom")
-MARKER_KINDS = ("finder", "aruco")
-VARIANTS = ("paper", "nested", "aruco")
+TAG_NAMES = ("Large", "Small")  # the AprilTags of the apriltag variant: one nested in the other
+MARKER_KINDS = ("finder", "aruco", "apriltag")
+VARIANTS = ("paper", "nested", "aruco", "apriltag")
 _CORNER_SIGNS = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]])
 
 
@@ -105,7 +106,7 @@ class Marker:
     module_m: float
     quiet_zone_m: float
     squares: tuple         # of Square, outermost first
-    aruco_id: int | None = None
+    aruco_id: int | None = None   # the id of an ArUco marker, or of an AprilTag (its family: the pad spec's)
 
     @property
     def outer_corners(self) -> np.ndarray:
@@ -119,7 +120,7 @@ class Marker:
 
     @property
     def modules_across(self) -> int:
-        return 7 if self.kind == "finder" else 6
+        return {"finder": 7, "aruco": 6, "apriltag": 6}[self.kind]  # the apriltag: cells of its detected square
 
 
 @dataclass(frozen=True)
@@ -224,10 +225,11 @@ class PadGeometry:
         for i, m in enumerate(mlist):
             mw = f"{w}.markers.{i}"
             name, set_name, kind = _get(m, "name", mw), str(_get(m, "set", mw)), _get(m, "kind", mw)
-            if name not in MARKER_NAMES:
-                raise InputError(f"{mw}.name: {name!r} is not one of {', '.join(MARKER_NAMES)}")
             if kind not in MARKER_KINDS:
                 raise InputError(f"{mw}.kind: {kind!r} is not one of {', '.join(MARKER_KINDS)}")
+            names = TAG_NAMES if kind == "apriltag" else MARKER_NAMES
+            if name not in names:
+                raise InputError(f"{mw}.name: {name!r} is not one of {', '.join(names)}")
             if (set_name, name) in seen:
                 raise InputError(f"{mw}: a second {name} marker in set {set_name!r}")
             seen.add((set_name, name))
@@ -242,8 +244,9 @@ class PadGeometry:
             if any(a.side_m <= b_.side_m for a, b_ in zip(squares, squares[1:])):
                 raise InputError(f"{mw}.squares: must be listed outermost first, each inside the last")
             aruco_id = m.get("aruco_id")
-            if kind == "aruco" and (isinstance(aruco_id, bool) or not isinstance(aruco_id, int) or aruco_id < 0):
-                raise InputError(f"{mw}.aruco_id: an ArUco marker needs a non-negative integer id")
+            if kind in ("aruco", "apriltag") and (isinstance(aruco_id, bool) or not isinstance(aruco_id, int)
+                                                  or aruco_id < 0):
+                raise InputError(f"{mw}.aruco_id: an ArUco marker or an AprilTag needs a non-negative integer id")
             markers.append(Marker(name, set_name, kind, _array(_get(m, "center", mw), (3,), f"{mw}.center"),
                                   _number(_get(m, "size_m", mw), f"{mw}.size_m"),
                                   _number(_get(m, "module_m", mw), f"{mw}.module_m"),

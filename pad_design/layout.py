@@ -43,6 +43,25 @@ def _marker_set(set_name: str, size: float, quiet_modules: float, offset: float,
     return out
 
 
+def _nested_tags(total_m: float, ids) -> list:
+    """The apriltag variant: a large tagCustom48h12 tag centred on the pad and a small one in its free
+    centre (one fifth the size).  Each marker's square is the square the detector finds; its quiet
+    zone reaches the tag's outer edge (the large one's also over a one-cell white margin)."""
+    from .apriltag import BORDER_CELLS, CENTRE_CELLS, TOTAL_CELLS
+
+    out = []
+    for name, total, tid, margin in (("Large", total_m, ids[0], 1), ("Small", total_m * CENTRE_CELLS / TOTAL_CELLS,
+                                                                     ids[1], 0)):
+        cell = total / TOTAL_CELLS
+        side = BORDER_CELLS * cell
+        out.append({"name": name, "set": "tag", "kind": "apriltag", "center": [0.0, 0.0, 0.0], "size_m": side,
+                    "module_m": cell, "quiet_zone_m": ((TOTAL_CELLS - BORDER_CELLS) / 2 + margin) * cell,
+                    "aruco_id": int(tid),
+                    "squares": [{"name": "outer", "side_m": side, "color_inside": "white",
+                                 "corners": square_corners(0.0, 0.0, side)}]})
+    return out
+
+
 def segmentation_range(rgb, hue_halfwidth_deg: float = 20.0, s_min: float = 0.45, v_min: float = 0.18) -> dict:
     """An OpenCV HSV range (H 0-180, S and V 0-255) around a colour, for ``cv2.inRange``.
 
@@ -72,6 +91,8 @@ def build_geometry(spec: PadSpec) -> PadGeometry:
         markers += _marker_set("centre", n, spec.quiet_zone_modules, nblock / 2.0, "finder")
     if spec.variant == "aruco":
         markers += _marker_set("corner", size, spec.quiet_zone_modules, offset, "aruco", spec.aruco_ids)
+    if spec.variant == "apriltag":
+        markers += _nested_tags(spec.apriltag_total_m or 2 * f / 1.2, spec.apriltag_ids)
     b = spec.border_m
     cue = {"kind": "corner_square", "corner": "bottom_right", "color_rgb": list(spec.cue_color),
            "corners": square_corners(h - b / 2.0, -h + b / 2.0, b),

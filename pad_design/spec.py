@@ -39,9 +39,10 @@ class PadSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
-    variant: Literal["paper", "nested", "aruco"] = Field(
+    variant: Literal["paper", "nested", "aruco", "apriltag"] = Field(
         "paper", description="paper: three corner finder markers; nested: plus a small set in the centre "
-        "for low altitude; aruco: OpenCV ArUco markers of the same outer size instead of finder markers")
+        "for low altitude; aruco: OpenCV ArUco markers of the same outer size instead of finder markers; "
+        "apriltag: a recursive AprilTag pad (a large tagCustom48h12 tag over the field, a small one in its centre)")
     side_m: float = Field(0.85, gt=0, le=20, description="side of the square pad")
     border_m: float = Field(0.10, gt=0, description="width of the coloured border")
     border_color: tuple = Field("#ff30e0", description="saturated border colour natural ground lacks")
@@ -54,6 +55,10 @@ class PadSpec(BaseModel):
     nested_marker_size_m: float = Field(0.035, gt=0, description="finder markers of the centre set (nested)")
     aruco_dictionary: str = Field("DICT_4X4_50", description="cv2.aruco predefined dictionary (aruco)")
     aruco_ids: tuple = Field((0, 1, 2), description="ArUco ids at Top, Right, Bottom (aruco)")
+    apriltag_ids: tuple = Field((0, 1), description="tagCustom48h12 ids of the large and the nested small tag (apriltag)")
+    apriltag_total_m: float | None = Field(None, gt=0, description="outer side of the large AprilTag, data ring "
+                                           "included (10 cells; its detected square is 6); default: the field less "
+                                           "a one-cell white margin on each side (apriltag)")
     texture_seed: int = Field(7, ge=0)
     texture_min_feature_m: float = Field(0.004, gt=0, description="smallest texture element")
     texture_max_feature_m: float = Field(0.03, gt=0, description="largest texture element")
@@ -117,6 +122,14 @@ class PadSpec(BaseModel):
             if 2 * nblock > free + 1e-12:
                 raise ValueError(f"nested_marker_size_m: the centre set ({2 * nblock:.3f} m across) does not "
                                  f"fit between the corner markers ({free:.3f} m free)")
+        if self.variant == "apriltag":
+            from .apriltag import CODES
+
+            if len(set(self.apriltag_ids)) != 2 or any(not 0 <= i < len(CODES) for i in self.apriltag_ids):
+                raise ValueError(f"apriltag_ids: two distinct ids from 0 to {len(CODES) - 1}")
+            if self.apriltag_total_m is not None and self.apriltag_total_m * 1.2 > field + 1e-12:
+                raise ValueError(f"apriltag_total_m: {self.apriltag_total_m} m with its one-cell white margins "
+                                 f"does not fit the {field:.3f} m field")
         if self.variant == "aruco":
             import cv2
 
@@ -133,4 +146,5 @@ class PadSpec(BaseModel):
         d["border_color"] = "#%02x%02x%02x" % self.border_color
         d["cue_color"] = "#%02x%02x%02x" % self.cue_color
         d["aruco_ids"] = list(self.aruco_ids)
+        d["apriltag_ids"] = list(self.apriltag_ids)
         return d

@@ -143,6 +143,21 @@ def _paint_aruco(canvas: _Canvas, marker: Marker, dictionary: str) -> None:
                 canvas.rect(x0 + c * mod, y1 - (r + 1) * mod, x0 + (c + 1) * mod, y1 - r * mod, WHITE)
 
 
+def _paint_apriltag(canvas: _Canvas, marker: Marker) -> None:
+    from .apriltag import BORDER_CELLS, TOTAL_CELLS, tag_cells
+
+    cells = tag_cells(marker.aruco_id)
+    cx, cy = marker.center[:2]
+    cell = marker.size_m / BORDER_CELLS
+    total = cell * TOTAL_CELLS
+    canvas.square(cx, cy, marker.size_m + 2 * marker.quiet_zone_m, WHITE)  # the margin (none for a nested tag)
+    x0, y1 = cx - total / 2, cy + total / 2
+    for r in range(TOTAL_CELLS):
+        for c in range(TOTAL_CELLS):
+            canvas.rect(x0 + c * cell, y1 - (r + 1) * cell, x0 + (c + 1) * cell, y1 - r * cell,
+                        WHITE if cells[r, c] else BLACK)
+
+
 def _intersect(a, b):
     r = (max(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), min(a[3], b[3]))
     return r if r[0] < r[2] and r[1] < r[3] else None
@@ -191,9 +206,11 @@ def render_texture(spec: PadSpec, geometry: PadGeometry, ppm: float) -> np.ndarr
                 cv.rect(*inside, cue_dark)
     cv.rect(-f, -f, f, f, WHITE)
     cv.blend(_random_texture_alpha(spec, geometry, cv), BLACK)
-    for m in geometry.markers:
+    for m in geometry.markers:  # in order: a nested tag after the one it sits in
         if m.kind == "finder":
             _paint_finder(cv, m)
+        elif m.kind == "apriltag":
+            _paint_apriltag(cv, m)
         else:
             _paint_aruco(cv, m, spec.aruco_dictionary)
     return np.clip(np.round(cv.img), 0, 255).astype(np.uint8)

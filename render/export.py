@@ -346,7 +346,7 @@ def coco_annotations(seq, geometry, image_id0: int, ann_id0: int, rel: str) -> t
     return images, anns
 
 
-MARKER_CATEGORY = {"finder": 2, "aruco": 3}
+MARKER_CATEGORY = {"finder": 2, "aruco": 3, "apriltag": 4}
 
 
 def export_coco(ds: Dataset, out: Path, sequence_ids: list) -> Path:
@@ -361,7 +361,8 @@ def export_coco(ds: Dataset, out: Path, sequence_ids: list) -> Path:
            "categories": [{"id": 1, "name": "landing_pad", "supercategory": "pad", "keypoints": names,
                            "skeleton": [[1, 2], [2, 3], [3, 4], [4, 1]]},
                           {"id": 2, "name": "finder_marker", "supercategory": "pad"},
-                          {"id": 3, "name": "aruco_marker", "supercategory": "pad"}]}
+                          {"id": 3, "name": "aruco_marker", "supercategory": "pad"},
+                          {"id": 4, "name": "apriltag", "supercategory": "pad"}]}
     for sid in sequence_ids:
         seq = ds[sid]
         if pad_keypoint_names(seq.pad.geometry) != names:

@@ -8,7 +8,9 @@ point itself).  Without a depth buffer the facts are geometric (in the image, in
 Rule (per frame, never from a localizer):
 
 * ``adjustment`` while all three corner markers are wholly visible and their modules are at least
-  ``min_module_px`` pixels (so a marker detector can resolve them);
+  ``min_module_px`` pixels (so a marker detector can resolve them); a pad without corner markers
+  (the apriltag variant) is judged by where the paper pad of the same spec has them, so that one
+  descent has one phase whatever pad it is rendered with;
 * else ``approaching`` while the whole pad outline is visible;
 * else ``touchdown`` once the camera is low enough that the pad no longer fits in the image
   (height below ``side * f / min(W, H)``): the flow tracker's range;
@@ -48,7 +50,7 @@ class PadSamples:
         gx, gy = np.meshgrid(g, g)
         interior = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
         markers = {}
-        for m in geometry.markers_in("corner"):
+        for m in phase_markers(geometry):
             a = m.size_m / 2 * (1 - 1e-6)
             t = np.linspace(-a, a, MARKER_GRID)
             mx, my = np.meshgrid(t, t)
@@ -81,6 +83,18 @@ def depth_occlusion(render_camera: Camera, z_render: np.ndarray, cam2pad: np.nda
     return occluded
 
 
+def phase_markers(geometry: PadGeometry) -> tuple:
+    """The corner markers the phase rule looks at: the pad's own, or, on a pad without them, the
+    paper pad's of the same spec (module size and place)."""
+    own = geometry.markers_in("corner")
+    if own:
+        return own
+    from pad_design.layout import build_geometry
+    from pad_design.spec import PadSpec
+
+    return build_geometry(PadSpec.model_validate({**geometry.spec, "variant": "paper"})).markers_in("corner")
+
+
 def view_facts(camera: Camera, cam2pad: np.ndarray, geometry: PadGeometry, occluded=None,
                samples: PadSamples | None = None) -> dict:
     """Visibility facts of one pose: the outer corners' pixels and visibility, the whole pad's,
@@ -101,7 +115,7 @@ def view_facts(camera: Camera, cam2pad: np.ndarray, geometry: PadGeometry, occlu
     inner_vis, _ = seen(samples.interior)
     marker_vis = {}
     module_px = np.inf
-    for m in geometry.markers_in("corner"):
+    for m in phase_markers(geometry):
         vis, _ = seen(samples.markers[m.name])
         marker_vis[m.name] = bool(vis.all())
         if marker_vis[m.name]:

@@ -113,7 +113,8 @@ def test_bad_suite_exits_2(tmp_path):
     assert r.returncode == 2 and "flux: unknown key" in r.stderr
     for localizer, says in (("{name: h, datasets: [tinyy]}", "no dataset named 'tinyy'"),
                             ("{name: p, kind: aruco}", "no dataset of the pad variant it needs (aruco)"),
-                            ("{name: p, kind: apriltag}", "kind")):
+                            ("{name: p, kind: apriltag}", "no dataset of the pad variant it needs (apriltag)"),
+                            ("{name: p, kind: apriltags3}", "kind")):
         s.write_text(f"name: x\ndatasets: [{{spec: data_specs/tiny.yaml}}]\nlocalizers: [{localizer}]\n")
         r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o")],
                            capture_output=True, text=True, cwd=REPO)

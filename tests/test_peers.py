@@ -45,3 +45,60 @@ def test_aruco_peer_never_raises_on_an_image(aruco_pad, image):
     e = ArucoLocalizer(aruco_pad, Camera.from_hfov(800, 800, math.radians(60))).process(image, 0.0)
     assert e.status == "lost" and e.reason and e.cam2pad is None
     assert np.isfinite(e.ms)
+
+
+# ----------------------------------------------------------------------------- AprilTag 3
+
+@pytest.fixture(scope="module")
+def apriltag_pad():
+    from pad_design import make_pad
+
+    return make_pad({"variant": "apriltag"}, ppm=2000)
+
+
+def test_apriltag_pad_is_two_nested_tags_the_detector_reads_where_pad_json_puts_them(apriltag_pad):
+    """The AprilTag library itself finds both tags of the printed pad, with the ids of pad.json, and
+    their corners where pad.json puts them (a head-on, exactly scaled view of pad.png)."""
+    import cv2
+    from pupil_apriltags import Detector
+
+    from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
+
+    g = apriltag_pad.geometry
+    tags = {m.aruco_id: m for m in g.markers_in(kind="apriltag")}
+    assert [m.name for m in tags.values()] == ["Large", "Small"] and len(tags) == 2
+    n = 1000
+    gray = cv2.resize(cv2.cvtColor(apriltag_pad.texture_rgb, cv2.COLOR_RGB2GRAY), (n, n), interpolation=cv2.INTER_AREA)
+    found = {d.tag_id: d for d in Detector(families=FAMILY).detect(gray)}
+    assert set(found) == set(tags) and all(d.hamming == 0 for d in found.values())
+    for tid, m in tags.items():
+        c = m.outer_corners[list(DETECTOR_TO_PAD_CORNERS)]
+        want = np.column_stack([(c[:, 0] + g.side_m / 2) / g.side_m * n - 0.5, (g.side_m / 2 - c[:, 1]) / g.side_m * n - 0.5])
+        assert np.abs(found[tid].corners - 0.5 - want).max() < 0.45, (tid, found[tid].corners - 0.5 - want)
+    small, large = tags[1], tags[0]
+    assert small.size_m == pytest.approx(large.size_m / 5) and np.allclose(small.center, large.center)
+
+
+@pytest.mark.parametrize("height, tags", [(0.3, 1), (1.0, 2)])
+def test_apriltag_peer_recovers_the_pose_from_every_tag_in_view(apriltag_pad, height, tags):
+    """Right ids, corners and frames: a wrong corner order or pixel convention is centimetres and
+    degrees off.  (Low, only the small tag is whole in view: 4 corners fix the tilt less well.)"""
+    from benchmarks.peers import AprilTagLocalizer
+
+    for yaw in (0, 40, 200):
+        G = tilted(0.02, -0.03, height, math.radians(yaw), 0.03, -0.02)
+        e = AprilTagLocalizer(apriltag_pad, CAM).process(warp_pad_view(apriltag_pad, CAM, G, GROUND), 0.0)
+        assert e.status == "ok", e.reason
+        assert e.extras["markers"] == tags and e.rms_px < 0.3
+        dp, da = pose_error(e.cam2pad, G)
+        assert dp < 0.01 * tags * height and da < 0.5, f"yaw {yaw}: {dp * 1000:.1f} mm, {da:.2f} deg"
+
+
+def test_apriltag_peer_refuses_other_pads_and_never_raises(apriltag_pad, pad):
+    from benchmarks.peers import AprilTagLocalizer
+
+    with pytest.raises(ValueError, match="needs the 'apriltag' pad variant"):
+        AprilTagLocalizer(pad, CAM)
+    for image in BAD_IMAGES:
+        e = AprilTagLocalizer(apriltag_pad, Camera.from_hfov(800, 800, math.radians(60))).process(image, 0.0)
+        assert e.status == "lost" and e.reason and e.cam2pad is None
