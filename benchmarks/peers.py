@@ -33,8 +33,15 @@ class _FiducialPeer:
     -> ([(corners_P (4, 3), corners_px (4, 2)), ...], reason)`` and ``METHOD``."""
 
     METHOD = ""
+    PEER = ""  # its name in messages
 
-    def __init__(self, camera: Camera, config: LocalizerConfig | None):
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None):
+        """Sets ``self.markers``: the pad's markers of kind ``METHOD`` (refused when it has none)."""
+        self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        self.markers = self.geometry.markers_in(kind=self.METHOD)
+        if not self.markers:
+            raise ValueError(f"the {self.PEER} peer needs the '{self.METHOD}' pad variant; this pad is "
+                             f"{self.geometry.variant!r}")
         self.camera = camera
         self.config = config or LocalizerConfig()
         self.K = camera.K
@@ -74,16 +81,12 @@ class _FiducialPeer:
 
 
 class ArucoLocalizer(_FiducialPeer):
-    METHOD = "aruco"
+    METHOD, PEER = "aruco", "ArUco"
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
-        geometry = pad.geometry if hasattr(pad, "geometry") else pad
-        markers = geometry.markers_in(kind="aruco")
-        if not markers:
-            raise ValueError(f"the ArUco peer needs the 'aruco' pad variant; this pad is {geometry.variant!r}")
-        super().__init__(camera, config)
-        self.corners_P = {m.aruco_id: m.outer_corners for m in markers}
-        name = geometry.spec["aruco_dictionary"]
+        super().__init__(pad, camera, config)
+        self.corners_P = {m.aruco_id: m.outer_corners for m in self.markers}
+        name = self.geometry.spec["aruco_dictionary"]
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
         self.detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params)
@@ -98,22 +101,16 @@ class ArucoLocalizer(_FiducialPeer):
 
 
 class AprilTagLocalizer(_FiducialPeer):
-    METHOD = "apriltag"
+    METHOD, PEER = "apriltag", "AprilTag"
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
+        from pupil_apriltags import Detector
+
         from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
 
-        geometry = pad.geometry if hasattr(pad, "geometry") else pad
-        tags = geometry.markers_in(kind="apriltag")
-        if not tags:
-            raise ValueError(f"the AprilTag peer needs the 'apriltag' pad variant; this pad is {geometry.variant!r}")
-        try:
-            from pupil_apriltags import Detector
-        except ImportError as err:  # an optional dependency: say which
-            raise ValueError("the AprilTag peer needs pupil-apriltags (pip install pupil-apriltags)") from err
-        super().__init__(camera, config)
+        super().__init__(pad, camera, config)
         order = list(DETECTOR_TO_PAD_CORNERS)
-        self.corners_P = {m.aruco_id: m.outer_corners[order] for m in tags}  # in the detector's corner order
+        self.corners_P = {m.aruco_id: m.outer_corners[order] for m in self.markers}  # in the detector's order
         self.detector = Detector(families=FAMILY, nthreads=1)
 
     def _detect(self, gray) -> tuple:
