@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 from hvloc.config import LocalizerConfig
@@ -29,6 +31,9 @@ class DatasetEntry(BaseModel):
     overrides: dict = Field(default_factory=dict, description="spec fields to override (nested mapping)")
     tier: str | None = Field(None, pattern=r"^[A-Za-z0-9_-]+$", description="difficulty tier (nominal, hard, "
                              "extreme...): every score is also given per tier")
+    pads: list[Literal["paper", "nested", "aruco", "apriltag"]] = Field(
+        default_factory=list, description="the same descents again with these pad variants (datasets "
+        "<name>_<variant>, same seed and tier): each localizer runs on those of the pad it needs")
 
 
 class LocalizerEntry(BaseModel):
@@ -68,7 +73,7 @@ def load_suite(path) -> tuple:
     suite = load_yaml_model(Suite, path)
     from render.spec import DatasetSpec
 
-    specs = []
+    specs, entries = [], []
     for i, d in enumerate(suite.datasets):
         sp = (path.parent / d.spec) if (path.parent / d.spec).exists() else (REPO / d.spec)
         if not sp.exists():
@@ -79,7 +84,14 @@ def load_suite(path) -> tuple:
             raw["sequences"] = d.sequences
         if d.seed is not None:
             raw["seed"] = d.seed
-        specs.append(validate_model(DatasetSpec, raw, f"{path}: datasets.{i} ({d.spec})"))
+        spec = validate_model(DatasetSpec, raw, f"{path}: datasets.{i} ({d.spec})")
+        specs.append(spec)
+        entries.append(d.model_copy(update={"pads": []}))
+        for v in d.pads:  # the same descents with another pad: one entry each, as if written out
+            over = _deep_update(d.overrides, {"name": f"{spec.name}_{v}", "pad": {"variant": v}})
+            specs.append(validate_model(DatasetSpec, _deep_update(raw, over), f"{path}: datasets.{i}.pads ({v})"))
+            entries.append(d.model_copy(update={"pads": [], "overrides": over}))
+    suite = suite.model_copy(update={"datasets": entries})
     configs = []
     names = [s.name for s in specs]
     if len(set(names)) != len(names):

@@ -357,3 +357,36 @@ def test_report_gives_every_tier_its_own_table(tmp_path):
         a = res[f"tier:{tier}/all"]
         assert f"| hierarchical | all | {a['frames']} | {100 * a['availability']:.1f} % |" in section
     assert res["tier:nominal/all"]["frames"] + res["tier:hard/all"]["frames"] == res["all"]["frames"]
+
+
+def test_suite_pads_render_the_same_descents_with_each_pad(tmp_path):
+    from benchmarks.suite import load_suite, runs_on
+
+    s = tmp_path / "p.yaml"
+    s.write_text("name: p\ndatasets:\n  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 3, tier: hard,"
+                 " pads: [aruco, apriltag], overrides: {name: t, camera: {fps: 5}}}\n"
+                 "localizers: [{name: h}, {name: a, kind: aruco}, {name: g, kind: apriltag, gates: true}]\n")
+    suite, specs, configs, _ = load_suite(s)
+    assert [sp.name for sp in specs] == ["t", "t_aruco", "t_apriltag"]
+    assert [sp.pad.variant for sp in specs] == ["paper", "aruco", "apriltag"]
+    assert [d.tier for d in suite.datasets] == ["hard"] * 3
+    strip = lambda sp: {k: v for k, v in json.loads(sp.canonical_json()).items() if k not in ("name", "pad")}  # noqa: E731
+    assert strip(specs[0]) == strip(specs[1]) == strip(specs[2])  # same seed, camera, flights: only the pad differs
+    assert [[sp.name for sp in specs if runs_on(loc, sp)] for loc, _ in configs] == [["t"], ["t_aruco"], ["t_apriltag"]]
+
+
+def test_bench_v2_has_its_tiers_cameras_and_both_forms_of_each_peer():
+    from benchmarks.suite import load_suite, runs_on
+
+    suite, specs, configs, _ = load_suite(REPO / "data_specs" / "suites" / "bench_v2.yaml")
+    tiers = {d.tier for d in suite.datasets}
+    assert tiers == {"nominal", "hard", "extreme"}
+    for tier in tiers:  # every tier on more than one camera, every descent with all three pads
+        cams = {(sp.camera.width, sp.camera.height) for sp, d in zip(specs, suite.datasets) if d.tier == tier}
+        assert len(cams) >= 2 if tier != "nominal" else cams == {(800, 800), (1920, 1080), (1280, 720)}
+    paper = [sp.name for sp in specs if sp.pad.variant == "paper"]
+    assert {f"{n}_{v}" for n in paper for v in ("aruco", "apriltag")} <= {sp.name for sp in specs}
+    forms = {(loc.kind, loc.gates) for loc, _ in configs}
+    assert {("aruco", False), ("aruco", True), ("apriltag", False), ("apriltag", True)} <= forms
+    for loc, _ in configs:
+        assert sum(runs_on(loc, sp) for sp in specs) == len(paper)  # each on every descent, with its pad
