@@ -15,7 +15,7 @@ def _executor_args(p) -> None:
 
 
 # subcommands whose module has its own command line (also runnable as ``python -m benchmarks.X``)
-DELEGATED = {"leaderboard": ("benchmarks.leaderboard", "rewrite benchmarks/LEADERBOARD.md from a bench_v1 run"),
+DELEGATED = {"leaderboard": ("benchmarks.leaderboard", "rewrite a frozen suite's committed leaderboard (LEADERBOARD*.md) from its run"),
              "diagnose": ("benchmarks.diagnose", "per phase: why a dataset's frames were lost or rejected")}
 
 

@@ -1,8 +1,11 @@
-"""The committed leaderboard: one entry per localizer config on ``bench_v1``, with provenance.
+"""The committed leaderboards: one entry per localizer config on a frozen suite, with provenance.
+``bench_v1`` writes benchmarks/leaderboard.json + LEADERBOARD.md (as it always has), any other suite
+benchmarks/leaderboard_<suite>.json + LEADERBOARD_<suite>.md; a suite with difficulty tiers gets a
+table per tier.
 
     python -m benchmarks.leaderboard RESULTS_DIR [--note TEXT ...]
-        (re)write benchmarks/leaderboard.json + LEADERBOARD.md; notes are caveats shown with the table
-    python -m benchmarks.leaderboard --mark-stale WHY
+        (re)write the suite's leaderboard; notes are caveats shown with the table
+    python -m benchmarks.leaderboard --mark-stale WHY [--suite NAME]
         the suite changed since the table was made and it could not be re-run yet: say so at the top of
         the table, with the suite's hash now (a later change to the suite is caught again)
 """
@@ -16,6 +19,13 @@ from .suite import REPO, load_results
 
 LEADERBOARD_JSON = REPO / "benchmarks" / "leaderboard.json"
 LEADERBOARD_MD = REPO / "benchmarks" / "LEADERBOARD.md"
+
+
+def paths(suite: str) -> tuple:
+    """``(json, md)``: where a suite's leaderboard is committed."""
+    if suite == "bench_v1":
+        return LEADERBOARD_JSON, LEADERBOARD_MD
+    return REPO / "benchmarks" / f"leaderboard_{suite}.json", REPO / "benchmarks" / f"LEADERBOARD_{suite}.md"
 SCHEMA = "hvloc-leaderboard/1"
 COLUMNS = [("all", "availability", "avail %", 100, "{:.1f}"),
            ("gt:approaching", "pos_err_pct_median", "appr. pos med % h", 1, "{:.2f}"),
@@ -62,6 +72,19 @@ def markdown(lb: dict) -> str:
     for e in entries:
         lines.append(f"| {e['localizer']} | {', '.join(e['summary'].get('datasets', []))} | "
                      + " | ".join(_cells(e["summary"], "", e.get("ci95"))) + " |")
+    tiers = list(dict.fromkeys(k.split("/", 1)[0][5:] for e in entries for k in e["summary"] if k.startswith("tier:")))
+    if len(tiers) > 1:
+        lines += ["", "## Per difficulty tier", "",
+                  "Each tier pools the frames of its datasets; ranked as above, on that tier.", ""]
+        for t in tiers:
+            pre = f"tier:{t}/"
+            lines += [f"### `{t}`", "", "| localizer | " + " | ".join(c[2] for c in COLUMNS) + " |",
+                      "|---|" + "---|" * len(COLUMNS)]
+            for e in sorted((e for e in entries if pre + "all" in e["summary"]),
+                            key=lambda e: (e["summary"][pre + "all"].get("false_accepts") or 0,
+                                           -(e["summary"][pre + "all"].get("availability") or 0))):
+                lines.append(f"| {e['localizer']} | " + " | ".join(_cells(e["summary"], pre, e.get("ci95"))) + " |")
+            lines.append("")
     datasets = sorted({d for e in entries for d in e["summary"].get("datasets", [])})
     if len(datasets) > 1:
         lines += ["", "## Per dataset", "",
@@ -95,24 +118,26 @@ def main(argv=None, prog: str = "python -m benchmarks.leaderboard") -> int:
     from pad_design.errors import ArgumentParser
 
     p = ArgumentParser(prog=prog, description=__doc__)
-    p.add_argument("results", nargs="?", help="a bench_v1 results folder (or its results.json)")
+    p.add_argument("results", nargs="?", help="a results folder of a frozen suite (or its results.json)")
     p.add_argument("--note", action="append", default=[], help="a line to print under the table (repeatable)")
     p.add_argument("--mark-stale", metavar="WHY", help="mark the committed table stale: the suite changed since")
+    p.add_argument("--suite", default="bench_v1", help="with --mark-stale: whose leaderboard (default bench_v1)")
     a = p.parse_args(sys.argv[1:] if argv is None else argv)
     if a.mark_stale:
         from .suite import load_suite
 
-        lb = json.loads(LEADERBOARD_JSON.read_text())
+        lb = json.loads(paths(a.suite)[0].read_text())
         _, _, _, h = load_suite(REPO / "data_specs" / "suites" / f"{lb['suite']}.yaml")
         lb["stale"] = {"why": a.mark_stale, "suite_sha256_now": h}
     elif not a.results:
         p.error("give a results folder (or --mark-stale WHY)")
     else:
         lb = build(load_results(a.results), a.note)
-    LEADERBOARD_JSON.write_text(json.dumps(lb, indent=1) + "\n")
-    LEADERBOARD_MD.write_text(markdown(lb))
-    print(LEADERBOARD_JSON)
-    print(LEADERBOARD_MD)
+    js, md = paths(lb["suite"])
+    js.write_text(json.dumps(lb, indent=1) + "\n")
+    md.write_text(markdown(lb))
+    print(js)
+    print(md)
     return 0
 
 

@@ -150,20 +150,24 @@ def test_metrics_on_a_hand_made_case():
     assert M.switch_heights(fe) == [("approaching", "adjustment", 6.0)]
 
 
-def test_committed_leaderboard_schema():
-    lb = json.loads((REPO / "benchmarks" / "leaderboard.json").read_text())
-    assert lb["schema"] == "hvloc-leaderboard/1" and lb["suite"] == "bench_v1"
-    assert lb["provenance"]["commit"] and lb["provenance"]["versions"]["hvloc"]
-    names = {e["localizer"] for e in lb["entries"]}
-    assert {"hierarchical", "outline_only", "markers_only", "flow_only", "no_false_pose_detection", "no_imu",
-            "aruco_solvepnp"} <= names
+@pytest.mark.parametrize("suite", ["bench_v1"] + sorted(p.stem[len("leaderboard_"):] for p in
+                                                      (REPO / "benchmarks").glob("leaderboard_*.json")))
+def test_committed_leaderboard_schema(suite):
+    from benchmarks.leaderboard import paths
     from benchmarks.suite import load_suite
 
-    _, _, _, h = load_suite(REPO / "data_specs" / "suites" / "bench_v1.yaml")
-    if lb["suite_sha256"] != h:  # made on an earlier bench_v1: it must say so, for the suite as it is now
+    js, md_path = paths(suite)
+    lb = json.loads(js.read_text())
+    assert lb["schema"] == "hvloc-leaderboard/1" and lb["suite"] == suite
+    assert lb["provenance"]["commit"] and lb["provenance"]["versions"]["hvloc"]
+    _, _, configs, h = load_suite(REPO / "data_specs" / "suites" / f"{suite}.yaml")
+    assert {e["localizer"] for e in lb["entries"]} == {loc.name for loc, _ in configs}
+    md = md_path.read_text()
+    tiers = {k.split("/", 1)[0] for e in lb["entries"] for k in e["summary"] if k.startswith("tier:")}
+    assert len(tiers) < 2 or all(f"### `{t[5:]}`" in md for t in tiers)  # a table per tier
+    if lb["suite_sha256"] != h:  # made on an earlier suite: it must say so, for the suite as it is now
         assert lb.get("stale", {}).get("suite_sha256_now") == h and lb["stale"]["why"], \
-            "bench_v1 changed after the leaderboard was made: re-run it, or mark it stale (benchmarks/leaderboard.py)"
-        md = (REPO / "benchmarks" / "LEADERBOARD.md").read_text()
+            f"{suite} changed after the leaderboard was made: re-run it, or mark it stale (benchmarks/leaderboard.py)"
         assert "**Stale:**" in md and lb["stale"]["why"] in md
 
 
@@ -357,6 +361,12 @@ def test_report_gives_every_tier_its_own_table(tmp_path):
         a = res[f"tier:{tier}/all"]
         assert f"| hierarchical | all | {a['frames']} | {100 * a['availability']:.1f} % |" in section
     assert res["tier:nominal/all"]["frames"] + res["tier:hard/all"]["frames"] == res["all"]["frames"]
+    from benchmarks.leaderboard import build, markdown  # the leaderboard too
+    from benchmarks.suite import load_results
+
+    lb = markdown(build(load_results(tmp_path / "o")))
+    section = lb.split("### `hard`", 1)[1].split("###", 1)[0]
+    assert f"| hierarchical | {100 * res['tier:hard/all']['availability']:.1f} [" in section
 
 
 def test_suite_pads_render_the_same_descents_with_each_pad(tmp_path):
