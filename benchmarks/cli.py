@@ -1,4 +1,4 @@
-"""``hvloc bench run|sweep|compare|leaderboard|diagnose``."""
+"""``hvloc bench run|sweep|score|compare|leaderboard|diagnose``."""
 from __future__ import annotations
 
 import json
@@ -45,6 +45,9 @@ def main(argv: list) -> int:
     w.add_argument("--workers", type=workers_arg, default=1,
                    help="processes that render the suite's datasets, then localize (one sequence each)")
     w.add_quiet()
+    sc = sub.add_parser("score", help="score a localizer's estimates on any dataset (an imported flight too)")
+    sc.add_argument("dataset", help="dataset folder (made by hvloc generate or hvloc import)")
+    sc.add_argument("results", help="the localizer's output folder (hvloc localize --out)")
     c = sub.add_parser("compare", help="exit 1 with a table of metrics that got worse than the baseline")
     c.add_argument("new", help="results.json (or its folder)")
     c.add_argument("baseline", help="results.json (or its folder)")
@@ -70,6 +73,15 @@ def main(argv: list) -> int:
         from .sweep_run import run_sweep
 
         return run_sweep(a)
+    if a.action == "score":
+        from .report import phase_table
+        from .run import score_dataset
+
+        res = score_dataset(a.dataset, a.results)
+        print(phase_table({"estimates": res["summary"]}))
+        for note in res["notes"]:
+            print(f"note: {note}")
+        return 0
     new, base = load_results(a.new), load_results(a.baseline)
     if new.get("suite_sha256") != base.get("suite_sha256"):
         raise InputError("results are of different suites (suite_sha256 differs); nothing to compare")

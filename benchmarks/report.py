@@ -34,7 +34,7 @@ def phase_table(summary: dict, dataset: str | None = None) -> str:
                 loc, scope.replace("gt:", ""), str(m["frames"]), _f(m.get("availability"), 100, "{:.1f} %"),
                 _f(m.get("pos_err_m_rmse"), 1000), _f(m.get("pos_err_m_p95"), 1000),
                 _f(m.get("pos_err_pct_median"), 1, "{:.2f}"), _f(m.get("rot_err_deg_rmse"), 1, "{:.2f}"),
-                _f(m.get("yaw_err_deg_median"), 1, "{:.2f}"), str(m.get("false_accepts", "-")),
+                _f(m.get("yaw_err_deg_median"), 1, "{:.2f}"), str(m["false_accepts"] if m.get("false_accepts") is not None else "-"),
                 _f(m.get("ms_p50"), 1, "{:.1f}"), _f(m.get("ms_p95"), 1, "{:.1f}")]) + " |")
     return "\n".join(lines)
 

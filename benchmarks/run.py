@@ -41,7 +41,10 @@ def covariance_matrix(columns: dict, k: int) -> np.ndarray:
 
 
 def imu_at(imu: np.ndarray, t: float):
-    """The latest IMU row at or before ``t`` (the AHRS attitude a flight computer would have)."""
+    """The latest IMU row at or before ``t`` (the AHRS attitude a flight computer would have);
+    ``None`` for a recording without an IMU."""
+    if len(imu) == 0:
+        return None
     j = int(np.searchsorted(imu[:, 0], t + 1e-9)) - 1
     return imu[max(j, 0)]
 
@@ -226,6 +229,35 @@ def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind, mavli
     (out / "localizer_config.json").write_text(json.dumps(config.model_dump(), indent=1) + "\n")
     return {"sequences": results, "seconds": time.time() - t0, "frames": total,
             "mavlink_sent": stream.sent if stream is not None else 0}
+
+
+def score_dataset(root, results) -> dict:
+    """A localizer's estimates (``hvloc localize --out results``) scored against a dataset's ground
+    truth, per ground-truth phase: ``{"summary": {scope: metrics}, "notes": [...]}``.  Frames without
+    ground truth (an imported flight may have none) count toward availability only, and a note says so."""
+    from render.dataset import Dataset
+
+    from . import metrics as M
+
+    ds = Dataset(root, verify=True)
+    fes, notes = [], []
+    for seq in ds:
+        path = Path(results) / seq.id / "estimates.csv"
+        if not path.is_file():
+            raise InputError(f"{path}: missing (localize {root} into {results} first)")
+        est = read_estimates(path)
+        if len(est["frame"]) != len(seq):
+            raise InputError(f"{path}: {len(est['frame'])} frames, the dataset's {seq.id} has {len(seq)}")
+        fes.append(M.frame_errors(seq.columns, est))
+        no_gt = int(sum(1 for p in seq.columns["phase_gt"] if p not in M.PHASES))
+        if no_gt:
+            notes.append(f"{seq.id}: {no_gt} of {len(seq)} frames have no ground truth: they count toward "
+                         "availability only (no error, no phase, no false accept)")
+    fe = M.concat(fes)
+    summary = {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
+    if not np.isfinite(fe["height_m"]).any():  # nothing to judge a pose by: unknown, not zero
+        summary["all"].update(false_accepts=None, rejections_right=None, rejections_wrong=None)
+    return {"summary": summary, "notes": notes}
 
 
 def read_estimates(path) -> dict:

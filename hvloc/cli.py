@@ -9,6 +9,7 @@ import sys
 COMMANDS = {
     "pad": ("pad_design.cli", "design a landing pad: texture, pad.json geometry, printable PDFs"),
     "generate": ("render.cli:generate_main", "render labelled landing sequences from a dataset spec"),
+    "import": ("render.cli:import_main", "a real flight (video or images, calibration, IMU, ground truth) as a dataset"),
     "dataset": ("render.cli:dataset_main", "verify or look at a generated dataset"),
     "camera": ("render.cli:camera_main", "import a camera calibration (Kalibr, ROS CameraInfo, OpenCV) into a spec"),
     "export": ("render.export:export_main", "write a dataset as EuRoC/ASL folders, ROS 2 bags or COCO keypoints"),

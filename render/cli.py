@@ -113,3 +113,38 @@ def camera_main(argv: list) -> int:
     atomic_write_text(Path(a.out), header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
     print(f"{a.out}: {a.spec} with the camera of {a.calibration}")
     return 0
+
+
+def import_main(argv: list) -> int:
+    p = ArgumentParser(prog="hvloc import", description="A real flight (video or images, calibration, optional "
+                       "IMU and ground truth) as an hvloc dataset: localize, bench score and export work on it.")
+    p.add_argument("frames", help="a video file, or a folder of images (sorted by name)")
+    p.add_argument("--calibration", required=True,
+                   help="camera calibration: Kalibr camchain, ROS CameraInfo YAML or OpenCV FileStorage")
+    p.add_argument("--camera-name", help="the camera of a Kalibr camchain (default: the first)")
+    p.add_argument("--fps", type=float, help="frame rate (default: the video's; needed for an image folder)")
+    p.add_argument("--groundtruth", help="TUM file (t tx ty tz qx qy qz qw) of the camera in the pad frame, T_P_C")
+    p.add_argument("--gt-body", action="store_true",
+                   help="the ground truth is the body's pose in the pad frame (T_P_B); the mount gives the camera")
+    p.add_argument("--gt-time-offset", type=float, default=0.0,
+                   help="seconds added to the ground truth's times to put them on the frames' clock (frame k at k/fps)")
+    p.add_argument("--imu", help="imu.csv with hvloc's columns (t, gyro_*, accel_*, qx qy qz qw) on the frames' clock")
+    p.add_argument("--mount-rpy", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
+                   help="camera mount T_B_C as roll pitch yaw in degrees (default: hvloc's downward camera)")
+    p.add_argument("--pad-spec", help="pad spec YAML of the pad that was flown (default: the paper pad)")
+    p.add_argument("--name", default="imported", help="the dataset's name")
+    p.add_argument("--out", required=True, help="new dataset folder")
+    p.add_quiet()
+    a = p.parse_args(argv)
+    from .importer import import_recording
+
+    if a.gt_body and not a.groundtruth:
+        raise InputError("--gt-body: goes with --groundtruth")
+    prepare_out_dir(a.out)
+    res = import_recording(a.out, a.frames, a.calibration, calibration_name=a.camera_name, fps=a.fps,
+                           groundtruth=a.groundtruth, gt_body=a.gt_body, gt_time_offset_s=a.gt_time_offset,
+                           imu=a.imu, mount_rpy_deg=a.mount_rpy, pad_spec=a.pad_spec, name=a.name,
+                           show_progress=not a.quiet)
+    print(f"{res['root']}: {res['frames']} frames, {res['with_ground_truth']} with ground truth, "
+          f"{'with' if res['with_imu'] else 'no'} IMU")
+    return 0

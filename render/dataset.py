@@ -710,14 +710,19 @@ def _label_problems(seq_dir: Path) -> list:
         out.append("frame times not finite and increasing")
     if np.any(np.abs(t - c["frame"] / seq.fps) > 1e-6):
         out.append("frame k is not at t = k / fps")
+    imported = seq.meta.get("imported")
     q = np.column_stack([c[k] for k in ("qx", "qy", "qz", "qw")])
-    if np.any(~np.isfinite(q)) or np.any(np.abs(np.linalg.norm(q, axis=1) - 1) > 1e-6):
+    # an imported recording may lack ground truth on some frames: then the whole pose is NaN
+    has = np.isfinite(q).all(axis=1) if imported else np.ones(n, bool)
+    none = ~np.isfinite(np.column_stack([c[k] for k in POSE])).any(axis=1)
+    qh = q[has]
+    if np.any(~(has | none)) or np.any(~np.isfinite(qh)) or np.any(np.abs(np.linalg.norm(qh, axis=1) - 1) > 1e-6):
         out.append("non-unit quaternions")
-    elif n > 1 and np.any(np.sum(q[1:] * q[:-1], axis=1) < 0):
+    elif len(qh) > 1 and np.any(np.sum(qh[1:] * qh[:-1], axis=1) < 0):
         out.append("quaternions change hemisphere between rows")
-    if np.any(np.abs(c["height_above_pad"] - c["tz"]) > 1e-9) or np.any(~(c["tz"] > 0)):
+    if np.any(np.abs(c["height_above_pad"][has] - c["tz"][has]) > 1e-9) or np.any(~(c["tz"][has] > 0)):
         out.append("height_above_pad is not tz > 0")
-    bad_phase = set(c["phase_gt"]) - set(PHASES)
+    bad_phase = set(c["phase_gt"][has]) - set(PHASES) | set(c["phase_gt"][~has]) - {""}
     if bad_phase:
         out.append(f"unknown phases {sorted(bad_phase)}")
     gt = read_tum(seq_dir / "groundtruth.tum")
@@ -737,7 +742,7 @@ def _label_problems(seq_dir: Path) -> list:
         b = np.nanmax(np.where(np.isfinite(second), second, 0.0), axis=1)
         bend[1:-1] = b
         bend[0], bend[-1] = b[0], b[-1]
-    for k in range(n):
+    for k in np.nonzero(has)[0]:
         tolerance = 1e-3 if seq.line_s == 0 else 0.5 + 0.25 * bend[k]
         T = transform_from_tum([c[f][k] for f in POSE])
         px = seq.camera.project(transform_points(np.linalg.inv(T), corners))
@@ -766,6 +771,9 @@ def _label_problems(seq_dir: Path) -> list:
     if excess > 0:
         out.append(f"projected corners disagree with the pose by {worst:.4f} px")
     imu = seq.imu
-    if len(imu) < 2 or not np.all(np.isfinite(imu)) or imu[0, 0] > t[0] + 1e-9 or imu[-1, 0] < t[-1] - 0.01:
+    if imported and not imported.get("imu"):
+        if len(imu):
+            out.append("imu.csv has rows, yet the import says it had no IMU")
+    elif len(imu) < 2 or not np.all(np.isfinite(imu)) or imu[0, 0] > t[0] + 1e-9 or imu[-1, 0] < t[-1] - 0.01:
         out.append("imu.csv does not cover the frames with finite values")
     return out

@@ -1,0 +1,267 @@
+"""``hvloc import``: a real flight (a video or a folder of images, a calibration, optionally an IMU
+log and ground truth) as an hvloc dataset, so that ``localize``, ``bench score`` and the report work
+on it as on a rendered one.
+
+* Frames: every image of a folder (sorted by name; PNG, JPEG, BMP, TIFF) or every frame of a video
+  (what OpenCV's ``VideoCapture`` reads), stored losslessly as PNG; frame ``k`` at ``k / fps``
+  (DESIGN.md), ``fps`` given or the video's.
+* Camera: a calibration file (:mod:`render.calibration`); the mount ``T_B_C`` as roll/pitch/yaw in
+  degrees (default: hvloc's downward camera).
+* Ground truth (optional): TUM poses ``t tx ty tz qx qy qz qw`` of the camera in the pad frame
+  (``T_P_C``), or of the body (``T_P_B``; the mount gives the camera), on the frames' clock (shifted
+  by ``--gt-time-offset``), interpolated to each frame time (position linearly, rotation along the
+  shortest arc; frames outside the ground truth's time span have none).  The labels (corner pixels,
+  visibility, ground-truth phase) come from it by the same rule as for rendered data, from the
+  geometry alone (what hides the pad in a real image is not known: visibility means in view).
+* IMU (optional): an ``imu.csv`` with hvloc's columns (``t, gyro_*, accel_*, q*``) on the same clock.
+
+Frames without ground truth have NaN poses and an empty ``phase_gt``; the metrics that need ground
+truth skip them, and say so.  ``meta.json`` records where everything came from (paths and SHA-256).
+"""
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from hvloc.geometry import (continuous_quaternions, invert, make_transform, so3_exp, so3_log, transform_from_tum,
+                            tum_from_transform)
+from pad_design.errors import InputError, validate_model
+
+from . import dataset as ds
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+def _natural_key(p: Path):
+    return [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", p.name)]
+
+
+def frame_source(path) -> tuple:
+    """``(count, fps or None, iterator of RGB uint8 frames)`` of an image folder or a video file."""
+    import cv2
+
+    p = Path(path)
+    if p.is_dir():
+        files = sorted((f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES), key=_natural_key)
+        if not files:
+            raise InputError(f"{p}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+
+        def images():
+            for f in files:
+                img = cv2.imread(str(f), cv2.IMREAD_COLOR)
+                if img is None:
+                    raise InputError(f"{f}: not an image OpenCV can read")
+                yield cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+        return len(files), None, images()
+    if not p.is_file():
+        raise InputError(f"{p}: no such video file or image folder")
+    cap = cv2.VideoCapture(str(p))
+    if not cap.isOpened():
+        raise InputError(f"{p}: not a video OpenCV can read")
+    fps = cap.get(cv2.CAP_PROP_FPS)
+    frames = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        frames.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+    cap.release()
+    if not frames:
+        raise InputError(f"{p}: the video has no frame OpenCV can decode")
+    return len(frames), (float(fps) if fps and math.isfinite(fps) and fps > 0 else None), iter(frames)
+
+
+def read_pose_tum(path) -> np.ndarray:
+    """``(N, 8)`` rows of a TUM file, sorted by time, with unit quaternions; an :class:`InputError` names
+    what is wrong."""
+    rows = ds.read_tum(path) if Path(path).is_file() else None
+    if rows is None:
+        raise InputError(f"{path}: no such ground-truth file")
+    if rows.ndim != 2 or rows.shape[1] != 8 or len(rows) < 2:
+        raise InputError(f"{path}: a TUM file has rows 't tx ty tz qx qy qz qw' (at least two)")
+    if not np.all(np.isfinite(rows)):
+        raise InputError(f"{path}: a value is not finite")
+    if np.any(np.diff(rows[:, 0]) <= 0):
+        raise InputError(f"{path}: times must increase from row to row")
+    n = np.linalg.norm(rows[:, 4:], axis=1)
+    if np.any(np.abs(n - 1) > 1e-3):
+        raise InputError(f"{path}: row {int(np.argmax(np.abs(n - 1)))}: the quaternion is not of unit length")
+    rows[:, 4:] /= n[:, None]
+    return rows
+
+
+def interpolate_poses(rows: np.ndarray, t: np.ndarray) -> list:
+    """The pose of ``rows`` (TUM, sorted) at each time ``t``: ``None`` outside their span."""
+    out = []
+    times = rows[:, 0]
+    for ti in t:
+        if ti < times[0] - 1e-9 or ti > times[-1] + 1e-9:
+            out.append(None)
+            continue
+        k = int(np.clip(np.searchsorted(times, ti) - 1, 0, len(times) - 2))
+        a = float(np.clip((ti - times[k]) / (times[k + 1] - times[k]), 0.0, 1.0))
+        A, B = transform_from_tum(rows[k, 1:]), transform_from_tum(rows[k + 1, 1:])
+        R = A[:3, :3] @ so3_exp(a * so3_log(A[:3, :3].T @ B[:3, :3]))
+        out.append(make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3]))
+    return out
+
+
+def _label_row(k: int, t: float, cam2pad, camera, pad, min_module_px: float) -> dict:
+    from .phase import phase_gt, view_facts
+
+    nan7 = [math.nan] * 7
+    row = {"frame": k, "t": t, "image": f"images/{k:06d}.png", "blur_px": math.nan, "blur_subframes": 1}
+    if cam2pad is None or cam2pad[2, 3] <= 0:
+        row.update(dict(zip(ds.POSE, nan7)), height_above_pad=math.nan, phase_gt="", pad_fully_visible=False,
+                   markers_visible=0, module_px=0.0, pad_visible_fraction=math.nan)
+        row.update({f"c{i}{a}": math.nan for i in range(4) for a in "uv"})
+        row.update({f"c{i}_visible": False for i in range(4)})
+        row.update({f"marker_{n}_visible": False for n in ("top", "right", "bottom")})
+    else:
+        facts = view_facts(camera, cam2pad, pad.geometry)
+        pose = tum_from_transform(cam2pad)
+        px = facts["corners_px"].copy()
+        px[~camera.in_image(px)] = np.nan
+        row.update(dict(zip(ds.POSE, pose)), height_above_pad=pose[2],
+                   phase_gt=phase_gt(camera, cam2pad, pad.geometry, min_module_px, facts),
+                   pad_fully_visible=facts["pad_fully_visible"], markers_visible=facts["markers_visible"],
+                   module_px=facts["module_px"], pad_visible_fraction=facts["pad_visible_fraction"])
+        for i in range(4):
+            row[f"c{i}u"], row[f"c{i}v"] = px[i]
+            row[f"c{i}_visible"] = bool(facts["corner_visible"][i])
+        for name, vis in facts["marker_visible"].items():
+            row[f"marker_{name.lower()}_visible"] = vis
+    # what a recording does not know: the world poses and velocities
+    row.update({f"{w}_{c}": math.nan for w in ("pad2world", "body2world") for c in ds.POSE})
+    row.update({f"{w}_{c}": math.nan for w in ("body_vel", "pad_vel") for c in "xyz"})
+    return row
+
+
+def import_recording(out, frames, calibration, *, calibration_name: str | None = None, fps: float | None = None,
+                     groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
+                     mount_rpy_deg=None, pad_spec=None, name: str = "imported", show_progress: bool = False) -> dict:
+    """Write the recording as a one-sequence dataset in ``out`` (a new folder, written whole or not at
+    all).  Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
+    import yaml
+
+    from pad_design.spec import PadSpec
+
+    from .calibration import read_calibration
+    from .imu import IMU_COLUMNS
+    from .plan import pad_for
+    from .spec import DatasetSpec, MountSpec
+
+    root = Path(out)
+    if root.exists() and any(root.iterdir()):
+        raise InputError(f"--out {root}: not empty; an import writes a new dataset")
+    cal = read_calibration(calibration, calibration_name)
+    count, video_fps, images = frame_source(frames)
+    fps = fps or video_fps
+    if not fps:
+        raise InputError("--fps: needed for an image folder (frame k is at k / fps)")
+    mount = MountSpec() if mount_rpy_deg is None else validate_model(MountSpec, {"rpy_deg": list(mount_rpy_deg)},
+                                                                       "--mount-rpy")
+    pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
+    spec = validate_model(DatasetSpec, {
+        "name": name, "seed": 0, "sequences": 1,
+        "camera": {**cal.spec_fields(), "fps": float(fps), "exposure_s": 0.0, "mount": mount.model_dump(mode="json")},
+        "pad": validate_model(PadSpec, pad_doc, str(pad_spec or "pad")).model_dump(mode="json"),
+        "trajectory": {"start_height_m": 3.0, "lateral_offset_m": [0.0, 0.0]}}, "the recording's spec")
+    camera, T_B_C = cal.camera, mount.transform()
+    pad = pad_for(spec)
+    t = np.arange(count) / float(fps)
+    poses = [None] * count
+    if groundtruth is not None:
+        rows = read_pose_tum(groundtruth)
+        rows[:, 0] += gt_time_offset_s
+        poses = interpolate_poses(rows, t)
+        if gt_body:  # T_P_B -> T_P_C
+            poses = [None if p is None else p @ T_B_C for p in poses]
+        if not any(p is not None for p in poses):
+            raise InputError(f"{groundtruth}: its times ({rows[0, 0]:.3f} to {rows[-1, 0]:.3f} s after the offset) "
+                             f"miss every frame (0 to {t[-1]:.3f} s); see --gt-time-offset")
+    imu_rows = []
+    if imu is not None:
+        cols = ds.read_csv_columns(Path(imu), ())
+        missing = [c for c in IMU_COLUMNS if c not in cols]
+        if missing:
+            raise InputError(f"{imu}: lacks the columns {missing} (hvloc's imu.csv: {', '.join(IMU_COLUMNS)})")
+        imu_rows = np.column_stack([cols[c] for c in IMU_COLUMNS])
+        if not np.all(np.isfinite(imu_rows)) or np.any(np.diff(imu_rows[:, 0]) <= 0):
+            raise InputError(f"{imu}: values must be finite and times increasing")
+        imu_rows = imu_rows.tolist()
+    good = [i for i, p in enumerate(poses) if p is not None]
+    if good:  # one quaternion hemisphere from row to row (DESIGN.md)
+        q = continuous_quaternions(np.array([tum_from_transform(poses[i])[3:] for i in good]))
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        return _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good,
+                      q if good else None, imu_rows, fps, cal, calibration, groundtruth, gt_body,
+                      gt_time_offset_s, imu, pad_spec, show_progress)
+    except BaseException:  # nothing half-written: the folder was new (or empty)
+        import shutil
+
+        for p in root.iterdir():
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        raise
+
+
+def _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good, q, imu_rows, fps, cal,
+           calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress) -> dict:
+    from pad_design.errors import progress_bar
+
+    from .imu import IMU_COLUMNS
+
+    with ds.FolderLock(root, "writing"):
+        manifest = ds.new_manifest(spec)
+        manifest["files"][ds.PAD_TEXTURE] = ds.write_image(root / ds.PAD_TEXTURE, pad.texture_rgb)
+        sid = ds.sequence_id(0)
+        writer = ds.SequenceWriter(root / f".tmp-{sid}")
+        bar = progress_bar(show_progress, count, "import")
+        qi = iter(q if q is not None else ())
+
+        class _Layers:  # what the writer takes from a renderer
+            airframe_mask = None
+
+        for k, rgb in enumerate(images):
+            if rgb.shape[:2] != (camera.height, camera.width):
+                raise InputError(f"{frames}: frame {k} is {rgb.shape[1]}x{rgb.shape[0]}, the calibration is "
+                                 f"{camera.width}x{camera.height}")
+            row = _label_row(k, float(t[k]), poses[k], camera, pad, spec.phase_rule.min_module_px)
+            if poses[k] is not None:
+                row.update(dict(zip(("qx", "qy", "qz", "qw"), next(qi))))
+            layers = _Layers()
+            layers.labels, layers.rgb = row, rgb
+            writer.add(layers)
+            if bar:
+                bar.update(1)
+        if bar:
+            bar.close()
+        info = camera.to_dict()
+        info.update({"fps": float(fps), "exposure_s": None, "T_B_C": T_B_C.tolist(), "supersample": 1,
+                     "rolling_shutter_line_s": 0.0, "rolling_shutter_ref_row": (camera.height - 1) / 2,
+                     "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
+                                    "T_B_C maps camera (OpenCV) to body (FLU)"})
+        sources = {"frames": str(frames), "calibration": f"{calibration} ({cal.source})"}
+        for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec)):
+            if p is not None:
+                sources[key] = str(p)
+        checks = {k: ds.sha256_file(v) for k, v in (("calibration", calibration), ("groundtruth", groundtruth),
+                                                     ("imu", imu)) if v is not None}
+        meta = {"sequence": sid, "index": 0, "family": "imported", "frames": count,
+                "imported": {"sources": sources, "sha256": checks, "ground_truth": "body" if gt_body else
+                             ("camera" if groundtruth is not None else "none"), "gt_time_offset_s": gt_time_offset_s,
+                             "frames_with_ground_truth": len(good), "imu": imu is not None},
+                "phase_rule": "render/phase.py (visibility from the geometry alone)",
+                "min_module_px": spec.phase_rule.min_module_px}
+        files = writer.close(camera_info=info, pad_document=pad.document(f"../{ds.PAD_TEXTURE}"),
+                             imu_columns=IMU_COLUMNS, imu_rows=imu_rows, meta=meta)
+        ds.finalize_sequence(root / f".tmp-{sid}", root / sid)
+        manifest["sequences"].append({"id": sid, "index": 0, "seed": 0, "family": "imported", "frames": count})
+        manifest["files"].update({f"{sid}/{k}": v for k, v in files.items()})
+        manifest["imported"] = True
+        ds.save_manifest(root, manifest)
+    return {"root": root, "frames": count, "with_ground_truth": len(good), "with_imu": imu is not None}
