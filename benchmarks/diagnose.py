@@ -31,7 +31,7 @@ def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None
         G_all = seq.cam2pad
         for k in range(len(seq) if max_frames is None else min(len(seq), max_frames)):
             t = float(seq.t[k])
-            e = loc.process(seq.image(k), t, imu_at(seq.imu, t) if use_imu else None)
+            e = loc.process(seq.image(k), t, imu_at(seq.imu, t, seq.imu_time_offset_s) if use_imu else None)
             G = G_all[k]
             pe = re = float("nan")
             if e.cam2pad is not None:

@@ -40,12 +40,13 @@ def covariance_matrix(columns: dict, k: int) -> np.ndarray:
     return cov
 
 
-def imu_at(imu: np.ndarray, t: float):
-    """The latest IMU row at or before ``t`` (the AHRS attitude a flight computer would have);
-    ``None`` for a recording without an IMU."""
+def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
+    """The latest IMU row at or before camera time ``t`` (the AHRS attitude a flight computer would
+    have), read on the IMU's clock (``t + offset_s``: the sequence's ``imu_time_offset_s``, known as
+    a calibrated rig knows it); ``None`` for a recording without an IMU."""
     if len(imu) == 0:
         return None
-    j = int(np.searchsorted(imu[:, 0], t + 1e-9)) - 1
+    j = int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1
     return imu[max(j, 0)]
 
 
@@ -155,7 +156,7 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
         img = seq.image(k)
         if work is not None:
             work.begin(k)
-        sample = imu_at(imu, t)
+        sample = imu_at(imu, t, seq.imu_time_offset_s)
         for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))
         if on_estimate is not None:
@@ -165,7 +166,9 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
     return out
 
 
-def write_estimates(seq_out: Path, estimates: list) -> None:
+def write_estimates(seq_out: Path, estimates: list, frames=None) -> None:
+    """``estimates.csv`` and ``estimates.tum`` of one sequence; ``frames``: the dataset's frame indices
+    (``frames.csv``'s ``frame``: gaps where frames were dropped), by default 0, 1, ..."""
     from render.dataset import write_csv, write_tum
 
     seq_out.mkdir(parents=True, exist_ok=True)
@@ -173,7 +176,8 @@ def write_estimates(seq_out: Path, estimates: list) -> None:
     poses = np.array([tum_from_transform(e.cam2pad) if e.cam2pad is not None else [np.nan] * 7 for e in estimates])
     if len(poses):
         poses[:, 3:] = continuous_quaternions(poses[:, 3:])  # one hemisphere from row to row (DESIGN.md)
-    for k, (e, pose) in enumerate(zip(estimates, poses.tolist())):
+    frames = range(len(estimates)) if frames is None else [int(f) for f in frames]
+    for k, e, pose in zip(frames, estimates, poses.tolist()):
         rows.append([k, e.t, e.phase, e.status, *pose, round(e.ms, 3), e.method, e.n_corr, e.rms_px,
                      *covariance_row(e.cov), e.reason.replace(",", ";").replace("\n", " ")])
         if e.status == "ok":
@@ -219,7 +223,7 @@ def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind, mavli
                 send = stream.send
             est = localize_sequence(seq, config, use_imu, progress=bar.update if bar else None, kind=kind,
                                     on_estimate=send)
-            write_estimates(out / seq.id, est)
+            write_estimates(out / seq.id, est, seq.columns["frame"])
             results[seq.id] = est
     finally:
         if bar:

@@ -256,7 +256,7 @@ def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bo
     ests = localize_sequence_many(seq, [(LocalizerConfig.model_validate(s[0]), *s[1:]) for s in setups],
                                   report_progress, share_work=share_work)
     for d, est in zip(dirs, ests):
-        write_estimates(Path(d), est)
+        write_estimates(Path(d), est, seq.columns["frame"])
     return len(seq)
 
 

@@ -280,6 +280,9 @@ class HierarchicalLocalizer:
         self.phase = "approaching"
         self.last: Estimate | None = None       # last accepted estimate
         self.last_t: float | None = None         # time of the last frame processed (any status)
+        self.velocity: np.ndarray | None = None  # camera velocity in P (m/s), from the last two accepted poses
+        self.frame_dt: float | None = None       # the usual time between frames (a running estimate)
+        self.gap = False                         # this frame follows a gap (dropped or missing frames)
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
 
@@ -293,10 +296,23 @@ class HierarchicalLocalizer:
         if event == "reset":
             self.reset()
         elif event == "drop":
-            self.last = None
+            self.last, self.velocity = None, None
             self.flow.reset()
+        dt = t - self.last_t if self.last_t is not None else None
+        self.gap = bool(dt is not None and self.frame_dt is not None and dt > 1.5 * self.frame_dt)
+        if dt is not None and dt > 0:
+            self.frame_dt = dt if self.frame_dt is None else 0.9 * self.frame_dt + 0.1 * min(dt, 2 * self.frame_dt)
         self.last_t = t
         return note
+
+    def _predicted(self, t: float):
+        """The pose expected at ``t`` after a gap: the last accepted one moved at the last velocity
+        (rotation held); ``None`` when there was no gap or nothing to predict from."""
+        if not self.gap or self.last is None or self.velocity is None:
+            return None
+        T = self.last.cam2pad.copy()
+        T[:3, 3] += self.velocity * (t - self.last.t)
+        return T if T[2, 3] > 0.05 else None
 
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
@@ -309,6 +325,7 @@ class HierarchicalLocalizer:
         return est
 
     def _estimate(self, image, t: float, R_W_B) -> Estimate:
+        self._t = t
         rgb, gray, why = self.work(("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
@@ -351,6 +368,8 @@ class HierarchicalLocalizer:
                 continue
             if reasons:
                 est.extras["before"] = "; ".join(reasons)
+            if self.last is not None and 0 < est.t - self.last.t < 0.5:
+                self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
             self._after_accept(method, est, gray)
             return est
@@ -370,7 +389,7 @@ class HierarchicalLocalizer:
         prior = self._prior()
         cfg = self.config
         if method == "flow":
-            res, n, why = self.flow.track(gray, prior, up_C)
+            res, n, why = self.flow.track(gray, prior, up_C, self._predicted(self._t))
             if res is None:
                 return None, why
             return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"

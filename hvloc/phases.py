@@ -486,10 +486,13 @@ LK_PARAMS = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS |
 
 
 def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, gray: np.ndarray,
-                      fb_max_px: float = 1.0) -> tuple:
+                      fb_max_px: float = 1.0, guess_px: np.ndarray | None = None) -> tuple:
     """Track keyframe features into ``gray``: frame-to-frame LK from ``prev_px`` with a
     forward-backward check, then refined against the keyframe itself (LK from the keyframe,
-    started at the tracked positions), which keeps the error from accumulating.
+    started at the tracked positions), which keeps the error from accumulating.  ``guess_px``:
+    where the features are predicted in ``gray`` (after dropped frames the motion, and near the
+    ground the change of scale, exceed what LK's pyramid follows): the previous frame is first
+    warped by the homography that takes its features to their guesses.
 
     Returns ``(px (N, 2) with NaN where lost)``."""
     out = np.full_like(prev_px, np.nan)
@@ -497,10 +500,25 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     if ok.sum() < 4:
         return out
     p0 = prev_px[ok].astype(np.float32).reshape(-1, 1, 2)
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **LK_PARAMS)
-    if p1 is None:
-        return out
-    pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **LK_PARAMS)
+    H = None
+    if guess_px is not None:  # the previous frame warped to where the prediction puts it: LK then sees
+        g = guess_px[ok]      # patches of the right scale and turn, displaced by the prediction's error
+        fin = np.isfinite(g).all(axis=1)
+        if fin.sum() >= 8:
+            H, _ = cv2.findHomography(p0[fin, 0].astype(np.float64), g[fin].astype(np.float64), 0)
+    if H is not None:
+        src = cv2.warpPerspective(prev_gray, H, (gray.shape[1], gray.shape[0]), flags=cv2.INTER_LINEAR)
+        q0 = cv2.perspectiveTransform(p0, H).astype(np.float32)
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, q0, None, **LK_PARAMS)
+        if p1 is None:
+            return out
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
+        p0 = q0  # the forward-backward check in the warped frame
+    else:
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **LK_PARAMS)
+        if p1 is None:
+            return out
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **LK_PARAMS)
     fb = np.linalg.norm((pb - p0)[:, 0, :], axis=1)
     good = (st[:, 0] == 1) & (stb[:, 0] == 1) & (fb < fb_max_px)
     # refine against the keyframe (drift control)
@@ -581,13 +599,20 @@ class FlowTracker:
         self.pending = None
         return True
 
-    def track(self, gray, prior_cam2pad=None, up_C=None):
-        """``(PoseResult | None, n_inliers, reason)`` for ``gray``."""
+    def track(self, gray, prior_cam2pad=None, up_C=None, predicted_cam2pad=None):
+        """``(PoseResult | None, n_inliers, reason)`` for ``gray``; ``predicted_cam2pad``: the pose
+        expected in ``gray`` (given after a gap in time), from which each feature's pixel is guessed."""
         if not self.ready:
             return None, 0, "no keyframe"
         w, kf = self.work, self.kf
-        px = w(("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks)),
-               track_to_keyframe, kf, self.prev_gray, self.tracks, gray)
+        guess = None
+        if predicted_cam2pad is not None:
+            from .geometry import transform_points
+
+            Pc = transform_points(invert(predicted_cam2pad), kf.pts_P)
+            guess = np.where((Pc[:, 2:3] > 0.05), self.camera.project(Pc), np.nan)
+        px = w(("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks), array_key(guess)),
+               track_to_keyframe, kf, self.prev_gray, self.tracks, gray, 1.0, guess)
         self.pending = (gray, px, w.frame)
         # the prior only breaks IPPE's tie when there is no gravity (see solve_planar_pose)
         res, inl, why = w(("tracks_pose", array_key(kf.pts_P), array_key(px), array_key(up_C),

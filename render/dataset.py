@@ -42,8 +42,8 @@ AIRFRAME_MASK = "airframe_mask.png"  # per sequence, when the camera sees the dr
 
 # frames.csv: every column and what it holds (the README's table is made from this)
 COLUMN_DOCS = {
-    "frame": "frame index k (0, 1, ...)",
-    "t": "time of the frame, s from the start of the sequence (k / fps)",
+    "frame": "frame index k (0, 1, ...; gaps where the camera dropped frames)",
+    "t": "time of the frame, s from the start of the sequence (k / fps, plus the camera's jitter if any)",
     "image": "image path relative to the sequence folder",
     **{c: f"camera pose in the pad frame T_P_C: {'translation (m)' if c[1] != 'q' else 'quaternion'} {c}"
        for c in POSE},
@@ -493,6 +493,11 @@ class Sequence:
         return float(self.camera_info.get("rolling_shutter_line_s", 0.0))
 
     @property
+    def imu_time_offset_s(self) -> float:
+        """The IMU's clock minus the camera's (imu.csv's t is on the IMU's clock)."""
+        return float(self.camera_info.get("imu_time_offset_s", 0.0))
+
+    @property
     def ref_row(self) -> float:
         return float(self.camera_info.get("rolling_shutter_ref_row", (self.camera.height - 1) / 2))
 
@@ -708,8 +713,11 @@ def _label_problems(seq_dir: Path) -> list:
     t = c["t"]
     if not np.all(np.isfinite(t)) or (n > 1 and np.any(np.diff(t) <= 0)):
         out.append("frame times not finite and increasing")
-    if np.any(np.abs(t - c["frame"] / seq.fps) > 1e-6):
-        out.append("frame k is not at t = k / fps")
+    jitter = float(seq.camera_info.get("frame_time_jitter_s") or 0.0)
+    if n > 1 and np.any(np.diff(c["frame"]) <= 0):
+        out.append("frame indices do not increase")
+    if np.any(np.abs(t - c["frame"] / seq.fps) > (0.4 / seq.fps + 1e-9 if jitter > 0 else 1e-6)):
+        out.append("frame k is not at t = k / fps" + (" within its jitter" if jitter > 0 else ""))
     imported = seq.meta.get("imported")
     q = np.column_stack([c[k] for k in ("qx", "qy", "qz", "qw")])
     # an imported recording may lack ground truth on some frames: then the whole pose is NaN
@@ -774,6 +782,7 @@ def _label_problems(seq_dir: Path) -> list:
     if imported and not imported.get("imu"):
         if len(imu):
             out.append("imu.csv has rows, yet the import says it had no IMU")
-    elif len(imu) < 2 or not np.all(np.isfinite(imu)) or imu[0, 0] > t[0] + 1e-9 or imu[-1, 0] < t[-1] - 0.01:
+    elif len(imu) < 2 or not np.all(np.isfinite(imu)) or imu[0, 0] > t[0] + seq.imu_time_offset_s + 1e-9 \
+            or imu[-1, 0] < t[-1] + seq.imu_time_offset_s - 0.01:
         out.append("imu.csv does not cover the frames with finite values")
     return out

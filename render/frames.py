@@ -327,7 +327,8 @@ class SequenceRenderer:
         if np.allclose(T_W_B, self.body2world[k], atol=1e-12):
             body[3:] = self._body_quats[k]
         padw = tum_from_transform(T_W_P)
-        row = {"frame": k, "t": t, "image": f"images/{k:06d}.png",
+        idx = int(self.plan.frame_index[k])  # the frame's own index (gaps where frames were dropped)
+        row = {"frame": idx, "t": t, "image": f"images/{idx:06d}.png",
                **dict(zip(("tx", "ty", "tz", "qx", "qy", "qz", "qw"), pose)), "height_above_pad": pose[2],
                "phase_gt": phase, "pad_fully_visible": facts["pad_fully_visible"],
                "markers_visible": facts["markers_visible"], "module_px": facts["module_px"], "blur_px": blur,

@@ -40,7 +40,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
         info = r.camera.to_dict()
         info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
                      "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
-                     "rolling_shutter_ref_row": r.ref_row,
+                     "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
+                     "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate,
                      "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
                                     "T_B_C maps camera (OpenCV) to body (FLU)"})
         plan = r.plan

@@ -68,6 +68,11 @@ class SequencePlan:
     frame_times: np.ndarray
     imu: np.ndarray = field(repr=False)
     material: dict = field(default_factory=dict)  # the pad's gloss, glare spread and dirt drawn for it
+    frame_index: np.ndarray | None = None  # each kept frame's index k (gaps where frames were dropped)
+
+    def __post_init__(self):
+        if self.frame_index is None:
+            self.frame_index = np.arange(len(self.frame_times))
 
 
 def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
@@ -103,4 +108,22 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     u3 = lambda r: float(r3.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731
     material = {"gloss": u3(m.gloss), "gloss_roughness": u3(m.gloss_roughness), "dirt": u3(m.dirt),
                 "dirt_seed": int(r3.integers(2**31))}
-    return SequencePlan(index, seed, family, traj, draw, imaging, times, imu, material)
+    times, kept = frame_timing(cam, n, np.random.default_rng(rng.integers(2**63)))  # drawn last, as r3
+    imu[:, 0] += spec.imu.time_offset_s  # on the IMU's own clock
+    return SequencePlan(index, seed, family, traj, draw, imaging, times, imu, material, kept)
+
+
+def frame_timing(cam, n: int, rng: np.random.Generator) -> tuple:
+    """``(times, frame indices)`` of the frames kept: frame ``k`` captured at ``k / fps`` plus its
+    jitter (Gaussian, ``cam.frame_time_jitter_s``, clipped to 0.4 / fps so the order holds), and each
+    frame but the first and the last lost with probability ``cam.frame_drop_rate``.  No draw is made
+    for a camera with neither, so such sequences are as they always were."""
+    k = np.arange(n)
+    if cam.frame_time_jitter_s <= 0 and cam.frame_drop_rate <= 0:
+        return k / cam.fps, k
+    jitter = np.clip(rng.normal(0.0, cam.frame_time_jitter_s, n), -0.4 / cam.fps, 0.4 / cam.fps)
+    jitter[0] = 0.0  # the sequence starts at t = 0 and ends within the trajectory
+    jitter[-1] = min(jitter[-1], 0.0)
+    keep = rng.random(n) >= cam.frame_drop_rate
+    keep[0] = keep[-1] = True
+    return (k / cam.fps + jitter)[keep], k[keep]

@@ -79,6 +79,11 @@ class CameraSpec(_Model):
     auto_exposure_lag_s: float | None = Field(None, gt=0.0, description="auto exposure: the gain follows the scene's "
                                               "brightness with this time constant (None: fixed exposure)")
     mount: MountSpec = MountSpec()
+    # timing as real systems have it
+    frame_time_jitter_s: float = Field(0.0, ge=0.0, description="std of each frame's capture time around k / fps "
+                                       "(clipped to 0.4 / fps); frames.csv's t is the true capture time")
+    frame_drop_rate: float = Field(0.0, ge=0.0, le=0.5, description="share of frames lost (never the first or the "
+                                   "last): their rows and images are missing, frame indices keep their gaps")
 
     @model_validator(mode="after")
     def _exposure(self):
@@ -231,6 +236,8 @@ class ImuSpec(_Model):
     ahrs_roll_pitch_deg: float = Field(0.3, ge=0.0, description="AHRS attitude error std, roll and pitch")
     ahrs_yaw_deg: float = Field(1.0, ge=0.0, description="AHRS attitude error std, yaw")
     ahrs_drift_time_s: float = Field(20.0, gt=0.0, description="correlation time of the AHRS error (slow drift)")
+    time_offset_s: float = Field(0.0, ge=-0.5, le=0.5, description="the IMU's clock minus the camera's: imu.csv's "
+                                 "t is the sample's true time plus this (camera.json says it, as a calibration would)")
 
 
 class PhaseRuleSpec(_Model):

@@ -59,9 +59,13 @@ FIELDS = {
     "camera.vignetting": (_rng_range(0.0, 0.4), [0.4, 0.4], {}),
     "camera.chromatic_aberration_px": (_rng_range(0.0, 1.0), [1.5, 1.5], {"camera.width": 160, "camera.height": 160}),
     "camera.auto_exposure_lag_s": (_choice([None, 0.3]), 0.4, {}),
+    "camera.frame_time_jitter_s": (_choice([0.0, 0.0, 0.02]), 0.05, {}),
+    "camera.frame_drop_rate": (_choice([0.0, 0.0, 0.2]), 0.3, {}),
     "camera.mount.xyz_m": (lambda r: [0.0, 0.0, float(r.uniform(-0.1, -0.02))], [0.05, 0.0, -0.08], {}),
     "camera.mount.rpy_deg": (lambda r: [float(180 + r.uniform(-25, 25)), 0.0, -90.0], [195.0, 0.0, -90.0], {}),
-    "pad.variant": (_choice(["paper", "nested", "aruco"]), "aruco", {}),
+    "pad.variant": (_choice(["paper", "nested", "aruco", "apriltag"]), "aruco", {}),
+    "pad.apriltag_ids": (_choice([[0, 1], [2, 5]]), [2, 5], {"pad.variant": "apriltag"}),
+    "pad.apriltag_total_m": (_choice([None, 0.5]), 0.45, {"pad.variant": "apriltag"}),
     "pad.side_m": (_uniform(0.7, 1.2), 1.0, {}),
     "pad.border_m": (_uniform(0.08, 0.14), 0.12, {}),
     "pad.border_color": (_choice(["#ff30e0", "#3050ff", "#c020ff"]), "#3050ff", {}),
@@ -144,6 +148,7 @@ FIELDS = {
     "imu.ahrs_roll_pitch_deg": (_uniform(0.1, 0.5), 1.0, {}),
     "imu.ahrs_yaw_deg": (_uniform(0.5, 2.0), 3.0, {}),
     "imu.ahrs_drift_time_s": (_uniform(10.0, 30.0), 5.0, {}),
+    "imu.time_offset_s": (_choice([0.0, -0.01, 0.02]), 0.05, {}),
     # adjustment frames need a camera that resolves the markers
     "phase_rule.min_module_px": (_uniform(1.5, 3.0), 40.0, {"camera.width": 200, "camera.height": 200}),
 }

@@ -226,7 +226,7 @@ def test_shared_image_work_gives_each_localizer_its_own_estimates_for_less_work(
             if work is not None:
                 work.begin(k)
             for e, loc in zip(ests, locs):
-                e.append(loc.process(img, t, imu_at(seq.imu, t)))
+                e.append(loc.process(img, t, imu_at(seq.imu, t, seq.imu_time_offset_s)))
         return ests
 
     work = ImageWork()

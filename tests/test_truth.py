@@ -455,3 +455,46 @@ def test_a_box_shadow_across_a_pad_on_the_ground_darkens_it_evenly(tmp_path):
     ratio = a[bright] / b[bright]
     assert bright.sum() > 300 and ratio.mean() < 0.8  # in shadow
     assert np.percentile(ratio, 95) - np.percentile(ratio, 5) < 0.15, np.percentile(ratio, [5, 50, 95])
+
+
+def test_real_timing_jitter_dropped_frames_and_imu_clock_offset_are_rendered_and_labelled(tmp_path):
+    """The time contract with a real camera's timing: frame k is captured at k / fps plus its jitter
+    (frames.csv's t is the true time), dropped frames leave gaps in k (rows and images missing), and
+    imu.csv runs on the IMU's clock, offset as camera.json says.  Labels still agree with the images
+    (verify, image check included), and the localizer's harness reads the IMU at the right time."""
+    from benchmarks.run import imu_at, localize_dataset, read_estimates
+    from hvloc.geometry import matrix_from_quat_xyzw, rotation_angle
+
+    base = {"name": "timing", "seed": 3, "sequences": 1, "pad_ppm": 500,
+            "camera": {"width": 240, "height": 240, "fps": 8, "exposure_s": 0.004},
+            "trajectory": {"families": ["straight"], "start_height_m": 3.0, "duration_s": [6.0, 6.0],
+                           "lateral_offset_m": [0.0, 0.1], "yaw_change_deg": [40.0, 40.0]},
+            "environment": {"distractors": {"boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}}
+    real = _merge(base, {"camera.frame_time_jitter_s": 0.01, "camera.frame_drop_rate": 0.25, "imu.time_offset_s": 0.03})
+    generate(_spec(base), tmp_path / "ideal", show_progress=False)
+    generate(_spec(real), tmp_path / "real", show_progress=False)
+    assert verify_dataset(tmp_path / "real") == []
+    ideal, seq = Dataset(tmp_path / "ideal")["seq_0000"], Dataset(tmp_path / "real")["seq_0000"]
+    k, t = seq.columns["frame"].astype(int), seq.t
+    assert len(seq) < len(ideal) and k[0] == 0 and k[-1] == len(ideal) - 1 and np.all(np.diff(k) >= 1)
+    assert np.any(np.diff(k) > 1)  # gaps
+    assert sorted(p.name for p in (tmp_path / "real" / "seq_0000" / "images").iterdir()) == [f"{i:06d}.png" for i in k]
+    dt = t - k / 8
+    assert np.abs(dt).max() <= 0.4 / 8 + 1e-12 and np.std(dt[1:]) > 0.005  # jittered, never reordered
+    # the true pose at the true time: the same trajectory as the ideal camera's, sampled where the frame was taken
+    for i in (3, len(seq) // 2):
+        assert np.allclose(seq.cam2pad_at(i), ideal.pose_at(float(t[i])), atol=2e-3)
+    # imu.csv on the IMU's clock: the same samples, 30 ms later on it
+    np.testing.assert_allclose(seq.imu[:, 0], ideal.imu[:, 0] + 0.03, atol=1e-12)
+    np.testing.assert_allclose(seq.imu[:, 1:], ideal.imu[:, 1:], atol=1e-12)
+    assert seq.imu_time_offset_s == 0.03 and seq.camera_info["frame_drop_rate"] == 0.25
+    R_true = ideal.imu[int(np.searchsorted(ideal.imu[:, 0], t[5] + 1e-9)) - 1, 7:]
+    assert rotation_angle(matrix_from_quat_xyzw(imu_at(seq.imu, float(t[5]), seq.imu_time_offset_s)[7:]),
+                          matrix_from_quat_xyzw(R_true)) < 1e-9
+    # the localizer's output names the dataset's frames, gaps and all
+    localize_dataset(tmp_path / "real", tmp_path / "est", show_progress=False)
+    est = read_estimates(tmp_path / "est" / "seq_0000" / "estimates.csv")
+    assert list(est["frame"].astype(int)) == list(k)
+    localize_dataset(tmp_path / "ideal", tmp_path / "est_ideal", show_progress=False)
+    ok_ideal = np.mean(read_estimates(tmp_path / "est_ideal" / "seq_0000" / "estimates.csv")["status"] == "ok")
+    assert np.mean(est["status"] == "ok") >= ok_ideal - 0.1 and ok_ideal > 0.5  # the gates cope with the timing
