@@ -84,34 +84,70 @@ class ArucoLocalizer(_FiducialPeer):
     METHOD, PEER = "aruco", "ArUco"
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
+        from pad_design.layout import aruco_dictionary_of
+
         super().__init__(pad, camera, config)
-        self.corners_P = {m.aruco_id: m.outer_corners for m in self.markers}
-        name = self.geometry.spec["aruco_dictionary"]
+        # one detector per dictionary the pad uses (a nested pad's small marker is of another: one
+        # detector drops a marker candidate that holds another, so practitioners nest dictionaries)
+        self.corners_P = {}
+        for m in self.markers:
+            self.corners_P.setdefault(aruco_dictionary_of(self.geometry.spec, m), {})[m.aruco_id] = m.outer_corners
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-        self.detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params)
+        self.detectors = [(cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)), params),
+                           self.corners_P[name]) for name in sorted(self.corners_P)]
 
     def _detect(self, gray) -> tuple:
-        corners, ids, _ = self.detector.detectMarkers(gray)
-        if ids is None:
-            return [], "no marker"
-        found = [(self.corners_P[int(i)], c.reshape(4, 2)) for c, i in zip(corners, ids.ravel())
-                 if int(i) in self.corners_P]
-        return found, "no marker of this pad"
+        found, seen = [], False
+        for detector, corners_P in self.detectors:
+            corners, ids, _ = detector.detectMarkers(gray)
+            if ids is None:
+                continue
+            seen = True
+            found += [(corners_P[int(i)], c.reshape(4, 2)) for c, i in zip(corners, ids.ravel()) if int(i) in corners_P]
+        return found, "no marker of this pad" if seen else "no marker"
+
+
+_DETECTOR_CLASS = None
+
+
+def _apriltag_detector(family: str):
+    """A ``pupil_apriltags.Detector`` that is freed in the right order.  pupil-apriltags 1.0.4 frees
+    the tag families before the detector, whose destructor still reads them (AprilTag's
+    ``apriltag_detector_destroy`` uninitialises each family's decode table): a use-after-free that
+    crashed a test run, and crashes every time under ``MALLOC_PERTURB_``.  Here the detector goes first."""
+    global _DETECTOR_CLASS
+    if _DETECTOR_CLASS is None:
+        from pupil_apriltags import Detector
+
+        class _Detector(Detector):
+            def __del__(self):
+                ptr = getattr(self, "tag_detector_ptr", None)
+                if ptr is None:
+                    return
+                self.libc.apriltag_detector_destroy.restype = None
+                self.libc.apriltag_detector_destroy(ptr)
+                self.tag_detector_ptr = None
+                for fam, tf in self.tag_families.items():
+                    destroy = getattr(self.libc, f"{fam}_destroy")
+                    destroy.restype = None
+                    destroy(tf)
+                self.tag_families = {}
+
+        _DETECTOR_CLASS = _Detector
+    return _DETECTOR_CLASS(families=family, nthreads=1)
 
 
 class AprilTagLocalizer(_FiducialPeer):
     METHOD, PEER = "apriltag", "AprilTag"
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
-        from pupil_apriltags import Detector
-
         from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
 
         super().__init__(pad, camera, config)
         order = list(DETECTOR_TO_PAD_CORNERS)
         self.corners_P = {m.aruco_id: m.outer_corners[order] for m in self.markers}  # in the detector's order
-        self.detector = Detector(families=FAMILY, nthreads=1)
+        self.detector = _apriltag_detector(FAMILY)
 
     def _detect(self, gray) -> tuple:
         tags = self.detector.detect(np.ascontiguousarray(gray))

@@ -51,7 +51,8 @@ def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
 
 
 KINDS = ("hierarchical", "aruco", "apriltag")  # built in; any other localizer by entry point or import path
-PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco",), "apriltag": ("apriltag",)}  # by default
+PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco", "aruco_nested"),
+                "apriltag": ("apriltag",)}  # what each runs on by default
 ENTRY_POINT_GROUP = "hvloc.localizers"
 
 

@@ -31,7 +31,7 @@ class DatasetEntry(BaseModel):
     overrides: dict = Field(default_factory=dict, description="spec fields to override (nested mapping)")
     tier: str | None = Field(None, pattern=r"^[A-Za-z0-9_-]+$", description="difficulty tier (nominal, hard, "
                              "extreme...): every score is also given per tier")
-    pads: list[Literal["paper", "nested", "aruco", "apriltag"]] = Field(
+    pads: list[Literal["paper", "nested", "aruco", "apriltag", "aruco_nested"]] = Field(
         default_factory=list, description="the same descents again with these pad variants (datasets "
         "<name>_<variant>, same seed and tier): each localizer runs on those of the pad it needs")
 

@@ -13,7 +13,7 @@ def build_parser(prog: str = "hvloc pad") -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="action", required=True)
     mk = sub.add_parser("make", help="write pad.png, pad.json, pad.pdf and pad_a4_tiles.pdf")
     mk.add_argument("--spec", help="pad spec YAML (default: the paper's 0.85 m pad)")
-    mk.add_argument("--variant", choices=["paper", "nested", "aruco", "apriltag"],
+    mk.add_argument("--variant", choices=["paper", "nested", "aruco", "apriltag", "aruco_nested"],
                     help="override the spec's variant")
     mk.add_argument("--ppm", type=float, default=DEFAULT_PPM, help="texture pixels per metre (default 2000)")
     mk.add_argument("--no-pdf", action="store_true", help="skip the PDFs")

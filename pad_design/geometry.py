@@ -16,7 +16,7 @@ from .errors import InputError
 MARKER_NAMES = ("Top", "Right", "Bottom")
 TAG_NAMES = ("Large", "Small")  # the AprilTags of the apriltag variant: one nested in the other
 MARKER_KINDS = ("finder", "aruco", "apriltag")
-VARIANTS = ("paper", "nested", "aruco", "apriltag")
+VARIANTS = ("paper", "nested", "aruco", "apriltag", "aruco_nested")
 _CORNER_SIGNS = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]])
 
 
@@ -120,7 +120,9 @@ class Marker:
 
     @property
     def modules_across(self) -> int:
-        return {"finder": 7, "aruco": 6, "apriltag": 6}[self.kind]  # the apriltag: cells of its detected square
+        if self.kind == "aruco":  # its cells, border included: the module
+            return int(round(self.size_m / self.module_m))
+        return {"finder": 7, "apriltag": 6}[self.kind]  # the apriltag: cells of its detected square
 
 
 @dataclass(frozen=True)
@@ -227,7 +229,7 @@ class PadGeometry:
             name, set_name, kind = _get(m, "name", mw), str(_get(m, "set", mw)), _get(m, "kind", mw)
             if kind not in MARKER_KINDS:
                 raise InputError(f"{mw}.kind: {kind!r} is not one of {', '.join(MARKER_KINDS)}")
-            names = TAG_NAMES if kind == "apriltag" else MARKER_NAMES
+            names = TAG_NAMES if kind == "apriltag" else MARKER_NAMES + TAG_NAMES if kind == "aruco" else MARKER_NAMES
             if name not in names:
                 raise InputError(f"{mw}.name: {name!r} is not one of {', '.join(names)}")
             if (set_name, name) in seen:

@@ -62,6 +62,34 @@ def _nested_tags(total_m: float, ids) -> list:
     return out
 
 
+def aruco_dictionary_of(spec: dict, marker) -> str:
+    """The cv2.aruco dictionary a marker of a pad is drawn from (the small nested one's is its own)."""
+    if marker.set == "nested" and marker.name == "Small":
+        return spec["aruco_nested_dictionary"]
+    return spec["aruco_dictionary"]
+
+
+def _nested_aruco(field_m: float, spec: PadSpec) -> list:
+    """The aruco_nested variant: a large marker over the field (a one-cell white margin) and a small
+    one of another dictionary in its white centre 2x2 cells, 0.63 of their width (so that each of
+    them still reads white to the large marker's detector, and the small one has a white margin)."""
+    import cv2
+
+    big_cells = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, spec.aruco_dictionary)).markerSize + 2
+    small_cells = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, spec.aruco_nested_dictionary)).markerSize + 2
+    cell = field_m / (big_cells + 2)
+    small = 2 * cell * 0.63
+    out = []
+    for name, side, module, quiet, mid in (("Large", big_cells * cell, cell, cell, spec.aruco_nested_ids[0]),
+                                           ("Small", small, small / small_cells, cell - small / 2,
+                                            spec.aruco_nested_ids[1])):
+        out.append({"name": name, "set": "nested", "kind": "aruco", "center": [0.0, 0.0, 0.0], "size_m": side,
+                    "module_m": module, "quiet_zone_m": quiet, "aruco_id": int(mid),
+                    "squares": [{"name": "outer", "side_m": side, "color_inside": "black",
+                                 "corners": square_corners(0.0, 0.0, side)}]})
+    return out
+
+
 def segmentation_range(rgb, hue_halfwidth_deg: float = 20.0, s_min: float = 0.45, v_min: float = 0.18) -> dict:
     """An OpenCV HSV range (H 0-180, S and V 0-255) around a colour, for ``cv2.inRange``.
 
@@ -91,6 +119,8 @@ def build_geometry(spec: PadSpec) -> PadGeometry:
         markers += _marker_set("centre", n, spec.quiet_zone_modules, nblock / 2.0, "finder")
     if spec.variant == "aruco":
         markers += _marker_set("corner", size, spec.quiet_zone_modules, offset, "aruco", spec.aruco_ids)
+    if spec.variant == "aruco_nested":
+        markers += _nested_aruco(2 * f, spec)
     if spec.variant == "apriltag":
         markers += _nested_tags(spec.apriltag_total_m or 2 * f / 1.2, spec.apriltag_ids)
     b = spec.border_m

@@ -34,15 +34,24 @@ def hsv_of(rgb) -> tuple:
 NATURAL_GROUND_HUES_DEG = (15.0, 170.0)
 
 
+def _aruco_dictionary(name: str, field: str):
+    import cv2
+
+    if not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise ValueError(f"{field}: {name!r} is not a cv2.aruco dictionary")
+    return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+
+
 class PadSpec(BaseModel):
     """Everything that defines a pad.  Lengths in metres, colours as '#rrggbb' or [r, g, b]."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
-    variant: Literal["paper", "nested", "aruco", "apriltag"] = Field(
+    variant: Literal["paper", "nested", "aruco", "apriltag", "aruco_nested"] = Field(
         "paper", description="paper: three corner finder markers; nested: plus a small set in the centre "
         "for low altitude; aruco: OpenCV ArUco markers of the same outer size instead of finder markers; "
-        "apriltag: a recursive AprilTag pad (a large tagCustom48h12 tag over the field, a small one in its centre)")
+        "apriltag: a recursive AprilTag pad (a large tagCustom48h12 tag over the field, a small one in its centre); "
+        "aruco_nested: a large ArUco marker over the field and a small one of another dictionary in its centre")
     side_m: float = Field(0.85, gt=0, le=20, description="side of the square pad")
     border_m: float = Field(0.10, gt=0, description="width of the coloured border")
     border_color: tuple = Field("#ff30e0", description="saturated border colour natural ground lacks")
@@ -55,6 +64,11 @@ class PadSpec(BaseModel):
     nested_marker_size_m: float = Field(0.035, gt=0, description="finder markers of the centre set (nested)")
     aruco_dictionary: str = Field("DICT_4X4_50", description="cv2.aruco predefined dictionary (aruco)")
     aruco_ids: tuple = Field((0, 1, 2), description="ArUco ids at Top, Right, Bottom (aruco)")
+    aruco_nested_ids: tuple = Field((16, 1), description="ids of the large marker (aruco_dictionary; its centre 2x2 "
+                                    "cells must be white) and of the small one in them (aruco_nested_dictionary)")
+    aruco_nested_dictionary: str = Field("DICT_5X5_50", description="the small marker's cv2.aruco dictionary "
+                                         "(aruco_nested): another than the large one's, so that each detector "
+                                         "keeps its own marker (one detector drops a candidate inside another)")
     apriltag_ids: tuple = Field((0, 1), description="tagCustom48h12 ids of the large and the nested small tag (apriltag)")
     apriltag_total_m: float | None = Field(None, gt=0, description="outer side of the large AprilTag, data ring "
                                            "included (10 cells; its detected square is 6); default: the field less "
@@ -131,14 +145,26 @@ class PadSpec(BaseModel):
                 raise ValueError(f"apriltag_total_m: {self.apriltag_total_m} m with its one-cell white margins "
                                  f"does not fit the {field:.3f} m field")
         if self.variant == "aruco":
-            import cv2
-
-            if not hasattr(cv2.aruco, self.aruco_dictionary):
-                raise ValueError(f"aruco_dictionary: {self.aruco_dictionary!r} is not a cv2.aruco dictionary")
-            d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.aruco_dictionary))
-            n = d.bytesList.shape[0]
+            n = _aruco_dictionary(self.aruco_dictionary, "aruco_dictionary").bytesList.shape[0]
             if max(self.aruco_ids) >= n:
                 raise ValueError(f"aruco_ids: {self.aruco_dictionary} has ids 0-{n - 1}")
+        if self.variant == "aruco_nested":
+            import cv2
+
+            big = _aruco_dictionary(self.aruco_dictionary, "aruco_dictionary")
+            small = _aruco_dictionary(self.aruco_nested_dictionary, "aruco_nested_dictionary")
+            if self.aruco_nested_dictionary == self.aruco_dictionary:
+                raise ValueError("aruco_nested_dictionary: must differ from aruco_dictionary (one detector drops "
+                                 "a marker candidate that holds another)")
+            i, j = (int(v) for v in self.aruco_nested_ids)
+            if not (0 <= i < big.bytesList.shape[0] and 0 <= j < small.bytesList.shape[0]):
+                raise ValueError(f"aruco_nested_ids: ids in {self.aruco_dictionary} and {self.aruco_nested_dictionary}")
+            cells = big.markerSize + 2
+            bits = cv2.aruco.generateImageMarker(big, i, cells, borderBits=1) > 127
+            c = cells // 2
+            if cells % 2 or not bits[c - 1:c + 1, c - 1:c + 1].all():
+                raise ValueError(f"aruco_nested_ids: marker {i} of {self.aruco_dictionary} has no white 2x2 centre "
+                                 "to hold the small marker")
         return self
 
     def to_jsonable(self) -> dict:
@@ -146,5 +172,6 @@ class PadSpec(BaseModel):
         d["border_color"] = "#%02x%02x%02x" % self.border_color
         d["cue_color"] = "#%02x%02x%02x" % self.cue_color
         d["aruco_ids"] = list(self.aruco_ids)
+        d["aruco_nested_ids"] = list(self.aruco_nested_ids)
         d["apriltag_ids"] = list(self.apriltag_ids)
         return d

@@ -212,5 +212,7 @@ def render_texture(spec: PadSpec, geometry: PadGeometry, ppm: float) -> np.ndarr
         elif m.kind == "apriltag":
             _paint_apriltag(cv, m)
         else:
-            _paint_aruco(cv, m, spec.aruco_dictionary)
+            from .layout import aruco_dictionary_of
+
+            _paint_aruco(cv, m, aruco_dictionary_of(spec.to_jsonable(), m))
     return np.clip(np.round(cv.img), 0, 255).astype(np.uint8)

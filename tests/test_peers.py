@@ -102,3 +102,53 @@ def test_apriltag_peer_refuses_other_pads_and_never_raises(apriltag_pad, pad):
     for image in BAD_IMAGES:
         e = AprilTagLocalizer(apriltag_pad, Camera.from_hfov(800, 800, math.radians(60))).process(image, 0.0)
         assert e.status == "lost" and e.reason and e.cam2pad is None
+
+
+# ----------------------------------------------------------------------------- nested ArUco
+
+def test_nested_aruco_pad_gives_the_peer_both_markers_and_the_pose_at_every_height():
+    """A large ArUco marker with a small one of another dictionary in its white centre: cv2.aruco finds
+    the small one alone low down, both at a metre, and the pose is right from each (IPPE's flip aside,
+    which a single marker far away has: the gated form of the peer is there for that)."""
+    from pad_design import make_pad
+
+    p = make_pad({"variant": "aruco_nested"}, ppm=2000)
+    assert [(m.name, m.aruco_id, m.modules_across) for m in p.geometry.markers] == [("Large", 16, 6), ("Small", 1, 7)]
+    for height, markers in ((0.25, 1), (1.0, 2)):
+        G = tilted(0.02, -0.03, height, 0.7, 0.03, -0.02)
+        e = ArucoLocalizer(p, CAM).process(warp_pad_view(p, CAM, G, GROUND), 0.0)
+        assert e.status == "ok" and e.extras["markers"] == markers, e.reason
+        dp, da = pose_error(e.cam2pad, G)
+        assert dp < 0.005 * height and da < 0.3, f"{height} m: {dp * 1000:.1f} mm, {da:.2f} deg"
+
+
+@pytest.mark.parametrize("bad, field", [({"aruco_nested_dictionary": "DICT_4X4_50"}, "aruco_nested_dictionary"),
+                                        ({"aruco_nested_ids": [10, 1]}, "aruco_nested_ids"),
+                                        ({"aruco_nested_dictionary": "DICT_NOPE"}, "aruco_nested_dictionary")])
+def test_nested_aruco_pads_that_cannot_work_are_refused(bad, field):
+    from pad_design import make_pad
+    from pad_design.errors import InputError
+
+    with pytest.raises((InputError, ValueError), match=field):
+        make_pad({"variant": "aruco_nested", **bad})
+
+
+def test_apriltag_peer_frees_its_detector_without_touching_freed_memory():
+    """pupil-apriltags frees the tag family before the detector that still reads it; under
+    MALLOC_PERTURB_ (freed memory overwritten) that crashes every time.  The peer's detector must not."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import gc, math, numpy as np\n"
+            "from pad_design import make_pad\nfrom hvloc.geometry import Camera\n"
+            "from benchmarks.peers import AprilTagLocalizer\n"
+            "pad = make_pad({'variant': 'apriltag'}, ppm=500)\n"
+            "cam = Camera.from_hfov(160, 120, math.radians(60))\n"
+            "img = (np.random.default_rng(0).random((120, 160)) * 255).astype(np.uint8)\n"
+            "for _ in range(4):\n"
+            "    loc = AprilTagLocalizer(pad, cam); loc.process(img, 0.0); del loc; gc.collect()\n"
+            "print('ok')\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "MALLOC_PERTURB_": "165"}, timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", (r.returncode, r.stderr[-500:])
