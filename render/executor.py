@@ -83,28 +83,37 @@ def run_units(fn, units: list, workers: int = 1, executor: str = "local", ray_ad
             _progress_sink = None
         return
     import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    pool = ctx.Pool(min(workers, len(units)), initializer=_init_worker, initargs=(os.getpid(), queue, setup))
+    # concurrent.futures, not multiprocessing.Pool: a worker that dies (a crash in a native library, the
+    # OOM killer) breaks the pool and fails the run; Pool replaced it silently and waited for its lost
+    # unit forever
+    pool = ProcessPoolExecutor(min(workers, len(units)), mp_context=ctx, initializer=_init_worker,
+                               initargs=(os.getpid(), queue, setup))
     try:
-        results = pool.imap_unordered(_call, [(fn, u) for u in units])
-        pending = len(units)
+        pending = {pool.submit(_call, (fn, u)) for u in units}
         while pending:
-            try:
-                r = results.next(timeout=0.2)
-                pending -= 1
-                _drain(queue, progress)
-                yield r
-            except mp.TimeoutError:
-                pass
+            done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
             _drain(queue, progress)
-        pool.close()
+            for f in done:
+                try:
+                    r = f.result()
+                except BrokenProcessPool:
+                    raise RuntimeError(f"a worker process died while running {getattr(fn, '__name__', fn)} "
+                                       "(killed, or crashed in native code); nothing of its unit was kept") from None
+                yield r
+        _drain(queue, progress)
+        pool.shutdown(wait=True)
     except BaseException:
-        pool.terminate()
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:  # no orphan keeps rendering
+            proc.terminate()
         raise
     finally:
-        pool.join()
         queue.close()
 
 

@@ -112,7 +112,7 @@ def test_bad_suite_exits_2(tmp_path):
                        capture_output=True, text=True, cwd=REPO)
     assert r.returncode == 2 and "flux: unknown key" in r.stderr
     for localizer, says in (("{name: h, datasets: [tinyy]}", "no dataset named 'tinyy'"),
-                            ("{name: p, kind: aruco}", "no dataset of the pad variant it needs (aruco)"),
+                            ("{name: p, kind: aruco}", "no dataset of the pad variant it needs (aruco, aruco_nested)"),
                             ("{name: p, kind: apriltag}", "no dataset of the pad variant it needs (apriltag)"),
                             ("{name: p, kind: apriltags3}", "kind")):
         s.write_text(f"name: x\ndatasets: [{{spec: data_specs/tiny.yaml}}]\nlocalizers: [{localizer}]\n")
@@ -253,7 +253,7 @@ def test_localize_cli_runs_the_peer_on_its_pad_only(smoke, tmp_path):
     paper = next((out / "datasets").glob("tiny-*"))
     aruco = next((out / "datasets").glob("tiny_aruco-*"))
     r = run_cli("localize", str(paper), "--localizer", "aruco", "--out", str(tmp_path / "p"), "--quiet")
-    assert r.returncode == 2 and "aruco pad variant" in r.stderr and not (tmp_path / "p").exists(), r.stderr
+    assert r.returncode == 2 and "aruco or aruco_nested pad variant" in r.stderr and not (tmp_path / "p").exists(), r.stderr
     r = run_cli("localize", str(aruco), "--localizer", "aruco", "--out", str(tmp_path / "a"), "--quiet")
     assert r.returncode == 0, r.stderr
     rows = (tmp_path / "a" / "seq_0000" / "estimates.csv").read_text().splitlines()[1:]

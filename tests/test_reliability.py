@@ -135,3 +135,26 @@ def test_kill_9_of_the_parent_stops_its_workers_and_a_rerun_completes_identicall
     assert verify_dataset(out) == []
     assert json.loads((out / "manifest.json").read_text())["files"] == \
         json.loads((full / "manifest.json").read_text())["files"]
+
+
+def _unit_that_dies(i: int) -> int:
+    import os
+    import signal
+
+    if i == 2:
+        os.kill(os.getpid(), signal.SIGKILL)  # as the OOM killer or a crash in native code would
+    return i
+
+
+def test_a_worker_that_dies_fails_the_run_instead_of_hanging_it():
+    """multiprocessing.Pool replaced a dead worker and waited for its unit forever (a bench run hung
+    for 40 minutes after a native crash); now the run fails at once, saying why."""
+    import time
+
+    from render.executor import run_units
+
+    t0 = time.time()
+    with pytest.raises(RuntimeError, match="worker process died"):
+        list(run_units(_unit_that_dies, [(i,) for i in range(6)], workers=2))
+    assert time.time() - t0 < 120
+    assert sorted(run_units(_unit_that_dies, [(i,) for i in (0, 1, 3)], workers=2)) == [0, 1, 3]
