@@ -110,6 +110,11 @@ def gt_boundaries(fe: dict) -> list:
     return out
 
 
+def phase_scopes(fe: dict) -> dict:
+    """``{"all": ..., "gt:<phase>": ...}``: the metrics over all frames and per ground-truth phase."""
+    return {"all": score(fe), **{f"gt:{p}": score(fe, fe["phase_gt"] == p) for p in PHASES}}
+
+
 def score_sequence(fe: dict) -> dict:
     res = {"all": score(fe)}
     for p in PHASES:

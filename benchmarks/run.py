@@ -259,7 +259,7 @@ def score_dataset(root, results) -> dict:
             notes.append(f"{seq.id}: {no_gt} of {len(seq)} frames have no ground truth: they count toward "
                          "availability only (no error, no phase, no false accept)")
     fe = M.concat(fes)
-    summary = {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
+    summary = M.phase_scopes(fe)
     if not np.isfinite(fe["height_m"]).any():  # nothing to judge a pose by: unknown, not zero
         summary["all"].update(false_accepts=None, rejections_right=None, rejections_wrong=None)
     return {"summary": summary, "notes": notes}

@@ -203,15 +203,15 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
     summary = {}
     for name, fes in fes_by_loc.items():
         fe = M.concat(fes)
-        summary[name] = _scopes(fe)
+        summary[name] = M.phase_scopes(fe)
         summary[name]["datasets"] = [d for (n, d) in fes_by_ds if n == name]
         for (n, d), dfes in fes_by_ds.items():  # per dataset, e.g. to set a peer beside hvloc on the same descents
             if n == name:
-                summary[name].update({f"{d}/{k}": v for k, v in _scopes(M.concat(dfes)).items()})
+                summary[name].update({f"{d}/{k}": v for k, v in M.phase_scopes(M.concat(dfes)).items()})
         for tier in dict.fromkeys(t for t in tiers.values() if t):  # per difficulty tier, in suite order
             tfes = [f for (n, d), dfes in fes_by_ds.items() if n == name and tiers[d] == tier for f in dfes]
             if tfes:
-                summary[name].update({f"tier:{tier}/{k}": v for k, v in _scopes(M.concat(tfes)).items()})
+                summary[name].update({f"tier:{tier}/{k}": v for k, v in M.phase_scopes(M.concat(tfes)).items()})
         contact = [per_seq[k]["contact_pos_err_m"] for k in per_seq if k.startswith(name + "/")]
         contact = [c for c in contact if c is not None]
         summary[name]["contact_pos_err_m_max"] = max(contact) if contact else None
@@ -258,10 +258,6 @@ def _localize_unit(droot: str, seq_id: str, setups: list, dirs: list, verify: bo
     for d, est in zip(dirs, ests):
         write_estimates(Path(d), est, seq.columns["frame"])
     return len(seq)
-
-
-def _scopes(fe: dict) -> dict:
-    return {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
 
 
 def _clean(o):

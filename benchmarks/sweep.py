@@ -19,7 +19,6 @@ import numpy as np
 
 from hvloc.config import LocalizerConfig
 
-from . import metrics as M
 
 
 def grid_configs(base_cfg: LocalizerConfig, adjust_heights, touchdown_heights) -> list:
@@ -39,12 +38,7 @@ def point_name(ha: float, ht: float) -> str:
     return f"a{ha:g}_t{ht:g}"
 
 
-def score_point(fes: list) -> dict:
-    fe = M.concat(fes)
-    return {"all": M.score(fe), **{f"gt:{p}": M.score(fe, fe["phase_gt"] == p) for p in M.PHASES}}
-
-
-def same_estimates(a: dict, b: dict) -> int:
+def frames_differing(a: dict, b: dict) -> int:
     """How many frames two read ``estimates.csv`` differ in (status, phase, method or pose; the
     time spent is ignored)."""
     n = len(a["frame"])

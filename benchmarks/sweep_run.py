@@ -37,7 +37,7 @@ def run_sweep(a) -> int:
     from . import metrics as M
     from .run import read_estimates
     from .suite import _clean, load_suite, provenance, runs_on
-    from .sweep import grid_configs, point_name, recommend, same_estimates, score_point, write_heatmaps
+    from .sweep import frames_differing, grid_configs, point_name, recommend, write_heatmaps
 
     suite, specs, configs, suite_hash = load_suite(a.suite)
     if any(h <= 0 for h in a.adjust_heights + a.touchdown_heights):
@@ -59,24 +59,24 @@ def run_sweep(a) -> int:
         names.append("base")
         cfgs.append(base_cfg)
         base_name = "base"
-    runs = []  # (dataset root, sequence id, frames)
+    runs, labels = [], []  # (dataset root, sequence id, frames); each sequence's frames.csv columns, read once
     for spec in [s for s in specs if runs_on(loc, s)]:
         droot = out / "datasets" / f"{spec.name}-{spec.sha256()[:10]}"
         generate(spec, droot, workers=a.workers, show_progress=not a.quiet)
-        ds = Dataset(droot)
-        runs += [(droot, seq.id, len(seq)) for seq in ds]
+        for seq in Dataset(droot):
+            runs.append((droot, seq.id, len(seq)))
+            labels.append(seq.columns)
     setups = [(c.model_dump(), loc.use_imu, "hierarchical", False) for c in cfgs]
     sweep_s = _run_setups(runs, setups, names, out / "estimates", a.workers, True,
                           f"sweep x{len(setups)}", a.quiet)
 
     def scored(root: Path, name: str) -> tuple:
         fes, ests = [], []
-        for droot, sid, _ in runs:
-            seq = Dataset(droot, verify=False)[sid]
+        for (droot, sid, _), cols in zip(runs, labels):
             est = read_estimates(root / name / droot.name / sid / "estimates.csv")
             ests.append(est)
-            fes.append(M.frame_errors(seq.columns, est))
-        return score_point(fes), ests
+            fes.append(M.frame_errors(cols, est))
+        return M.phase_scopes(M.concat(fes)), ests
 
     grid, ests_by_name = [], {}
     for (ha, ht, _), name in zip(points, names):
@@ -90,7 +90,7 @@ def run_sweep(a) -> int:
         live_s = _run_setups(runs, [(cfg.model_dump(), loc.use_imu, "hierarchical", False)], [name],
                              out / "live", a.workers, False, f"live {name}", a.quiet)
         live_score, live_ests = scored(out / "live", name)
-        differ = sum(same_estimates(x, y) for x, y in zip(live_ests, ests_by_name[name]))
+        differ = sum(frames_differing(x, y) for x, y in zip(live_ests, ests_by_name[name]))
         return {"name": name, "adjust_height_m": cfg.adjust_height_m, "touchdown_height_m": cfg.touchdown_height_m,
                 "live": live_score["all"], "frames_differing": differ,
                 "frames": sum(n for _, _, n in runs)}, live_s

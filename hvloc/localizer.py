@@ -325,8 +325,7 @@ class HierarchicalLocalizer:
         return est
 
     def _estimate(self, image, t: float, R_W_B) -> Estimate:
-        self._t = t
-        rgb, gray, why = self.work(("image",), check_image, image, copy_result=False)
+        rgb, gray, why = self.work(lambda: ("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
         if gray.shape != (self.camera.height, self.camera.width):
@@ -353,7 +352,7 @@ class HierarchicalLocalizer:
             if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")
                 continue
-            res, why = self._try(method, rgb, gray, up_C)
+            res, why = self._try(method, rgb, gray, up_C, t)
             if res is None:
                 reasons.append(f"{method}: {why}")
                 continue
@@ -385,11 +384,11 @@ class HierarchicalLocalizer:
     def _prior(self):
         return self.last.cam2pad if self.last is not None else None
 
-    def _try(self, method: str, rgb, gray, up_C):
+    def _try(self, method: str, rgb, gray, up_C, t: float):
         prior = self._prior()
         cfg = self.config
         if method == "flow":
-            res, n, why = self.flow.track(gray, prior, up_C, self._predicted(self._t))
+            res, n, why = self.flow.track(gray, prior, up_C, self._predicted(t))
             if res is None:
                 return None, why
             return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"
@@ -400,19 +399,19 @@ class HierarchicalLocalizer:
             # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
             # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                found, why = self.work(("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
+                found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
                 det = None
                 if found is not None:
                     hint = self.camera.project_from(prior, self.outer_P[:1])[0] if prior is not None else None
                     det, why = ph.name_outline(found, self.geometry, hint)
             else:
                 use_rgb = rgb if cfg.use_outline else None
-                det, why = self.work(("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C)),
+                det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C)),
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C)
             if det is not None:
-                pose = self.work(("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
-                                  array_key(prior) if up_C is None else None),
+                pose = self.work(lambda: ("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
+                                          array_key(prior) if up_C is None else None),
                                  solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
                 if pose is not None:
                     return (pose, len(det.pts_P), dict(det.info, roi=r is not None, tilt_err_deg=pose.tilt_err_deg,

@@ -506,19 +506,14 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
         fin = np.isfinite(g).all(axis=1)
         if fin.sum() >= 8:
             H, _ = cv2.findHomography(p0[fin, 0].astype(np.float64), g[fin].astype(np.float64), 0)
-    if H is not None:
+    src = prev_gray
+    if H is not None:  # (the forward-backward check then holds in the warped frame)
         src = cv2.warpPerspective(prev_gray, H, (gray.shape[1], gray.shape[0]), flags=cv2.INTER_LINEAR)
-        q0 = cv2.perspectiveTransform(p0, H).astype(np.float32)
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, q0, None, **LK_PARAMS)
-        if p1 is None:
-            return out
-        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
-        p0 = q0  # the forward-backward check in the warped frame
-    else:
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(prev_gray, gray, p0, None, **LK_PARAMS)
-        if p1 is None:
-            return out
-        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, prev_gray, p1, None, **LK_PARAMS)
+        p0 = cv2.perspectiveTransform(p0, H).astype(np.float32)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, None, **LK_PARAMS)
+    if p1 is None:
+        return out
+    pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
     fb = np.linalg.norm((pb - p0)[:, 0, :], axis=1)
     good = (st[:, 0] == 1) & (stb[:, 0] == 1) & (fb < fb_max_px)
     # refine against the keyframe (drift control)
@@ -590,7 +585,7 @@ class FlowTracker:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose."""
         tag = self.work.frame if tag is None else tag
-        corners = self.work(("harris", tag), harris_corners, gray)
+        corners = self.work(lambda: ("harris", tag), harris_corners, gray)
         kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners)
         if kf is None:
             return False
@@ -607,16 +602,14 @@ class FlowTracker:
         w, kf = self.work, self.kf
         guess = None
         if predicted_cam2pad is not None:
-            from .geometry import transform_points
-
             Pc = transform_points(invert(predicted_cam2pad), kf.pts_P)
             guess = np.where((Pc[:, 2:3] > 0.05), self.camera.project(Pc), np.nan)
-        px = w(("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks), array_key(guess)),
+        px = w(lambda: ("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks), array_key(guess)),
                track_to_keyframe, kf, self.prev_gray, self.tracks, gray, 1.0, guess)
         self.pending = (gray, px, w.frame)
         # the prior only breaks IPPE's tie when there is no gravity (see solve_planar_pose)
-        res, inl, why = w(("tracks_pose", array_key(kf.pts_P), array_key(px), array_key(up_C),
-                           array_key(prior_cam2pad) if up_C is None else None),
+        res, inl, why = w(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(px), array_key(up_C),
+                                   array_key(prior_cam2pad) if up_C is None else None),
                           pose_from_tracks, self.camera, kf, px, prior_cam2pad, up_C)
         if res is not None and kf.cov is not None:
             # the pad points were placed with the keyframe's pose: its error is in every tracked pose

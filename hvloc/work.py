@@ -17,12 +17,13 @@ import copy
 
 
 class ImageWork:
-    """``work(key, fn, *args)``: ``fn(*args)``, remembered under ``key`` for the current frame.
+    """``work(key, fn, *args)``: ``fn(*args)``, remembered under ``key()`` for the current frame.
 
-    ``begin(frame)`` starts a frame (and forgets the previous one's results: no key of one frame
-    can ask for another's work, since each names the frame tags it depends on).  Results are
-    returned as deep copies, so no caller can change what another is given; ``share=False`` for
-    read-only arrays too large to copy (the decoded image)."""
+    ``key`` is a function returning the key, called only when a frame is set: a live localizer (no
+    frame) pays nothing for keys it would not use.  ``begin(frame)`` starts a frame (and forgets the
+    previous one's results: no key of one frame can ask for another's work, since each names the
+    frame tags it depends on).  Results are returned as deep copies, so no caller can change what
+    another is given; ``copy_result=False`` for read-only arrays too large to copy (the image)."""
 
     def __init__(self):
         self.frame = None
@@ -30,17 +31,14 @@ class ImageWork:
         self.calls = 0
         self.hits = 0
 
-    @property
-    def active(self) -> bool:
-        return self.frame is not None
-
     def begin(self, frame) -> None:
         self.frame = frame
         self._memo.clear()
 
-    def __call__(self, key: tuple, fn, *args, copy_result: bool = True, **kwargs):
+    def __call__(self, key, fn, *args, copy_result: bool = True, **kwargs):
         if self.frame is None:
             return fn(*args, **kwargs)
+        key = key()
         self.calls += 1
         try:
             value = self._memo[key]
