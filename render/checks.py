@@ -131,8 +131,7 @@ def testable_frames(seq, max_frames: int = 6) -> list:
     """Frames sharp and near enough for the check, spread over the sequence."""
     c = seq.columns
     px_across = seq.pad.side_m * min(seq.camera.fx, seq.camera.fy) / np.maximum(c["height_above_pad"], 1e-3)
-    # (an imported recording does not know its blur: NaN, tested all the same)
-    ok = ~(c["blur_px"] > MAX_BLUR_PX) & (c["pad_visible_fraction"] >= 0.5) & (px_across >= MIN_PAD_PX)
+    ok = (c["blur_px"] <= MAX_BLUR_PX) & (c["pad_visible_fraction"] >= 0.5) & (px_across >= MIN_PAD_PX)
     idx = np.nonzero(ok)[0]
     if len(idx) <= max_frames:
         return [int(i) for i in idx]

@@ -4,7 +4,8 @@ on it as on a rendered one.
 
 * Frames: every image of a folder (sorted by name; PNG, JPEG, BMP, TIFF) or every frame of a video
   (what OpenCV's ``VideoCapture`` reads), stored losslessly as PNG; frame ``k`` at ``k / fps``
-  (DESIGN.md), ``fps`` given or the video's.
+  (DESIGN.md), ``fps`` given or the video's.  Images named by their frame number (``000123.png``)
+  keep it, so a recording that dropped frames keeps its gaps and its times.
 * Camera: a calibration file (:mod:`render.calibration`); the mount ``T_B_C`` as roll/pitch/yaw in
   degrees (default: hvloc's downward camera).
 * Ground truth (optional): TUM poses ``t tx ty tz qx qy qz qw`` of the camera in the pad frame
@@ -40,7 +41,8 @@ def _natural_key(p: Path):
 
 
 def frame_source(path) -> tuple:
-    """``(count, fps or None, iterator of RGB uint8 frames)`` of an image folder or a video file."""
+    """``(frame indices, fps or None, iterator of RGB uint8 frames)`` of an image folder or a video
+    file; an image folder whose names are all frame numbers gives those numbers."""
     import cv2
 
     p = Path(path)
@@ -55,7 +57,9 @@ def frame_source(path) -> tuple:
                 if img is None:
                     raise InputError(f"{f}: not an image OpenCV can read")
                 yield cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-        return len(files), None, images()
+        stems = [f.stem for f in files]
+        numbered = all(s.isdigit() and len(s) < 10 for s in stems) and len(set(map(int, stems))) == len(stems)
+        return (np.array([int(s) for s in stems]) if numbered else np.arange(len(files))), None, images()
     if not p.is_file():
         raise InputError(f"{p}: no such video file or image folder")
     cap = cv2.VideoCapture(str(p))
@@ -71,7 +75,7 @@ def frame_source(path) -> tuple:
     cap.release()
     if not frames:
         raise InputError(f"{p}: the video has no frame OpenCV can decode")
-    return len(frames), (float(fps) if fps and math.isfinite(fps) and fps > 0 else None), iter(frames)
+    return np.arange(len(frames)), (float(fps) if fps and math.isfinite(fps) and fps > 0 else None), iter(frames)
 
 
 def read_pose_tum(path) -> np.ndarray:
@@ -109,7 +113,25 @@ def interpolate_poses(rows: np.ndarray, t: np.ndarray) -> list:
     return out
 
 
+def blur_bound_px(poses: list, index: np.ndarray, camera, corners_P: np.ndarray) -> np.ndarray:
+    """Per frame, the largest image motion of a pad corner over one frame interval (ideal pinhole),
+    toward either neighbour: an upper bound of the motion blur, as no exposure can be longer than a
+    frame.  NaN where a neighbour or the pose is missing (such frames are not image-checked)."""
+    pin = camera.without_distortion()
+    px = [None if p is None else pin.project_from(p, corners_P) for p in poses]
+    out = np.full(len(poses), np.nan)
+    for k in range(len(poses)):
+        if px[k] is None:
+            continue
+        steps = [np.nanmax(np.linalg.norm(px[j] - px[k], axis=1)) / abs(int(index[j]) - int(index[k]))
+                 for j in (k - 1, k + 1) if 0 <= j < len(poses) and px[j] is not None]
+        if steps:
+            out[k] = max(steps)
+    return out
+
+
 def _label_row(k: int, t: float, cam2pad, camera, pad, min_module_px: float) -> dict:
+    """Frame ``k``'s frames.csv row (its own index: gaps kept)."""
     from .phase import phase_gt, view_facts
 
     nan7 = [math.nan] * 7
@@ -158,7 +180,8 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     if root.exists() and any(root.iterdir()):
         raise InputError(f"--out {root}: not empty; an import writes a new dataset")
     cal = read_calibration(calibration, calibration_name)
-    count, video_fps, images = frame_source(frames)
+    index, video_fps, images = frame_source(frames)
+    count = len(index)
     fps = fps or video_fps
     if not fps:
         raise InputError("--fps: needed for an image folder (frame k is at k / fps)")
@@ -172,7 +195,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         "trajectory": {"start_height_m": 3.0, "lateral_offset_m": [0.0, 0.0]}}, "the recording's spec")
     camera, T_B_C = cal.camera, mount.transform()
     pad = pad_for(spec)
-    t = np.arange(count) / float(fps)
+    t = index / float(fps)
     poses = [None] * count
     if groundtruth is not None:
         rows = read_pose_tum(groundtruth)
@@ -198,7 +221,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         q = continuous_quaternions(np.array([tum_from_transform(poses[i])[3:] for i in good]))
     root.mkdir(parents=True, exist_ok=True)
     try:
-        return _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good,
+        return _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good,
                       q if good else None, imu_rows, fps, cal, calibration, groundtruth, gt_body,
                       gt_time_offset_s, imu, pad_spec, show_progress)
     except BaseException:  # nothing half-written: the folder was new (or empty)
@@ -209,7 +232,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         raise
 
 
-def _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good, q, imu_rows, fps, cal,
+def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good, q, imu_rows, fps, cal,
            calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress) -> dict:
     from pad_design.errors import progress_bar
 
@@ -220,6 +243,8 @@ def _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good
         manifest["files"][ds.PAD_TEXTURE] = ds.write_image(root / ds.PAD_TEXTURE, pad.texture_rgb)
         sid = ds.sequence_id(0)
         writer = ds.SequenceWriter(root / f".tmp-{sid}")
+        count = len(index)
+        blur = blur_bound_px(poses, index, camera, pad.outer_corners_P)
         bar = progress_bar(show_progress, count, "import")
         qi = iter(q if q is not None else ())
 
@@ -230,7 +255,8 @@ def _write(root, spec, camera, T_B_C, pad, images, count, frames, t, poses, good
             if rgb.shape[:2] != (camera.height, camera.width):
                 raise InputError(f"{frames}: frame {k} is {rgb.shape[1]}x{rgb.shape[0]}, the calibration is "
                                  f"{camera.width}x{camera.height}")
-            row = _label_row(k, float(t[k]), poses[k], camera, pad, spec.phase_rule.min_module_px)
+            row = _label_row(int(index[k]), float(t[k]), poses[k], camera, pad, spec.phase_rule.min_module_px)
+            row["blur_px"] = float(blur[k])
             if poses[k] is not None:
                 row.update(dict(zip(("qx", "qy", "qz", "qw"), next(qi))))
             layers = _Layers()

@@ -135,3 +135,19 @@ def test_bad_recordings_are_refused_naming_what_is_wrong_and_write_nothing(recor
         r = run_cli("import", *args, "--calibration", base / "ost.yaml", "--out", out, "--quiet")
         assert_input_error(r, says)
         assert not out.exists() or not any(out.iterdir()), f"{says}: left {list(out.iterdir())}"
+
+
+def test_numbered_images_keep_their_frame_numbers_and_times_across_dropped_frames(recording, tmp_path):
+    """A recording that dropped frames: the images named by frame number keep it, so each is labelled
+    at its own time (not shifted into the gap)."""
+    base, _ = recording
+    kept = tmp_path / "frames"
+    shutil.copytree(base / "frames", kept)
+    for name in ("000005.png", "000006.png", "000007.png", "000020.png"):
+        (kept / name).unlink()
+    seq = _import(base, tmp_path / "ds", kept, "--fps", "10", "--groundtruth", base / "gt.tum")
+    orig = Dataset(base / "orig")["seq_0000"]
+    frames = seq.columns["frame"].astype(int)
+    assert 5 not in frames and 20 not in frames and len(frames) == len(orig) - 4
+    np.testing.assert_allclose(seq.t, frames / 10.0)
+    np.testing.assert_allclose(seq.cam2pad, orig.cam2pad[frames], atol=1e-9)
