@@ -54,7 +54,8 @@ def _hsv_mask(hsv: np.ndarray, rng) -> np.ndarray:
 @dataclass
 class OutlineQuad:
     """The pad's outline found in an image, not yet named: ``quad_px`` (4, 2) sub-pixel corners in
-    image order (counter-clockwise on screen), ``cue`` (4,) the share of cue colour at each corner."""
+    image order (counter-clockwise on screen), ``cue`` (4,) how clearly each corner holds the cue
+    (:func:`_cue_scores`)."""
 
     quad_px: np.ndarray
     cue: np.ndarray
@@ -93,26 +94,15 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
                                                 interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     border = pad_geometry.border.segmentation_hsv
-    cue = pad_geometry.cue.segmentation_hsv
     mask = _hsv_mask(hsv, border)
-    cue_part = np.zeros_like(mask)
     box = _around(mask)
-    if box is not None:  # everything below happens around the border colour: most of a frame is not
+    if box is not None:  # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
         sl = np.s_[box[1]:box[3], box[0]:box[2]]
-        # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
         mask[sl] = _shadowed_too(small[sl], hsv[sl], mask[sl], border, pad_geometry.border.color_rgb)
-        # the cue square belongs to the pad: every cue-coloured blob, lit or in shadow, that touches the
-        # border colour and is small beside it (a cue square is ~3 % of the border's area; a long
-        # yellowish thing lying against the pad is not the cue)
-        cue_mask = _hsv_mask(hsv[sl], cue) | _colour_evidence(small[sl], hsv[sl], cue, pad_geometry.cue.color_rgb)
-        n_lab, labels = cv2.connectedComponents(cue_mask, connectivity=8)
-        if n_lab > 1:
-            keep = np.zeros(n_lab, np.uint8)
-            keep[labels[cv2.dilate(mask[sl], np.ones((5, 5), np.uint8)) > 0]] = 255  # touching the border
-            keep[0] = 0
-            keep[np.bincount(labels.ravel(), minlength=n_lab) > 0.15 * cv2.countNonZero(mask)] = 0
-            cue_part[sl] = keep[labels]
-    full = cv2.morphologyEx(mask | cue_part, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
+    # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
+    # the two sides beside it meet (:func:`_hull_quad`).
+    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     side = pad_geometry.side_m
     field_side = pad_geometry.field_side_m
@@ -122,14 +112,7 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         area = cv2.contourArea(c)
         if area < 36:
             continue
-        hull = cv2.convexHull(c)
-        peri = cv2.arcLength(hull, True)
-        quad = None
-        for eps in (0.02, 0.04, 0.06, 0.09, 0.12):
-            ap = cv2.approxPolyDP(hull, eps * peri, True)
-            if len(ap) == 4:
-                quad = ap[:, 0, :].astype(np.float64)
-                break
+        quad = _hull_quad(cv2.convexHull(c))
         if quad is None:
             continue
         qa = abs(_signed_area(quad))
@@ -156,12 +139,10 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         sq, _ = refine_quad(_border_channel(small), quad, half_width=2.0)
         if sq is not None and np.max(np.linalg.norm(sq - quad, axis=1)) < 2.5:
             quad = sq
-    # the cue: which corner region is yellow (read at full resolution: far away the cue square is
-    # only a few pixels, and a downscaled copy blends it away)
     quad = (quad + 0.5) * scale - 0.5 + [x0, y0]
-    # sub-pixel first: edges on a channel linear in the colours, where the border is bright.  The
-    # sides' lines also restore a corner that the colour mask cut off (a cue corner in shadow), so
-    # the cue is read at the right place afterwards.
+    # sub-pixel first: edges on a channel linear in the colours, where the border is bright; the
+    # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
+    # downscaled copy blends it away), where the exact quad puts it.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
     band_px = side_px * pad_geometry.border.solid_band_m / side
     hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
@@ -180,37 +161,21 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         refined = refined + [bx0, by0]
     if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
         refined = quad
-    # the cue: which corner region is yellow (read at full resolution: far away the cue square is
-    # only a few pixels, and a downscaled copy blends it away); lit or in shadow
-    centre = refined.mean(axis=0)
-    b_share = pad_geometry.border_m / side
-    yellow = []
-    for q in refined:
-        p = q + (centre - q) * b_share - [x0, y0]  # middle of the border corner square (diagonal inset)
-        square_px = np.linalg.norm(q - centre) * math.sqrt(2) * b_share  # the corner square's side
-        r = max(1, int(round(0.35 * square_px)))
-        u, v = int(round(p[0])), int(round(p[1]))
-        patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
-        if patch.size == 0:
-            yellow.append(0.0)
-            continue
-        patch = np.ascontiguousarray(patch)
-        phsv = cv2.cvtColor(patch, cv2.COLOR_RGB2HSV)
-        m = _hsv_mask(phsv, cue) | _colour_evidence(patch, phsv, cue, pad_geometry.cue.color_rgb)
-        yellow.append(float(m.mean()) / 255.0)
-    return OutlineQuad(refined, np.array(yellow), side_px, res), "ok"
+    cue = _cue_scores(rgb, refined, pad_geometry, camera)
+    return OutlineQuad(refined, cue, side_px, res), "ok"
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None) -> tuple:
     """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
-    (bottom-right), or, when it cannot be read, by ``yaw_hint_corner0`` (the predicted TL pixel)."""
+    (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0`` (the
+    predicted TL pixel)."""
     refined, yellow = found.quad_px, found.cue
     info_yellow = [round(float(y), 2) for y in yellow]
     order = None
     how = "cue"
-    if yellow.max() >= 0.15 and np.sort(yellow)[-2] < 0.34 * yellow.max():
-        k = int(np.argmax(yellow))  # the BR corner
-        order = [(k + 2) % 4, (k + 3) % 4, k, (k + 1) % 4]
+    if yellow.max() >= 0.2 and np.sort(yellow)[-2] < 0.34 * yellow.max():
+        k, c = int(np.argmax(yellow)), _cue_corner(pad_geometry)  # image corner k is pad corner c
+        order = [(k + j - c) % 4 for j in range(4)]
     elif yaw_hint_corner0 is not None:
         k = int(np.argmin(np.linalg.norm(refined - yaw_hint_corner0, axis=1)))
         order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
@@ -409,15 +374,95 @@ def _shifted(camera: Camera | None, x0: int, y0: int):
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx - x0, camera.cy - y0, camera.dist)
 
 
-def _contour_quad(contour: np.ndarray) -> np.ndarray | None:
-    hull = cv2.convexHull(contour)
+def _contour_quad(contour: np.ndarray) -> np.ndarray:
+    quad = _hull_quad(cv2.convexHull(contour))
+    return quad if quad is not None else cv2.boxPoints(cv2.minAreaRect(contour)).astype(np.float64)
+
+
+def _hull_quad(hull: np.ndarray) -> np.ndarray | None:
+    """The quadrilateral a convex hull outlines, or ``None``.  The hull, simplified a little, loses
+    its shortest side until four are left: each short side is a corner cut off (the cue square
+    left out of the border mask, a corner in shadow or behind a box, the rounding of a blurred
+    corner), put back where the two sides beside it meet.  A side whose neighbours do not meet
+    beyond it (nearly parallel: a kink in a long side) is merged into them instead."""
     peri = cv2.arcLength(hull, True)
-    for eps in (0.02, 0.04, 0.07, 0.1):
-        ap = cv2.approxPolyDP(hull, eps * peri, True)
-        if len(ap) == 4:
-            return ap[:, 0, :].astype(np.float64)
-    box = cv2.boxPoints(cv2.minAreaRect(contour))
-    return box.astype(np.float64)
+    poly = cv2.approxPolyDP(hull, max(0.01 * peri, 0.5), True)[:, 0, :].astype(np.float64)
+    while len(poly) > 4:
+        n = len(poly)
+        lengths = np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1)
+        i = int(np.argmin(lengths))  # the short side: poly[i] -> poly[i + 1]
+        x = _meet(poly[(i - 1) % n], poly[i], poly[(i + 1) % n], poly[(i + 2) % n], lengths[i])
+        if x is not None:
+            poly[i] = x
+        poly = np.delete(poly, (i + 1) % n, axis=0)
+    return poly if len(poly) == 4 else None
+
+
+def _meet(a0, a1, b0, b1, cut: float):
+    """Where the line a0->a1 meets the line b0->b1 beyond a1 and before b0 (a corner that the side
+    a1 -> b0, ``cut`` long, cut off), or ``None``."""
+    da, db = a1 - a0, b1 - b0
+    den = da[0] * db[1] - da[1] * db[0]
+    if abs(den) < 1e-6 * np.linalg.norm(da) * np.linalg.norm(db) + 1e-12:
+        return None
+    s = ((b0[0] - a0[0]) * db[1] - (b0[1] - a0[1]) * db[0]) / den
+    x = a0 + s * da
+    # beyond the cut, about as far from it as the cut is long (0.5x when the corner is square)
+    if s <= 1.0 or np.linalg.norm(x - 0.5 * (a1 + b0)) > 2.0 * cut + 2.0:
+        return None
+    return x
+
+
+def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None) -> np.ndarray:
+    """(4,) how much the border square at each corner of ``quad_px`` has the cue's colour, read
+    against the border squares beside it: 1 for a corner square of the cue's chromaticity next
+    to border of the border's, 0 where it looks like its neighbours.  Chromaticity (r, g, b over
+    their sum) does not change in shadow or dim light, and its neighbours share its light, so the
+    reading holds under a shadow edge, at dusk, on any ground (brown soil lies in a yellow cue's
+    colour range, and it never enters the squares), and wherever the quad is right."""
+    geo = pad_geometry
+    outer = geo.outer_corners[:, :2]
+    sq = geo.cue.corners[:, :2]
+    c = _cue_corner(geo)
+    w = float(np.sqrt(abs(_signed_area(sq))))
+    # sample points (pad frame) inside the cue square and in the two border squares beside it
+    g = np.linspace(0.2, 0.8, 4)
+    uv = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    o, cen = outer[c], outer.mean(axis=0)
+    ex, ey = np.sign(cen - o) * [1.0, 0.0], np.sign(cen - o) * [0.0, 1.0]  # from the corner inward, along each side
+    own = o + w * (uv[:, :1] * ex + uv[:, 1:] * ey)
+    pts = np.concatenate([own, own + w * ex, own + w * ey])
+    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
+    H_img, W_img = rgb.shape[:2]
+    target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
+    out = np.zeros(4)
+    for k in range(4):  # image corner k taken as the cue's corner c
+        dst = und[[(k + j - c) % 4 for j in range(4)]]
+        H = cv2.getPerspectiveTransform(outer.astype(np.float32), dst.astype(np.float32))
+        px = cv2.perspectiveTransform(pts[None].astype(np.float64), H)[0]
+        if camera is not None and camera.has_distortion:
+            from .features import _distort_px
+
+            px = _distort_px(camera, px)
+        if not (np.all(px > -0.5) and np.all(px < [W_img - 0.5, H_img - 0.5])):
+            continue  # a corner outside the image tells nothing
+        vals = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
+                         cv2.INTER_LINEAR)[0].astype(np.float64)
+        m = len(own)
+        here, beside = _chroma(vals[:m].mean(axis=0)), _chroma(vals[m:].mean(axis=0))
+        out[k] = max(0.0, float((here - beside) @ target / (target @ target)))
+    return out
+
+
+def _cue_corner(pad_geometry: PadGeometry) -> int:
+    """Index in ``outer_corners`` (TL, TR, BR, BL) of the corner holding the cue square."""
+    g = pad_geometry
+    return int(np.argmin(np.linalg.norm(g.outer_corners[:, :2] - g.cue.corners[:, :2].mean(axis=0), axis=1)))
+
+
+def _chroma(rgb) -> np.ndarray:
+    v = np.asarray(rgb, np.float64)
+    return v / max(float(v.sum()), 1.0)
 
 
 def _order_like(quad_px: np.ndarray, corners_P: np.ndarray, t: mk.MarkerTriple) -> np.ndarray:
