@@ -6,7 +6,9 @@ detector, then one ``cv2.solvePnP`` (IPPE, the planar solver) over every corner 
 the pad it found, with the lens model, refined by ``cv2.solvePnPRefineLM``.  No phases, no IMU, no
 tracking; the only gate is the reprojection RMS (``max_reprojection_px`` of the config), which any
 user of solvePnP would add.  Markers with ids the pad does not carry are ignored.  A suite entry
-with ``gates: true`` puts hvloc's false-pose gates in front (``hvloc.localizer.GatedLocalizer``).
+with ``gates: true`` gives the peer what hvloc has besides its pad: the IMU's gravity as a prior in
+the pose solve (``gravity_prior``: hvloc's ``solve_planar_pose``, which also breaks IPPE's flip by
+gravity) and hvloc's false-pose gates in front (``hvloc.localizer.GatedLocalizer``).
 
 * ``ArucoLocalizer``: OpenCV's ArUco detector (``cv2.aruco.ArucoDetector``, sub-pixel corner
   refinement) on the ``aruco`` pad variant, three markers with the finder markers' size and place.
@@ -22,8 +24,8 @@ import numpy as np
 
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import Camera, invert, make_transform
-from hvloc.localizer import Estimate, check_image, guarded_process
-from hvloc.pose import pose_covariance
+from hvloc.localizer import DEFAULT_T_B_C, Estimate, check_image, guarded_process, imu_check, up_in_camera
+from hvloc.pose import pose_covariance, solve_planar_pose
 
 PHASE = "adjustment"  # a marker method: reported in the markers' phase
 
@@ -35,7 +37,9 @@ class _FiducialPeer:
     METHOD = ""
     PEER = ""  # its name in messages
 
-    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None):
+    gravity_prior = False  # with an IMU: its gravity as a prior in the pose solve (hvloc's, see the module doc)
+
+    def __init__(self, pad, camera: Camera, config: LocalizerConfig | None, T_B_C=None):
         """Sets ``self.markers``: the pad's markers of kind ``METHOD`` (refused when it has none)."""
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
         self.markers = self.geometry.markers_in(kind=self.METHOD)
@@ -46,6 +50,7 @@ class _FiducialPeer:
         self.config = config or LocalizerConfig()
         self.K = camera.K
         self.dist = np.asarray(camera.dist, np.float64)
+        self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
 
     def reset(self) -> None:
         pass
@@ -65,14 +70,21 @@ class _FiducialPeer:
             return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: {why}")
         obj = np.concatenate([o for o, _ in found])
         img = np.concatenate([i for _, i in found]).astype(np.float64)
-        ok, rvec, tvec = cv2.solvePnP(obj, img, self.K, self.dist, flags=cv2.SOLVEPNP_IPPE)
-        if not ok:
-            return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: solvePnP failed")
-        rvec, tvec = cv2.solvePnPRefineLM(obj, img, self.K, self.dist, rvec, tvec)
-        proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
-        rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
-        cam2pad = invert(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
-        cov = pose_covariance(self.camera, cam2pad, obj, img, min_sigma_px=0.3)  # the same model as hvloc's
+        up_C = up_in_camera(imu_check(imu)[0], self.T_B_C) if self.gravity_prior else None
+        if up_C is not None:
+            res = solve_planar_pose(self.camera, obj, img, up_C=up_C)
+            if res is None:
+                return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: pose failed")
+            cam2pad, rms, cov = res.cam2pad, res.rms_px, res.cov
+        else:
+            ok, rvec, tvec = cv2.solvePnP(obj, img, self.K, self.dist, flags=cv2.SOLVEPNP_IPPE)
+            if not ok:
+                return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: solvePnP failed")
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img, self.K, self.dist, rvec, tvec)
+            proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
+            rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
+            cam2pad = invert(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
+            cov = pose_covariance(self.camera, cam2pad, obj, img, min_sigma_px=0.3)  # the same model as hvloc's
         est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, cov, method=self.METHOD,
                        extras={"markers": len(found)})
         if not np.isfinite(rms) or rms > self.config.max_reprojection_px:
@@ -86,7 +98,7 @@ class ArucoLocalizer(_FiducialPeer):
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
         from pad_design.layout import aruco_dictionary_of
 
-        super().__init__(pad, camera, config)
+        super().__init__(pad, camera, config, T_B_C)
         # one detector per dictionary the pad uses (a nested pad's small marker is of another: one
         # detector drops a marker candidate that holds another, so practitioners nest dictionaries)
         self.corners_P = {}
@@ -144,7 +156,7 @@ class AprilTagLocalizer(_FiducialPeer):
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C=None):
         from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
 
-        super().__init__(pad, camera, config)
+        super().__init__(pad, camera, config, T_B_C)
         order = list(DETECTOR_TO_PAD_CORNERS)
         self.corners_P = {m.aruco_id: m.outer_corners[order] for m in self.markers}  # in the detector's order
         self.detector = _apriltag_detector(FAMILY)

@@ -103,7 +103,8 @@ def pad_variants(kind: str) -> tuple:
 
 def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False, work=None):
     """A localizer for one sequence's pad and camera; ``gates``: hvloc's false-pose gates in front
-    of it (:class:`hvloc.localizer.GatedLocalizer`; hvloc's own localizer has them built in).
+    of it (:class:`hvloc.localizer.GatedLocalizer`; hvloc's own localizer has them built in), and
+    for hvloc's peers the IMU's gravity as a prior in their pose solve.
     A localizer from elsewhere always runs behind ``guarded_process``: it never raises.
     ``work``: an :class:`hvloc.work.ImageWork` that hvloc's localizers of this sequence share."""
     from hvloc.localizer import GatedLocalizer
@@ -113,6 +114,8 @@ def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False,
     else:
         loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
     if gates and kind != "hierarchical":
+        if hasattr(loc, "gravity_prior"):  # hvloc's peers: the IMU's gravity in their pose solve too
+            loc.gravity_prior = True
         return GatedLocalizer(loc, config, seq.T_B_C)
     if kind not in KINDS:
         return _Guarded(loc)

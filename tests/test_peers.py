@@ -152,3 +152,51 @@ def test_apriltag_peer_frees_its_detector_without_touching_freed_memory():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        env={**os.environ, "MALLOC_PERTURB_": "165"}, timeout=300)
     assert r.returncode == 0 and r.stdout.strip() == "ok", (r.returncode, r.stderr[-500:])
+
+
+def test_gated_peer_takes_the_imus_gravity_into_its_pose_solve(aruco_pad):
+    """One small marker far away: IPPE's two solutions fit the noisy corners about equally well and
+    solvePnP alone takes the wrong one now and then.  With ``gravity_prior`` (a suite's ``gates:
+    true``) the peer solves as hvloc does, the IMU's gravity choosing and weighting, and the tilt
+    follows the IMU however the corners fall."""
+    from types import SimpleNamespace
+
+    from benchmarks.peers import ArucoLocalizer
+    from benchmarks.run import make_localizer
+    from hvloc.config import LocalizerConfig
+    from hvloc.localizer import DEFAULT_T_B_C
+
+    class OneMarker(ArucoLocalizer):
+        corners = None
+
+        def _detect(self, gray):
+            return [(self.markers[0].outer_corners, self.corners)], ""
+
+    rng = np.random.default_rng(5)
+    img = np.zeros((CAM.height, CAM.width, 3), np.uint8)
+    worst, flips = 0.0, 0
+    for k in range(40):  # a 0.12 m marker at 2 m (35 px), 0.3 px corner noise
+        G = tilted(0.3, -0.2, 2.0, rng.uniform(0, 2 * np.pi), rng.normal(0, 0.08), rng.normal(0, 0.08))
+        px = CAM.project_from(G, aruco_pad.geometry.markers[0].outer_corners) + rng.normal(0, 0.3, (4, 2))
+        imu = np.concatenate([np.zeros(7), _quat_xyzw(G[:3, :3] @ DEFAULT_T_B_C[:3, :3].T)])  # R_W_B, pad level
+        for prior in (False, True):
+            peer = OneMarker(aruco_pad, CAM)
+            peer.gravity_prior, peer.corners = prior, px
+            e = peer.process(img, 0.0, imu)
+            assert e.status in ("ok", "rejected") and e.cam2pad is not None, e.reason
+            err = pose_error(e.cam2pad, G)[1]
+            if prior:
+                worst = max(worst, err)
+            else:
+                flips += err > 10.0  # the other IPPE solution: 30 to 40 degrees off
+    assert flips >= 3 and worst < 2.0, (flips, worst)  # the premise, then the prior's effect
+    # a suite's gates: true turns it on for hvloc's peers, and only it
+    seq = SimpleNamespace(pad=aruco_pad, camera=CAM, T_B_C=None)
+    assert make_localizer("aruco", seq, LocalizerConfig(), gates=True).inner.gravity_prior
+    assert not make_localizer("aruco", seq, LocalizerConfig(), gates=False).gravity_prior
+
+
+def _quat_xyzw(R):
+    from hvloc.geometry import quat_xyzw_from_matrix
+
+    return quat_xyzw_from_matrix(R)
