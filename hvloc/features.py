@@ -147,3 +147,75 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     rms = np.sqrt(np.mean(rms_side.reshape(Q, 4) ** 2, axis=1))
     rms[~good] = np.inf
     return out, rms
+
+
+_STEP_X = np.linspace(-6.0, 6.0, 2401)
+_STEP_Y = 0.5 * (1.0 + np.tanh(0.7978845608 * (_STEP_X + 0.044715 * _STEP_X**3)))  # the normal CDF within 3e-4
+
+
+def _blurred_step(x: np.ndarray) -> np.ndarray:
+    """A unit step seen through a Gaussian of sigma 1 (argument already divided by sigma), from a table."""
+    return np.interp(x, _STEP_X, _STEP_Y)
+
+
+COARSE_E = np.arange(-1.6, 1.6001, 0.2)           # edge positions tried first (px)
+FINE_E = np.arange(-0.24, 0.2401, 0.03)           # then around the best
+SIGMAS = np.array([0.45, 0.7, 1.0, 1.5])          # blur (px) beside the pixel's own width
+
+
+def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, camera: Camera | None = None,
+                        trim: float = 0.25, reach_px: float = 2.5, step: float = 0.2) -> np.ndarray:
+    """(4,) how far (px, along each side's inward normal) the outer edge of a banded border lies
+    from the sides of ``quad_px``, or NaN where it cannot be told.
+
+    A half-level crossing is biased when a band a pixel or two wide lies just inside the edge (the
+    level it crosses is set by what lies beyond the band): on hvloc's border, a solid band a quarter
+    of its width, then a checker of half its brightness, then the white field, the outline came out
+    ~0.2 px outside its edge at 30 px, ~1 % of the height.  Here each side's mean cross-profile is
+    fitted with the border's real profile: steps at ``e`` and ``e + bands_px[i, k]`` (the inner
+    edges of the bands, in px at that side), each blurred by one sigma, with free levels (linear
+    least squares) over a grid of ``(e, sigma)``, then a parabola through the best ``e``."""
+    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+    q = np.asarray(quad_px, np.float64).reshape(4, 2)
+    starts, ends = q, np.roll(q, -1, axis=0)
+    m = int(np.clip(np.linalg.norm(ends - starts, axis=1).max() * (1 - 2 * trim), 6, 40))
+    pts, nrm = _side_points_batch(starts, ends, m, trim, camera)
+    centre = q.mean(axis=0)
+    inward = np.sign(np.sum((centre - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))  # (4,)
+    bands = np.asarray(bands_px, np.float64).reshape(4, -1)
+    out = np.full(4, np.nan)
+    for i in range(4):
+        r = np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step)
+        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+        y = prof.mean(axis=0)
+        edges = np.concatenate([[0.0], bands[i]])
+
+        def sse_of(es, sigmas):
+            """(S, E) squared residual of the best levels for each blur and edge position."""
+            x = r[None, :, None] - es[:, None, None] - edges[None, None, :]
+            out = np.empty((len(sigmas), len(es)))
+            for a, s in enumerate(sigmas):
+                s_eff = np.sqrt(s * s + 1.0 / 12.0)  # and the pixel's own width
+                A = np.concatenate([np.ones((len(es), len(r), 1)), _blurred_step(x / s_eff)], axis=2)
+                AtA = np.einsum("erk,erl->ekl", A, A) + 1e-9 * np.eye(A.shape[2])
+                coef = np.linalg.solve(AtA, np.einsum("erk,r->ek", A, y)[..., None])[..., 0]
+                res = np.einsum("erk,ek->er", A, coef) - y
+                # the border must rise from the ground: a fall there is some other edge
+                out[a] = np.where(coef[:, 1] > 0, np.sum(res**2, axis=1), np.inf)
+            return out
+
+        coarse = sse_of(COARSE_E, SIGMAS)  # coarse in the edge, every blur; then fine at the best blur
+        a, b = np.unravel_index(np.argmin(coarse), coarse.shape)
+        if not np.isfinite(coarse[a, b]):
+            continue
+        es = COARSE_E[b] + FINE_E
+        fine = sse_of(es, SIGMAS[a:a + 1])[0]
+        b = int(np.argmin(fine))
+        if not np.isfinite(fine[b]) or b in (0, len(es) - 1) or abs(es[b]) >= 1.5:
+            continue
+        y0, y1, y2 = fine[b - 1], fine[b], fine[b + 1]
+        den = y0 - 2 * y1 + y2
+        out[i] = es[b] + (0.5 * (y0 - y2) / den * (FINE_E[1] - FINE_E[0]) if den > 0 and np.isfinite(den) else 0.0)
+    return out

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from . import markers as mk
-from .features import refine_quad, refine_quads
+from .features import banded_edge_offsets, refine_quad, refine_quads
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
@@ -157,12 +157,33 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
         if again is not None:
             refined, res = again, res2
-    if refined is not None:
-        refined = refined + [bx0, by0]
+    if refined is not None:  # the border's own profile, not a half level, says where its edge is
+        refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
     if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
         refined = quad
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     return OutlineQuad(refined, cue, side_px, res), "ok"
+
+
+def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera: Camera | None) -> np.ndarray:
+    """``quad`` with each side moved onto the border's outer edge as :func:`banded_edge_offsets`
+    finds it (the solid band and the checker inside it, at each side's own scale); a side it
+    cannot tell, or would move by a pixel or more, stays."""
+    lengths = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+    bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
+    e = banded_edge_offsets(chan, quad, bands, camera)
+    e = np.where(np.isfinite(e) & (np.abs(e) < 1.0), e, 0.0)
+    if not np.any(e):
+        return quad
+    d = np.roll(quad, -1, axis=0) - quad
+    n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(lengths, 1e-9)[:, None]
+    n *= np.sign(np.sum((quad.mean(axis=0) - quad) * n, axis=1))[:, None]  # inward
+    out = quad.copy()
+    for j in range(4):  # corner j lies on sides j - 1 and j: move it onto both moved lines
+        A = np.stack([n[j - 1], n[j]])
+        if abs(np.linalg.det(A)) > 1e-6:
+            out[j] = quad[j] + np.linalg.solve(A, [e[j - 1], e[j]])
+    return out
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None) -> tuple:
