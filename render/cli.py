@@ -123,6 +123,10 @@ def import_main(argv: list) -> int:
                    help="camera calibration: Kalibr camchain, ROS CameraInfo YAML or OpenCV FileStorage")
     p.add_argument("--camera-name", help="the camera of a Kalibr camchain (default: the first)")
     p.add_argument("--fps", type=float, help="frame rate (default: the video's; needed for an image folder)")
+    p.add_argument("--timestamps", help="each frame's capture time (s), one per line in frame order (or 'frame t' "
+                   "per line): times kept, frame numbers recovered from them (gaps where frames were dropped), "
+                   "everything (frames, ground truth, IMU) re-zeroed to the first frame's time; --fps then "
+                   "defaults to the median rate")
     p.add_argument("--groundtruth", help="TUM file (t tx ty tz qx qy qz qw) of the camera in the pad frame, T_P_C")
     p.add_argument("--gt-body", action="store_true",
                    help="the ground truth is the body's pose in the pad frame (T_P_B); the mount gives the camera")
@@ -142,7 +146,7 @@ def import_main(argv: list) -> int:
         raise InputError("--gt-body: goes with --groundtruth")
     prepare_out_dir(a.out)
     res = import_recording(a.out, a.frames, a.calibration, calibration_name=a.camera_name, fps=a.fps,
-                           groundtruth=a.groundtruth, gt_body=a.gt_body, gt_time_offset_s=a.gt_time_offset,
+                           timestamps=a.timestamps, groundtruth=a.groundtruth, gt_body=a.gt_body, gt_time_offset_s=a.gt_time_offset,
                            imu=a.imu, mount_rpy_deg=a.mount_rpy, pad_spec=a.pad_spec, name=a.name,
                            show_progress=not a.quiet)
     print(f"{res['root']}: {res['frames']} frames, {res['with_ground_truth']} with ground truth, "

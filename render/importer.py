@@ -5,7 +5,10 @@ on it as on a rendered one.
 * Frames: every image of a folder (sorted by name; PNG, JPEG, BMP, TIFF) or every frame of a video
   (what OpenCV's ``VideoCapture`` reads), stored losslessly as PNG; frame ``k`` at ``k / fps``
   (DESIGN.md), ``fps`` given or the video's.  Images named by their frame number (``000123.png``)
-  keep it, so a recording that dropped frames keeps its gaps and its times.
+  keep it, so a recording that dropped frames keeps its gaps and its times.  Or a timestamps file
+  (one capture time per frame): the times are kept as they are (jitter too) and the frame numbers
+  recovered from them (``round(t * fps)``), so gaps come back whatever the files are called; every
+  clock (frames, ground truth, IMU, all on the same one) is re-zeroed to the first frame.
 * Camera: a calibration file (:mod:`render.calibration`); the mount ``T_B_C`` as roll/pitch/yaw in
   degrees (default: hvloc's downward camera).
 * Ground truth (optional): TUM poses ``t tx ty tz qx qy qz qw`` of the camera in the pad frame
@@ -162,8 +165,49 @@ def _label_row(k: int, t: float, cam2pad, camera, pad, min_module_px: float) -> 
     return row
 
 
+def read_timestamps(path, count: int) -> tuple:
+    """``(times (count,), frame numbers (count,) or None)`` from a file of one capture time per
+    frame in frame order (``t``), or ``frame t`` per line; blank lines and ``#`` comments skipped, a
+    CSV header allowed.  Times must be finite and increasing, one per frame."""
+    rows = []
+    for n, line in enumerate(Path(path).read_text().splitlines(), 1):
+        line = line.split("#", 1)[0].replace(",", " ").strip()
+        if not line:
+            continue
+        try:
+            rows.append([float(v) for v in line.split()])
+        except ValueError:
+            if rows:  # only a first line may be a header
+                raise InputError(f"--timestamps {path}: line {n} is not numbers: {line!r}") from None
+    if not rows or len({len(r) for r in rows}) != 1 or len(rows[0]) not in (1, 2):
+        raise InputError(f"--timestamps {path}: want one time per line, or 'frame t' per line")
+    a = np.array(rows, np.float64)
+    if len(a) != count:
+        raise InputError(f"--timestamps {path}: {len(a)} times for {count} frames")
+    t = a[:, -1]
+    if not np.all(np.isfinite(a)) or np.any(np.diff(t) <= 0):
+        raise InputError(f"--timestamps {path}: times must be finite and increasing")
+    if a.shape[1] == 1:
+        return t, None
+    k = a[:, 0]
+    if np.any(k != np.round(k)) or np.any(np.diff(k) <= 0):
+        raise InputError(f"--timestamps {path}: frame numbers must be whole and increasing")
+    return t, (k - k[0]).astype(np.int64)
+
+
+def frame_numbers_from_times(t: np.ndarray, fps: float, source) -> np.ndarray:
+    """Frame numbers ``round(t * fps)`` of capture times ``t`` (from 0): a dropped frame leaves its gap.
+    Refused when two frames fall on one number (times jitter by half a frame, or ``fps`` is wrong)."""
+    k = np.round(np.asarray(t) * fps).astype(np.int64)
+    if np.any(np.diff(k) <= 0):
+        i = int(np.argmax(np.diff(k) <= 0))
+        raise InputError(f"--timestamps {source}: frames {i} and {i + 1} ({t[i]:.4f} and {t[i + 1]:.4f} s) fall on "
+                         f"one frame number at {fps:g} fps: give --fps, or 'frame t' lines")
+    return k
+
+
 def import_recording(out, frames, calibration, *, calibration_name: str | None = None, fps: float | None = None,
-                     groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
+                     timestamps=None, groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
                      mount_rpy_deg=None, pad_spec=None, name: str = "imported", show_progress: bool = False) -> dict:
     """Write the recording as a one-sequence dataset in ``out`` (a new folder, written whole or not at
     all).  Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
@@ -182,6 +226,13 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     cal = read_calibration(calibration, calibration_name)
     index, video_fps, images = frame_source(frames)
     count = len(index)
+    zero = 0.0  # the first frame's time on the recording's clock (with --timestamps)
+    stamps = None
+    if timestamps is not None:
+        stamps, stamped_index = read_timestamps(timestamps, count)
+        zero, stamps = float(stamps[0]), stamps - stamps[0]
+        fps = fps or float(1.0 / np.median(np.diff(stamps))) if count > 1 else fps
+        index = stamped_index if stamped_index is not None else frame_numbers_from_times(stamps, fps, timestamps)
     fps = fps or video_fps
     if not fps:
         raise InputError("--fps: needed for an image folder (frame k is at k / fps)")
@@ -195,11 +246,20 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         "trajectory": {"start_height_m": 3.0, "lateral_offset_m": [0.0, 0.0]}}, "the recording's spec")
     camera, T_B_C = cal.camera, mount.transform()
     pad = pad_for(spec)
-    t = index / float(fps)
+    t = index / float(fps) if stamps is None else stamps
+    jitter = 0.0
+    if stamps is not None:  # frames.csv holds each frame's own time; its spread around k / fps is the jitter
+        off = stamps - index / float(fps)
+        if np.abs(off).max() > 0.4 / fps:
+            i = int(np.argmax(np.abs(off)))
+            raise InputError(f"--timestamps {timestamps}: frame {int(index[i])} at {stamps[i]:.4f} s is "
+                             f"{off[i] * fps:+.2f} frame intervals from {int(index[i])} / {fps:g} fps (at most 0.4): "
+                             "a wrong --fps or frame numbers")
+        jitter = max(float(np.std(off)), 1e-9)
     poses = [None] * count
     if groundtruth is not None:
         rows = read_pose_tum(groundtruth)
-        rows[:, 0] += gt_time_offset_s
+        rows[:, 0] += gt_time_offset_s - zero
         poses = interpolate_poses(rows, t)
         if gt_body:  # T_P_B -> T_P_C
             poses = [None if p is None else p @ T_B_C for p in poses]
@@ -213,6 +273,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         if missing:
             raise InputError(f"{imu}: lacks the columns {missing} (hvloc's imu.csv: {', '.join(IMU_COLUMNS)})")
         imu_rows = np.column_stack([cols[c] for c in IMU_COLUMNS])
+        imu_rows[:, 0] -= zero
         if not np.all(np.isfinite(imu_rows)) or np.any(np.diff(imu_rows[:, 0]) <= 0):
             raise InputError(f"{imu}: values must be finite and times increasing")
         imu_rows = imu_rows.tolist()
@@ -223,7 +284,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     try:
         return _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good,
                       q if good else None, imu_rows, fps, cal, calibration, groundtruth, gt_body,
-                      gt_time_offset_s, imu, pad_spec, show_progress)
+                      gt_time_offset_s, imu, pad_spec, show_progress, timestamps, zero, jitter)
     except BaseException:  # nothing half-written: the folder was new (or empty)
         import shutil
 
@@ -233,7 +294,8 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
 
 
 def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good, q, imu_rows, fps, cal,
-           calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress) -> dict:
+           calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress, timestamps=None,
+           zero=0.0, jitter=0.0) -> dict:
     from pad_design.errors import progress_bar
 
     from .imu import IMU_COLUMNS
@@ -268,18 +330,20 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
             bar.close()
         info = camera.to_dict()
         info.update({"fps": float(fps), "exposure_s": None, "T_B_C": T_B_C.tolist(), "supersample": 1,
+                     "frame_time_jitter_s": jitter,
                      "rolling_shutter_line_s": 0.0, "rolling_shutter_ref_row": (camera.height - 1) / 2,
                      "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
                                     "T_B_C maps camera (OpenCV) to body (FLU)"})
         sources = {"frames": str(frames), "calibration": f"{calibration} ({cal.source})"}
-        for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec)):
+        for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec), ("timestamps", timestamps)):
             if p is not None:
                 sources[key] = str(p)
         checks = {k: ds.sha256_file(v) for k, v in (("calibration", calibration), ("groundtruth", groundtruth),
-                                                     ("imu", imu)) if v is not None}
+                                                     ("imu", imu), ("timestamps", timestamps)) if v is not None}
         meta = {"sequence": sid, "index": 0, "family": "imported", "frames": count,
                 "imported": {"sources": sources, "sha256": checks, "ground_truth": "body" if gt_body else
                              ("camera" if groundtruth is not None else "none"), "gt_time_offset_s": gt_time_offset_s,
+                             "time_zero_s": zero,  # the first frame's time on the recording's clock (--timestamps)
                              "frames_with_ground_truth": len(good), "imu": imu is not None},
                 "phase_rule": "render/phase.py (visibility from the geometry alone)",
                 "min_module_px": spec.phase_rule.min_module_px}

@@ -151,3 +151,50 @@ def test_numbered_images_keep_their_frame_numbers_and_times_across_dropped_frame
     assert 5 not in frames and 20 not in frames and len(frames) == len(orig) - 4
     np.testing.assert_allclose(seq.t, frames / 10.0)
     np.testing.assert_allclose(seq.cam2pad, orig.cam2pad[frames], atol=1e-9)
+
+
+@pytest.mark.parametrize("with_numbers", [False, True])
+def test_timestamps_bring_back_dropped_frames_whatever_the_files_are_called(recording, tmp_path, with_numbers):
+    """Frames named without their numbers, four of them dropped, the capture times (jittered, on a
+    clock that starts at 1000 s) in a file: the frame numbers and times come back, ground truth and
+    IMU on the same clock line up, and the labels are the original's."""
+    base, _ = recording
+    orig = Dataset(base / "orig")["seq_0000"]
+    kept = tmp_path / "frames"
+    kept.mkdir()
+    rng = np.random.default_rng(3)
+    frames = [k for k in range(len(orig)) if k not in (5, 6, 7, 20)]
+    t = np.arange(len(orig)) / 10.0 + rng.normal(0.0, 0.01, len(orig))  # 10 ms of jitter at 10 Hz
+    t[0] = 0.0
+    for i, k in enumerate(frames):
+        shutil.copy(base / "frames" / f"{k:06d}.png", kept / f"shot_{chr(97 + i // 26)}{chr(97 + i % 26)}.png")
+    clock = 1000.0
+    lines = [f"{k} {clock + t[k]:.6f}" if with_numbers else f"{clock + t[k]:.6f}" for k in frames]
+    (tmp_path / "times.txt").write_text("# capture times\n" + "\n".join(lines) + "\n")
+    gt = read_tum(base / "gt.tum")
+    write_tum(tmp_path / "gt.tum", gt[:, 0] + clock, gt[:, 1:], "T_P_C on the frames' clock")
+    seq = _import(base, tmp_path / "ds", kept, "--timestamps", tmp_path / "times.txt",
+                  "--groundtruth", tmp_path / "gt.tum")
+    np.testing.assert_array_equal(seq.columns["frame"].astype(int), frames)
+    np.testing.assert_allclose(seq.t, t[frames], atol=1e-6)
+    assert json.loads((tmp_path / "ds" / "seq_0000" / "meta.json").read_text())["imported"]["time_zero_s"] == clock
+    # the pose at each jittered time lies between the original's neighbouring frames
+    err = np.linalg.norm(seq.cam2pad[:, :3, 3] - orig.cam2pad[frames][:, :3, 3], axis=1)
+    step = np.linalg.norm(np.diff(orig.cam2pad[:, :3, 3], axis=0), axis=1).max()
+    assert err.max() < step, (err.max(), step)
+
+
+def test_timestamps_that_cannot_be_frames_are_refused(recording, tmp_path):
+    base, _ = recording
+    n = len(list((base / "frames").glob("*.png")))
+    cases = {"short.txt": ("0.0\n0.1\n", f"2 times for {n} frames"),
+             "back.txt": ("".join(f"{0.1 * k if k != 3 else 0.05}\n" for k in range(n)), "increasing"),
+             "words.txt": ("0.0\nnoon\n" + "".join(f"{0.1 * k}\n" for k in range(2, n)), "line 2"),
+             "clash.txt": ("".join(f"{0.1 * k + (0.06 if k == 4 else 0.0)}\n" for k in range(n)), "one frame number")}
+    for i, (name, (text, says)) in enumerate(cases.items()):
+        (tmp_path / name).write_text(text)
+        out = tmp_path / f"o{i}"
+        r = run_cli("import", base / "frames", "--fps", "10", "--timestamps", tmp_path / name,
+                    "--calibration", base / "ost.yaml", "--out", out, "--quiet")
+        assert_input_error(r, says)
+        assert not out.exists() or not any(out.iterdir())
