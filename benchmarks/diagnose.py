@@ -22,7 +22,8 @@ from .run import imu_at, make_localizer
 
 
 def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None = None, use_imu: bool = True):
-    """Rows ``(seq, k, phase_gt, height, status, method, pos_err, rot_err, wrong, reason, extras)``."""
+    """Rows ``(seq, k, phase_gt, height, status, method, pos_err, rot_err, wrong, reason, extras,
+    height_err_pct)``: the last is the estimate's signed height error in % of the true height."""
     from render.dataset import Dataset
 
     rows = []
@@ -33,14 +34,15 @@ def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None
             t = float(seq.t[k])
             e = loc.process(seq.image(k), t, imu_at(seq.imu, t, seq.imu_time_offset_s) if use_imu else None)
             G = G_all[k]
-            pe = re = float("nan")
+            pe = re = dh = float("nan")
+            h = float(G[2, 3])
             if e.cam2pad is not None:
                 pe = float(np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]))
                 re = math.degrees(rotation_angle(e.cam2pad[:3, :3], G[:3, :3]))
-            h = float(G[2, 3])
+                dh = float(e.cam2pad[2, 3] - h) / h * 100.0
             wrong = bool(e.cam2pad is not None and (pe > FALSE_ACCEPT_REL * h or re > FALSE_ACCEPT_DEG))
             rows.append((seq.id, k, str(seq.columns["phase_gt"][k]), h, e.status, e.method, pe, re, wrong, e.reason,
-                         e.extras))
+                         e.extras, dh))
     return rows
 
 
@@ -59,6 +61,13 @@ def summarise(rows) -> str:
                      f"(of them right {rej_right}) lost={st['lost']:4d} false_accepts={fa}")
         for why, n in reasons.most_common(5):
             lines.append(f"    {n:4d}  {why}")
+        # bias, not noise: the signed height error of the right accepted poses (a scale error of the
+        # features shows here first: a pad that looks 1 % too big puts the camera 1 % low)
+        dh = np.array([r[11] for r in rs if r[4] == "ok" and not r[8] and len(r) > 11], float)
+        dh = dh[np.isfinite(dh)]
+        if len(dh):
+            p10, p50, p90 = np.percentile(dh, [10, 50, 90])
+            lines.append(f"    height error, right ok poses: median {p50:+.2f} % of height (p10 {p10:+.2f}, p90 {p90:+.2f})")
         tilt = np.array([[r[10].get("tilt_err_deg", np.nan), r[10].get("tilt_sigma_deg", np.nan), r[8]]
                          for r in rs if r[4] in ("ok", "rejected")], float).reshape(-1, 3)
         for lab, sel in (("right", tilt[:, 2] == 0), ("wrong", tilt[:, 2] == 1)):

@@ -400,3 +400,17 @@ def test_bench_v2_has_its_tiers_cameras_and_both_forms_of_each_peer():
     assert {("aruco", False), ("aruco", True), ("apriltag", False), ("apriltag", True)} <= forms
     for loc, _ in configs:
         assert sum(runs_on(loc, sp) for sp in specs) == len(paper)  # each on every descent, with its pad
+
+
+def test_diagnose_reports_the_signed_height_bias_of_right_poses():
+    """A localizer whose height is 1 % low on right poses shows -1 % as the median, not its
+    magnitude; false accepts and lost frames stay out of it."""
+    from benchmarks.diagnose import summarise
+
+    rows = [("s", k, "approaching", 10.0, "ok", "outline", 0.1, 0.1, False, "", {}, -1.0 + 0.01 * (k % 5 - 2))
+            for k in range(20)]
+    rows += [("s", 20, "approaching", 10.0, "ok", "outline", 3.0, 0.1, True, "", {}, 30.0),
+             ("s", 21, "approaching", 10.0, "lost", "", float("nan"), float("nan"), False, "none", {}, float("nan"))]
+    text = summarise(rows)
+    assert "height error, right ok poses: median -1.00 % of height (p10 -1.02, p90 -0.98)" in text, text
+    assert "false_accepts=1" in text
