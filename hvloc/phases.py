@@ -157,10 +157,12 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
         if again is not None:
             refined, res = again, res2
-    if refined is not None:  # the border's own profile, not a half level, says where its edge is
+    if refined is None:
+        refined = quad  # too few edge points on a side (blur): the hull's corners, for what they are worth
+    elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(3.0, 0.1 * side_px):
+        return None, "its sides and its colour hull disagree"
+    else:  # the border's own profile, not a half level, says where its edge is
         refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
-    if refined is None or np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
-        refined = quad
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     return OutlineQuad(refined, cue, side_px, res), "ok"
 
