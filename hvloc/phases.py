@@ -454,26 +454,35 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
     o, cen = outer[c], outer.mean(axis=0)
     ex, ey = np.sign(cen - o) * [1.0, 0.0], np.sign(cen - o) * [0.0, 1.0]  # from the corner inward, along each side
     own = o + w * (uv[:, :1] * ex + uv[:, 1:] * ey)
-    pts = np.concatenate([own, own + w * ex, own + w * ey])
+    pts = np.concatenate([own, own + w * ex, own + w * ey]) - cen
+    # "image corner k is the cue's corner" for every k at once: the pad is square, so that is the
+    # same points turned (k - c) quarter turns about its centre, seen through one homography
+    # (image corner j = pad corner j)
+    d0, d1 = outer[0] - cen, outer[1] - cen
+    a = math.atan2(float(d0[0] * d1[1] - d0[1] * d1[0]), float(d0 @ d1))  # one quarter turn, corner j to j + 1
+    turned = []
+    for k in range(4):
+        t = a * (k - c)
+        R = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+        turned.append(pts @ R.T + cen)
     und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
-    H_img, W_img = rgb.shape[:2]
-    target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
-    out = np.zeros(4)
-    for k in range(4):  # image corner k taken as the cue's corner c
-        dst = und[[(k + j - c) % 4 for j in range(4)]]
-        H = cv2.getPerspectiveTransform(outer.astype(np.float32), dst.astype(np.float32))
-        px = cv2.perspectiveTransform(pts[None].astype(np.float64), H)[0]
-        if camera is not None and camera.has_distortion:
-            from .features import _distort_px
+    H = cv2.getPerspectiveTransform(outer.astype(np.float32), np.asarray(und, np.float32))
+    px = cv2.perspectiveTransform(np.concatenate(turned)[None].astype(np.float64), H)[0]
+    if camera is not None and camera.has_distortion:
+        from .features import _distort_px
 
-            px = _distort_px(camera, px)
-        if not (np.all(px > -0.5) and np.all(px < [W_img - 0.5, H_img - 0.5])):
-            continue  # a corner outside the image tells nothing
-        vals = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
-                         cv2.INTER_LINEAR)[0].astype(np.float64)
-        m = len(own)
-        here, beside = _chroma(vals[:m].mean(axis=0)), _chroma(vals[m:].mean(axis=0))
-        out[k] = max(0.0, float((here - beside) @ target / (target @ target)))
+        px = _distort_px(camera, px)
+    vals = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
+                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    H_img, W_img = rgb.shape[:2]
+    inside = np.all((px > -0.5) & (px < [W_img - 0.5, H_img - 0.5]), axis=1).reshape(4, -1).all(axis=1)
+    target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
+    m = len(own)
+    out = np.zeros(4)
+    for k, v in enumerate(vals.reshape(4, 3 * m, 3)):
+        if inside[k]:  # a corner outside the image tells nothing
+            here, beside = _chroma(v[:m].mean(axis=0)), _chroma(v[m:].mean(axis=0))
+            out[k] = max(0.0, float((here - beside) @ target / (target @ target)))
     return out
 
 

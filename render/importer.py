@@ -231,11 +231,12 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     if timestamps is not None:
         stamps, stamped_index = read_timestamps(timestamps, count)
         zero, stamps = float(stamps[0]), stamps - stamps[0]
-        fps = fps or float(1.0 / np.median(np.diff(stamps))) if count > 1 else fps
-        index = stamped_index if stamped_index is not None else frame_numbers_from_times(stamps, fps, timestamps)
-    fps = fps or video_fps
+    # the rate given, else the video's, else the timestamps' median
+    fps = fps or video_fps or (float(1.0 / np.median(np.diff(stamps))) if stamps is not None and count > 1 else None)
     if not fps:
         raise InputError("--fps: needed for an image folder (frame k is at k / fps)")
+    if stamps is not None:
+        index = stamped_index if stamped_index is not None else frame_numbers_from_times(stamps, fps, timestamps)
     mount = MountSpec() if mount_rpy_deg is None else validate_model(MountSpec, {"rpy_deg": list(mount_rpy_deg)},
                                                                        "--mount-rpy")
     pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
