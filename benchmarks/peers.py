@@ -77,13 +77,19 @@ class _FiducialPeer:
                 return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: pose failed")
             cam2pad, rms, cov = res.cam2pad, res.rms_px, res.cov
         else:
-            ok, rvec, tvec = cv2.solvePnP(obj, img, self.K, self.dist, flags=cv2.SOLVEPNP_IPPE)
-            if not ok:
+            # cv2.solvePnP knows the pinhole's lens; a fisheye's points are undistorted first
+            fisheye = self.camera.model != "pinhole"
+            img_s, dist = (self.camera.undistort_pixels(img), None) if fisheye else (img, self.dist)
+            ok, rvec, tvec = cv2.solvePnP(obj, img_s, self.K, dist, flags=cv2.SOLVEPNP_IPPE)
+            if not ok or not np.isfinite(img_s).all():
                 return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: solvePnP failed")
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, self.K, self.dist, rvec, tvec)
-            proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
-            rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img_s, self.K, dist, rvec, tvec)
             cam2pad = invert(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
+            if fisheye:
+                proj = self.camera.project_from(cam2pad, obj)
+            else:
+                proj, _ = cv2.projectPoints(obj, rvec, tvec, self.K, self.dist)
+            rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
             cov = pose_covariance(self.camera, cam2pad, obj, img, min_sigma_px=0.3)  # the same model as hvloc's
         est = Estimate(t, PHASE, "ok", cam2pad, len(obj), rms, cov, method=self.METHOD,
                        extras={"markers": len(found)})

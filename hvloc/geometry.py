@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 __all__ = [
+    "CAMERA_MODELS",
     "Camera",
     "as_points",
     "compose",
@@ -37,6 +38,7 @@ __all__ = [
     "look_at_cam2world",
     "rotation_z",
     "focal_from_hfov",
+    "focal_from_hfov_equidistant",
     "continuous_quaternions",
 ]
 
@@ -184,6 +186,14 @@ def focal_from_hfov(width: float, hfov_rad: float) -> float:
     return (width / 2.0) / math.tan(hfov_rad / 2.0)
 
 
+def focal_from_hfov_equidistant(width: float, hfov_rad: float) -> float:
+    """Focal length in pixels of an equidistant fisheye (r = f * theta) whose horizontal field of view is ``hfov_rad``."""
+    return (width / 2.0) / (hfov_rad / 2.0)
+
+
+CAMERA_MODELS = {"pinhole": 5, "fisheye": 4}  # model -> number of distortion coefficients
+
+
 def transform_from_tum(row) -> np.ndarray:
     """``(tx, ty, tz, qx, qy, qz, qw)`` -> 4x4."""
     r = np.asarray(row, dtype=np.float64).reshape(7)
@@ -214,7 +224,16 @@ def look_at_cam2world(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Camera:
-    """Pinhole camera with OpenCV distortion ``(k1, k2, p1, p2, k3)``; OpenCV pixel convention."""
+    """A central camera in the OpenCV pixel convention, one of two OpenCV lens models:
+
+    - ``pinhole``: radial-tangential distortion, ``dist = (k1, k2, p1, p2, k3)`` (``cv2.projectPoints``);
+    - ``fisheye``: Kannala-Brandt / equidistant, ``dist = (k1, k2, k3, k4)``: a ray at angle theta
+      from the axis lands at radius ``theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 +
+      k4 theta^8)`` on the normalised plane (``cv2.fisheye.projectPoints``, no skew).
+
+    Everything else (poses, homographies, line fits) works on undistorted normalised coordinates
+    ``(x/z, y/z)``, which both models map to and from; rays at or beyond 90 degrees have none.
+    """
 
     width: int
     height: int
@@ -223,32 +242,43 @@ class Camera:
     cx: float
     cy: float
     dist: tuple = field(default=(0.0, 0.0, 0.0, 0.0, 0.0))
+    model: str = "pinhole"
 
     def __post_init__(self):
         if self.width <= 0 or self.height <= 0:
             raise ValueError(f"camera width/height must be positive, got {self.width}x{self.height}")
         if not (self.fx > 0 and self.fy > 0):
             raise ValueError(f"camera fx, fy must be positive, got {self.fx}, {self.fy}")
+        if self.model not in CAMERA_MODELS:
+            raise ValueError(f"camera model must be one of {sorted(CAMERA_MODELS)}, got {self.model!r}")
         d = tuple(float(v) for v in self.dist)
-        if len(d) != 5:
-            raise ValueError(f"camera dist must have 5 values (k1 k2 p1 p2 k3), got {len(d)}")
+        if self.model == "fisheye" and d == (0.0,) * 5:
+            d = (0.0,) * 4  # the default of the dataclass is the pinhole's
+        n = CAMERA_MODELS[self.model]
+        if len(d) != n:
+            names = "k1 k2 p1 p2 k3" if self.model == "pinhole" else "k1 k2 k3 k4"
+            raise ValueError(f"camera dist must have {n} values for the {self.model} model ({names}), got {len(d)}")
         object.__setattr__(self, "dist", d)
 
     # -- construction / io
     @classmethod
-    def from_hfov(cls, width: int, height: int, hfov_rad: float, dist=(0, 0, 0, 0, 0)) -> "Camera":
-        """Square pixels, principal point at the image centre, horizontal field of view given."""
-        f = focal_from_hfov(width, hfov_rad)
-        return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0, tuple(dist))
+    def from_hfov(cls, width: int, height: int, hfov_rad: float, dist=(0, 0, 0, 0, 0),
+                  model: str = "pinhole") -> "Camera":
+        """Square pixels, principal point at the image centre, horizontal field of view given (of the
+        pinhole, or for ``fisheye`` of the equidistant projection before its ``k`` terms)."""
+        f = focal_from_hfov(width, hfov_rad) if model == "pinhole" else focal_from_hfov_equidistant(width, hfov_rad)
+        return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0, tuple(dist), model)
 
     def to_dict(self) -> dict:
         return {"width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy,
-                "cx": self.cx, "cy": self.cy, "dist": list(self.dist)}
+                "cx": self.cx, "cy": self.cy, "model": self.model, "dist": list(self.dist)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "Camera":
+        model = str(d.get("model", "pinhole"))
+        dist = d.get("dist", (0,) * CAMERA_MODELS.get(model, 5))
         return cls(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]),
-                   float(d["cx"]), float(d["cy"]), tuple(d.get("dist", (0, 0, 0, 0, 0))))
+                   float(d["cx"]), float(d["cy"]), tuple(dist), model)
 
     @classmethod
     def from_json(cls, path) -> "Camera":
@@ -260,7 +290,15 @@ class Camera:
 
     @property
     def has_distortion(self) -> bool:
-        return any(abs(v) > 0 for v in self.dist)
+        """Whether pixels differ from the ideal pinhole's (always so for a fisheye)."""
+        return self.model != "pinhole" or any(abs(v) > 0 for v in self.dist)
+
+    @property
+    def conventions(self) -> str:
+        """The one-line description of this camera's conventions that ``camera.json`` carries."""
+        lens = ("OpenCV pinhole + (k1 k2 p1 p2 k3)" if self.model == "pinhole"
+                else "OpenCV fisheye (Kannala-Brandt: theta_d = theta (1 + k1 theta^2 + .. + k4 theta^8))")
+        return f"{lens}; pixel centre of top-left pixel at (0,0); T_B_C maps camera (OpenCV) to body (FLU)"
 
     @property
     def size_wh(self) -> tuple:
@@ -268,17 +306,30 @@ class Camera:
 
     def scaled(self, factor: float) -> "Camera":
         """The same camera at ``factor`` times the resolution (pixel-centre convention kept)."""
-        return Camera(int(round(self.width * factor)), int(round(self.height * factor)),
-                      self.fx * factor, self.fy * factor,
-                      (self.cx + 0.5) * factor - 0.5, (self.cy + 0.5) * factor - 0.5, self.dist)
+        return replace(self, width=int(round(self.width * factor)), height=int(round(self.height * factor)),
+                       fx=self.fx * factor, fy=self.fy * factor,
+                       cx=(self.cx + 0.5) * factor - 0.5, cy=(self.cy + 0.5) * factor - 0.5)
+
+    def shifted(self, x0: float, y0: float) -> "Camera":
+        """The same camera seeing the crop whose top-left pixel is ``(x0, y0)``."""
+        return replace(self, cx=self.cx - x0, cy=self.cy - y0)
 
     def without_distortion(self) -> "Camera":
         return Camera(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
 
     # -- normalised-plane distortion
     def distort_normalized(self, xy) -> np.ndarray:
-        """Apply OpenCV distortion to ``(N, 2)`` undistorted normalised coordinates."""
+        """Apply the lens model to ``(N, 2)`` undistorted normalised coordinates."""
         xy = as_points(xy, 2, "xy")
+        if self.model == "fisheye":
+            r = np.hypot(xy[:, 0], xy[:, 1])
+            th = np.arctan(r)
+            th2 = th * th
+            k1, k2, k3, k4 = self.dist
+            th_d = th * (1 + th2 * (k1 + th2 * (k2 + th2 * (k3 + th2 * k4))))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = np.where(r > 1e-12, th_d / np.where(r > 1e-12, r, 1.0), 1.0)
+            return xy * s[:, None]
         k1, k2, p1, p2, k3 = self.dist
         x, y = xy[:, 0], xy[:, 1]
         r2 = x * x + y * y
@@ -288,10 +339,14 @@ class Camera:
         return np.column_stack([xd, yd])
 
     def undistort_normalized(self, xy_d, iterations: int = 20) -> np.ndarray:
-        """Invert :meth:`distort_normalized` by Gauss-Newton (converges to ~1e-12 in the lens's domain)."""
+        """Invert :meth:`distort_normalized` by Newton / Gauss-Newton (~1e-12 in the lens's domain).
+
+        Fisheye points whose ray would be at 90 degrees or more from the axis come back as NaN."""
         xy_d = as_points(xy_d, 2, "xy_d")
         if not self.has_distortion:
             return xy_d.copy()
+        if self.model == "fisheye":
+            return self._undistort_fisheye(xy_d, iterations)
         k1, k2, p1, p2, k3 = self.dist
         xy = xy_d.copy()
         for _ in range(iterations):
@@ -314,6 +369,26 @@ class Camera:
             if np.max(np.abs(dx) + np.abs(dy)) < 1e-14:
                 break
         return xy
+
+    def _undistort_fisheye(self, xy_d: np.ndarray, iterations: int) -> np.ndarray:
+        k1, k2, k3, k4 = self.dist
+        rd = np.hypot(xy_d[:, 0], xy_d[:, 1])
+        th = np.minimum(rd, 1.5)  # theta_d ~ theta near the axis
+        for _ in range(max(iterations, 30)):
+            th2 = th * th
+            f = th * (1 + th2 * (k1 + th2 * (k2 + th2 * (k3 + th2 * k4)))) - rd
+            df = 1 + th2 * (3 * k1 + th2 * (5 * k2 + th2 * (7 * k3 + th2 * 9 * k4)))
+            step = f / np.where(np.abs(df) < 1e-12, 1e-12, df)
+            th = np.clip(th - step, 0.0, math.pi)
+            if np.max(np.abs(step), initial=0.0) < 1e-15:
+                break
+        th2 = th * th
+        ok = (np.abs(th * (1 + th2 * (k1 + th2 * (k2 + th2 * (k3 + th2 * k4)))) - rd) < 1e-9) & (th < math.pi / 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(rd > 1e-12, np.tan(th) / np.where(rd > 1e-12, rd, 1.0), 1.0)
+        out = xy_d * s[:, None]
+        out[~ok] = np.nan
+        return out
 
     # -- pixels
     def project(self, points_C) -> np.ndarray:

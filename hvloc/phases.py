@@ -394,7 +394,7 @@ def _head_on(camera: Camera | None, up_C: np.ndarray | None, x0: int, y0: int):
 def _shifted(camera: Camera | None, x0: int, y0: int):
     if camera is None or not camera.has_distortion or (x0 == 0 and y0 == 0):
         return camera
-    return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx - x0, camera.cy - y0, camera.dist)
+    return camera.shifted(x0, y0)
 
 
 def _contour_quad(contour: np.ndarray) -> np.ndarray:

@@ -7,8 +7,9 @@ JSON, as ``cv::calibrateCamera`` users write them: ``camera_matrix``, ``distorti
 ``image_width``/``image_height``).  All three put the centre of the top-left pixel at (0, 0), as
 hvloc does (DESIGN.md), so ``cx, cy`` carry over unchanged.
 
-hvloc renders a pinhole with OpenCV's radial-tangential distortion (k1 k2 p1 p2 k3); a fisheye,
-omnidirectional or rational model, or a skewed camera matrix, is refused with the field named.
+hvloc renders a pinhole with OpenCV's radial-tangential distortion (k1 k2 p1 p2 k3) and a fisheye
+with OpenCV's Kannala-Brandt model (k1 k2 k3 k4: Kalibr's ``equidistant``, ROS's ``equidistant``);
+an omnidirectional or rational model, or a skewed camera matrix, is refused with the field named.
 """
 from __future__ import annotations
 
@@ -37,8 +38,9 @@ class Calibration:
         """The ``camera:`` fields of a dataset spec that give exactly this camera
         (``render.plan.camera_from_spec`` reads them back to the same fx, fy, cx, cy)."""
         c = self.camera
-        return {"width": c.width, "height": c.height,
-                "hfov_deg": math.degrees(2.0 * math.atan((c.width / 2.0) / c.fx)),
+        half = (c.width / 2.0) / c.fx
+        return {"width": c.width, "height": c.height, "model": c.model,
+                "hfov_deg": math.degrees(2.0 * (math.atan(half) if c.model == "pinhole" else half)),
                 "fy_over_fx": c.fy / c.fx,
                 "principal_offset_px": [c.cx - (c.width - 1) / 2.0, c.cy - (c.height - 1) / 2.0],
                 "dist": [float(d) for d in c.dist]}
@@ -54,6 +56,14 @@ def _radtan(coeffs, where: str) -> tuple:
                      "(k1 k2 p1 p2 [k3]); a rational or thin-prism model is not supported")
 
 
+def _equidistant(coeffs, where: str) -> tuple:
+    d = [float(c) for c in np.asarray(coeffs, np.float64).ravel()]
+    if len(d) != 4:
+        raise InputError(f"{where}: {len(d)} distortion coefficients {d}; the equidistant (fisheye) model has 4 "
+                         "(k1 k2 k3 k4)")
+    return tuple(d)
+
+
 def _camera_matrix(K, where: str) -> tuple:
     K = np.asarray(K, np.float64).reshape(-1)
     if K.size != 9:
@@ -66,14 +76,14 @@ def _camera_matrix(K, where: str) -> tuple:
 
 
 def _checked(w: int, h: int, fx: float, fy: float, cx: float, cy: float, dist: tuple, source: str,
-             where: str) -> Calibration:
+             where: str, model: str = "pinhole") -> Calibration:
     if w < 16 or h < 16:
         raise InputError(f"{where}: image size {w}x{h} is too small")
     if not (fx > 0 and fy > 0 and math.isfinite(fx) and math.isfinite(fy)):
         raise InputError(f"{where}: focal lengths must be positive (fx {fx}, fy {fy})")
     if not all(math.isfinite(v) for v in (cx, cy, *dist)):
         raise InputError(f"{where}: the calibration has a number that is not finite")
-    return Calibration(Camera(w, h, fx, fy, cx, cy, dist), source)
+    return Calibration(Camera(w, h, fx, fy, cx, cy, dist, model), source)
 
 
 def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:
@@ -87,14 +97,17 @@ def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:
     model, dmodel = c.get("camera_model", "pinhole"), c.get("distortion_model", "radtan")
     if model != "pinhole":
         raise InputError(f"{where}.camera_model: {model!r}; hvloc renders a pinhole camera")
-    if dmodel not in ("radtan", "none"):
-        raise InputError(f"{where}.distortion_model: {dmodel!r} (fisheye/equidistant and others are not supported "
-                         "yet); hvloc's lens is radial-tangential (radtan)")
+    if dmodel not in ("radtan", "none", "equidistant"):
+        raise InputError(f"{where}.distortion_model: {dmodel!r}; hvloc's lenses are radial-tangential (radtan) "
+                         "and equidistant (Kannala-Brandt fisheye)")
     try:
         fx, fy, cx, cy = (float(v) for v in c["intrinsics"])
         w, h = (int(v) for v in c["resolution"])
     except (KeyError, TypeError, ValueError):
         raise InputError(f"{where}: needs intrinsics [fu, fv, pu, pv] and resolution [width, height]") from None
+    if dmodel == "equidistant":
+        dist = _equidistant(c.get("distortion_coeffs", [0, 0, 0, 0]), f"{where}.distortion_coeffs")
+        return _checked(w, h, fx, fy, cx, cy, dist, f"Kalibr {name}", where, "fisheye")
     dist = _radtan(c.get("distortion_coeffs", [0, 0, 0, 0]) if dmodel == "radtan" else [0, 0, 0, 0],
                    f"{where}.distortion_coeffs")
     return _checked(w, h, fx, fy, cx, cy, dist, f"Kalibr {name}", where)
@@ -102,9 +115,9 @@ def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:
 
 def _ros(doc: dict, path: str) -> Calibration:
     model = doc.get("distortion_model", "plumb_bob")
-    if model not in ("plumb_bob", "rational_polynomial"):
-        raise InputError(f"{path}: distortion_model: {model!r} (equidistant/fisheye is not supported yet); "
-                         "hvloc's lens is plumb_bob (radial-tangential)")
+    if model not in ("plumb_bob", "rational_polynomial", "equidistant"):
+        raise InputError(f"{path}: distortion_model: {model!r}; hvloc's lenses are plumb_bob (radial-tangential) "
+                         "and equidistant (Kannala-Brandt fisheye)")
     try:
         K = doc["camera_matrix"]["data"]
         D = (doc.get("distortion_coefficients") or {}).get("data", [])
@@ -112,8 +125,12 @@ def _ros(doc: dict, path: str) -> Calibration:
     except (KeyError, TypeError, ValueError):
         raise InputError(f"{path}: a ROS CameraInfo YAML needs image_width, image_height and camera_matrix.data") from None
     fx, fy, cx, cy = _camera_matrix(K, f"{path}: camera_matrix")
+    name = f"ROS CameraInfo {doc.get('camera_name', '')}".strip()
+    if model == "equidistant":
+        return _checked(w, h, fx, fy, cx, cy, _equidistant(D or [0, 0, 0, 0], f"{path}: distortion_coefficients"),
+                        name, path, "fisheye")
     dist = _radtan(D or [0, 0, 0, 0], f"{path}: distortion_coefficients")
-    return _checked(w, h, fx, fy, cx, cy, dist, f"ROS CameraInfo {doc.get('camera_name', '')}".strip(), path)
+    return _checked(w, h, fx, fy, cx, cy, dist, name, path)
 
 
 def _opencv(path: str) -> Calibration:

@@ -629,7 +629,7 @@ class FrameDataset:
         f = seq.frame(k)
         item = {"image": torch.from_numpy(seq.image(k)).permute(2, 0, 1).float() / 255.0,
                 "cam2pad": torch.from_numpy(f.cam2pad), "K": torch.from_numpy(seq.camera.K),
-                "dist": torch.tensor(seq.camera.dist, dtype=torch.float64),
+                "dist": torch.tensor(seq.camera.dist, dtype=torch.float64), "camera_model": seq.camera.model,
                 "corners_px": torch.from_numpy(f.corners_px), "corners_visible": torch.from_numpy(f.corners_visible),
                 "height_m": f.height_above_pad, "t": f.t, "phase_gt": f.phase_gt, "sequence": sid, "frame": k}
         return self.transform(item) if self.transform is not None else item

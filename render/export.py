@@ -96,15 +96,21 @@ def export_euroc_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> Non
         (cam_dir / f"{stamp}.png").write_bytes(seq.image_bytes(k))
     _write_csv(mav / "cam0" / "data.csv", "#timestamp [ns],filename", ([s, f"{s}.png"] for s in ts))
     cam = seq.camera
-    k1, k2, p1, p2, k3 = cam.dist
-    note = "" if k3 == 0 else f"\n# k3 = {k3!r}: radial-tangential here has four coefficients; k3 is given apart"
+    if cam.model == "fisheye":  # EuRoC/Kalibr's equidistant model is OpenCV's fisheye
+        lens = f"distortion_model: equidistant\ndistortion_coefficients: [{', '.join(repr(v) for v in cam.dist)}]\n"
+        note, kind = "", "OpenCV fisheye"
+    else:
+        k1, k2, p1, p2, k3 = cam.dist
+        note = "" if k3 == 0 else f"\n# k3 = {k3!r}: radial-tangential here has four coefficients; k3 is given apart"
+        lens = (f"distortion_model: radial-tangential\ndistortion_coefficients: [{k1!r}, {k2!r}, {p1!r}, {p2!r}]\n"
+                + (f"k3: {k3!r}\n" if k3 != 0 else ""))
+        kind = "OpenCV pinhole"
     (mav / "cam0" / "sensor.yaml").write_text(
-        "# hvloc export: camera (OpenCV pinhole, pixel centres at integers), T_BS = T_B_C (camera to body FLU)"
+        f"# hvloc export: camera ({kind}, pixel centres at integers), T_BS = T_B_C (camera to body FLU)"
         f"{note}\nsensor_type: camera\ncomment: hvloc {seq.id}\nT_BS:\n{_matrix_yaml(seq.T_B_C)}"
         f"rate_hz: {seq.fps:g}\nresolution: [{cam.width}, {cam.height}]\ncamera_model: pinhole\n"
         f"intrinsics: [{cam.fx!r}, {cam.fy!r}, {cam.cx!r}, {cam.cy!r}]\n"
-        f"distortion_model: radial-tangential\ndistortion_coefficients: [{k1!r}, {k2!r}, {p1!r}, {p2!r}]\n"
-        + (f"k3: {k3!r}\n" if k3 != 0 else "")
+        + lens
         + f"exposure_s: {seq.camera_info.get('exposure_s', 0.0)!r}\n"
         f"rolling_shutter_line_s: {seq.camera_info.get('rolling_shutter_line_s', 0.0)!r}\n")
     imu = seq.imu
@@ -203,7 +209,7 @@ def export_rosbag2_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> N
         mount = np.concatenate([seq.T_B_C[:3, 3], quat_xyzw_from_matrix(seq.T_B_C[:3, :3])])
         put(c_tfs, min(ts[0], stamps_ns(seq.imu[:1, 0], epoch_s)[0]), TF(transforms=[tf(ts[0], body_frame, cam_frame, mount)]))
         info = T["sensor_msgs/msg/CameraInfo"](
-            header=header(0, cam_frame), height=cam.height, width=cam.width, distortion_model="plumb_bob",
+            header=header(0, cam_frame), height=cam.height, width=cam.width, distortion_model="plumb_bob" if cam.model == "pinhole" else "equidistant",
             d=np.array(cam.dist, np.float64), k=cam.K.ravel().astype(np.float64), r=np.eye(3).ravel(),
             p=np.column_stack([cam.K, np.zeros(3)]).ravel().astype(np.float64), binning_x=0, binning_y=0,
             roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))

@@ -42,8 +42,7 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
                      "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
                      "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
                      "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate,
-                     "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
-                                    "T_B_C maps camera (OpenCV) to body (FLU)"})
+                     "conventions": r.camera.conventions})
         plan = r.plan
         meta = {"sequence": sid, "index": index, "seed": plan.seed, "dataset_seed": spec.seed, "family": plan.family,
                 "duration_s": float(plan.trajectory.duration), "frames": len(r), "blur_method": spec.degradations.blur_method,

@@ -333,8 +333,7 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
         info.update({"fps": float(fps), "exposure_s": None, "T_B_C": T_B_C.tolist(), "supersample": 1,
                      "frame_time_jitter_s": jitter,
                      "rolling_shutter_line_s": 0.0, "rolling_shutter_ref_row": (camera.height - 1) / 2,
-                     "conventions": "OpenCV pinhole + (k1 k2 p1 p2 k3); pixel centre of top-left pixel at (0,0); "
-                                    "T_B_C maps camera (OpenCV) to body (FLU)"})
+                     "conventions": camera.conventions})
         sources = {"frames": str(frames), "calibration": f"{calibration} ({cal.source})"}
         for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec), ("timestamps", timestamps)):
             if p is not None:

@@ -18,9 +18,7 @@ def sequence_seed(dataset_seed: int, index: int) -> int:
 
 
 def camera_from_spec(cam) -> Camera:
-    f = focal_from_hfov(cam.width, math.radians(cam.hfov_deg))
-    return Camera(cam.width, cam.height, f, f * cam.fy_over_fx, (cam.width - 1) / 2.0 + cam.principal_offset_px[0],
-                  (cam.height - 1) / 2.0 + cam.principal_offset_px[1], tuple(cam.dist))
+    return cam.to_camera()
 
 
 def mount_from_spec(mount) -> np.ndarray:

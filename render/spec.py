@@ -12,7 +12,7 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
-from hvloc.geometry import focal_from_hfov
+from hvloc.geometry import CAMERA_MODELS, Camera, focal_from_hfov, focal_from_hfov_equidistant
 from pad_design.errors import load_yaml_model
 from pad_design.spec import PadSpec
 
@@ -63,10 +63,17 @@ class MountSpec(_Model):
 class CameraSpec(_Model):
     width: int = Field(800, ge=16, le=8192)
     height: int = Field(800, ge=16, le=8192)
-    hfov_deg: float = Field(60.0, gt=1.0, lt=170.0, description="horizontal field of view of the pinhole (fx)")
+    model: Literal["pinhole", "fisheye"] = Field(
+        "pinhole", description="lens model: pinhole (OpenCV radial-tangential, dist k1 k2 p1 p2 k3) or fisheye "
+        "(OpenCV fisheye / Kannala-Brandt, dist k1 k2 k3 k4; rays up to 80 degrees off the axis)")
+    hfov_deg: float = Field(60.0, gt=1.0, lt=170.0, description="horizontal field of view that sets fx: of the "
+                            "pinhole (fx = w/2 / tan(hfov/2)), or for fisheye of the equidistant projection "
+                            "(fx = w/2 / (hfov/2 in radians)) before its k terms")
     fy_over_fx: float = Field(1.0, gt=0.2, lt=5.0)
     principal_offset_px: tuple[float, float] = Field((0.0, 0.0), description="(cx, cy) minus the image centre")
-    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    dist: Annotated[tuple[float, ...], Field(min_length=4, max_length=5)] | None = Field(
+        None, description="distortion coefficients of the model: pinhole k1 k2 p1 p2 k3, fisheye k1 k2 k3 k4 "
+        "(none: no distortion)")
     fps: float = Field(30.0, gt=0.0, le=1000.0)
     exposure_s: float = Field(0.004, ge=0.0, description="shutter open time, centred on the frame time")
     supersample: int = Field(1, ge=1, le=4, description="render at this many times the resolution, then average")
@@ -91,21 +98,51 @@ class CameraSpec(_Model):
             raise ValueError(f"exposure_s: {self.exposure_s} s is longer than a frame (1/fps = {1 / self.fps:.4f} s)")
         if self.rolling_shutter_line_s * self.height > 1.0 / self.fps:
             raise ValueError(f"rolling_shutter_line_s: {self.height} rows take longer than a frame to read")
-        # the radial distortion must be invertible out to the image corners, or some pixels see no ray
-        k1, k2, _, _, k3 = self.dist
-        f = focal_from_hfov(self.width, math.radians(self.hfov_deg))
+        n = CAMERA_MODELS[self.model]
+        if self.dist is None:
+            object.__setattr__(self, "dist", (0.0,) * n)
+        if len(self.dist) != n:
+            raise ValueError(f"dist: the {self.model} model has {n} coefficients "
+                             f"({'k1 k2 p1 p2 k3' if n == 5 else 'k1 k2 k3 k4'}), got {len(self.dist)}")
+        if not all(math.isfinite(v) for v in self.dist):
+            raise ValueError(f"dist: {list(self.dist)} has a value that is not finite")
+        # the lens must map a ray to every pixel out to the image corners: its radial mapping may not
+        # fold back before them (and a fisheye's corner ray must stay within 80 degrees of the axis,
+        # so that the pinhole render it is resampled from stays practical)
+        f = self.focal_px()
         r_corner = math.hypot(self.width / 2.0, self.height / 2.0) / f * max(1.0, 1.0 / self.fy_over_fx)
-        r = [i * 0.01 for i in range(1, 1000)]
-        r_d = [x * (1 + k1 * x**2 + k2 * x**4 + k3 * x**6) for x in r]
+        if self.model == "fisheye":
+            k1, k2, k3, k4 = self.dist
+            th = [i * 0.001 for i in range(1, 1396)]  # up to 80 degrees
+            r_d = [t * (1 + k1 * t**2 + k2 * t**4 + k3 * t**6 + k4 * t**8) for t in th]
+            what = "fisheye distortion"
+        else:
+            k1, k2, _, _, k3 = self.dist
+            r = [i * 0.01 for i in range(1, 1000)]
+            r_d = [x * (1 + k1 * x**2 + k2 * x**4 + k3 * x**6) for x in r]
+            what = "radial distortion"
         reach = 0.0
         for a, b in zip(r_d, r_d[1:]):
             if b <= a:
                 break
             reach = b
         if reach < r_corner * 1.02:
-            raise ValueError(f"dist: radial distortion {list(self.dist[:2]) + [self.dist[4]]} folds back before the "
-                             f"image corners (reaches r = {reach:.2f}, corners need {r_corner:.2f}): not a real lens")
+            raise ValueError(f"dist: the {what} {list(self.dist)} does not reach the image corners with hfov_deg "
+                             f"{self.hfov_deg} (it folds back or passes 80 degrees at r = {reach:.2f}, the corners "
+                             f"need {r_corner:.2f}): not a lens that can be rendered")
         return self
+
+    def focal_px(self) -> float:
+        """fx of this camera (see ``hfov_deg``)."""
+        h = math.radians(self.hfov_deg)
+        return focal_from_hfov(self.width, h) if self.model == "pinhole" else focal_from_hfov_equidistant(self.width, h)
+
+    def to_camera(self) -> Camera:
+        """The :class:`hvloc.geometry.Camera` this spec describes."""
+        f = self.focal_px()
+        return Camera(self.width, self.height, f, f * self.fy_over_fx,
+                      (self.width - 1) / 2.0 + self.principal_offset_px[0],
+                      (self.height - 1) / 2.0 + self.principal_offset_px[1], tuple(self.dist), self.model)
 
 
 class PlatformSpec(_Model):
@@ -272,7 +309,7 @@ class DatasetSpec(_Model):
         # At the start height the whole pad must fit in the image with some room, else no
         # localizer could ever see it: a spec error, not a hard sequence.
         cam = self.camera
-        f = focal_from_hfov(cam.width, math.radians(cam.hfov_deg))
+        f = cam.focal_px()
         # an off-nadir camera aimed at the pad sees it at the slant distance along its axis
         down = -float(cam.mount.transform()[2, 2]) if self.trajectory.aim_camera else 1.0
         if down < 0.2:

@@ -50,7 +50,10 @@ FIELDS = {
     "camera.hfov_deg": (_uniform(55, 95), 75.0, {}),
     "camera.fy_over_fx": (_uniform(0.95, 1.05), 1.1, {}),
     "camera.principal_offset_px": (lambda r: [float(v) for v in r.uniform(-4, 4, 2)], [3.0, -2.0], {}),
-    "camera.dist": (_choice([[0, 0, 0, 0, 0], [-0.12, 0.02, 0.0005, -0.0003, 0.0], [-0.25, 0.07, 0, 0, -0.008]]),
+    # a draw of the wrong length for the drawn model is redrawn (random_spec): both models come up
+    "camera.model": (_choice(["pinhole", "pinhole", "fisheye"]), "fisheye", {}),
+    "camera.dist": (_choice([[0, 0, 0, 0, 0], [-0.12, 0.02, 0.0005, -0.0003, 0.0], [-0.25, 0.07, 0, 0, -0.008],
+                             [0.0, 0.0, 0.0, 0.0], [0.03, -0.01, 0.002, -0.0002]]),
                     [-0.1, 0.01, 0.0, 0.0, 0.0], {}),
     "camera.fps": (_uniform(2.0, 4.0), 3.0, {}),
     "camera.exposure_s": (_choice([0.0, 0.004, 0.01]), 0.002, {}),

@@ -55,7 +55,7 @@ def _same_camera(cal, fields):
     cam = camera_from_spec(CameraSpec.model_validate(fields))
     assert (cam.width, cam.height) == (cal.width, cal.height)
     np.testing.assert_allclose([cam.fx, cam.fy, cam.cx, cam.cy], [cal.fx, cal.fy, cal.cx, cal.cy], rtol=0, atol=1e-9)
-    assert tuple(cam.dist) == tuple(cal.dist)
+    assert tuple(cam.dist) == tuple(cal.dist) and cam.model == cal.camera.model
 
 
 def test_kalibr_camchain_gives_exactly_its_camera(tmp_path):
@@ -92,12 +92,32 @@ def test_opencv_filestorage_gives_exactly_its_camera(tmp_path, suffix):
     _same_camera(cal, cal.spec_fields())
 
 
-def test_models_hvloc_cannot_render_are_refused_with_the_field_named(tmp_path):
+def test_fisheye_calibrations_become_the_same_fisheye_camera(tmp_path):
+    """Kalibr's and ROS's equidistant model is OpenCV's fisheye (Kannala-Brandt): read as such, and
+    the spec fields it gives render exactly that camera."""
     p = tmp_path / "fish.yaml"
     p.write_text(KALIBR.replace("distortion_model: radtan", "distortion_model: equidistant", 1))
+    cal = read_calibration(p)
+    assert cal.camera.model == "fisheye" and cal.dist == (-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05)
+    fields = cal.spec_fields()
+    assert fields["model"] == "fisheye"
+    _same_camera(cal, fields)
+    assert camera_from_spec(CameraSpec.model_validate(fields)).model == "fisheye"
+    p.write_text(ROS.replace("plumb_bob", "equidistant").replace("data: [-0.12, 0.015, 0.0004, -0.0003, 0.0]",
+                                                                   "data: [0.01, -0.002, 0.0005, 0.0]"))
+    cal = read_calibration(p)
+    assert cal.camera.model == "fisheye" and cal.dist == (0.01, -0.002, 0.0005, 0.0)
+    _same_camera(cal, cal.spec_fields())
+    p.write_text(ROS.replace("plumb_bob", "equidistant"))  # five coefficients: not the equidistant model
+    assert_input_error(run_cli("camera", "import", p), "distortion_coefficients")
+
+
+def test_models_hvloc_cannot_render_are_refused_with_the_field_named(tmp_path):
+    p = tmp_path / "omni.yaml"
+    p.write_text(KALIBR.replace("camera_model: pinhole", "camera_model: omni", 1))
+    assert_input_error(run_cli("camera", "import", p), "cam0.camera_model")
+    p.write_text(KALIBR.replace("distortion_model: radtan", "distortion_model: fov", 1))
     assert_input_error(run_cli("camera", "import", p), "cam0.distortion_model")
-    p.write_text(ROS.replace("plumb_bob", "equidistant"))
-    assert_input_error(run_cli("camera", "import", p), "distortion_model")
     p.write_text(ROS.replace("data: [131.5, 0, 80.75", "data: [131.5, 2.0, 80.75"))
     assert_input_error(run_cli("camera", "import", p), "skew")
     p.write_text("just: a mapping\n")

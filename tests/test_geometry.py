@@ -54,6 +54,36 @@ def test_undistort_matches_opencv_and_inverts_project(dist):
     np.testing.assert_allclose(cam.project(P), px, atol=1e-6)
 
 
+FISHEYES = [(0.0, 0.0, 0.0, 0.0), (-0.013, 0.021, -0.009, 0.0015), (0.08, -0.02, 0.004, -0.0003)]
+
+
+@pytest.mark.parametrize("dist", FISHEYES)
+def test_fisheye_matches_opencv_fisheye_out_to_80_degrees(dist):
+    """The fisheye model is OpenCV's (Kannala-Brandt), forwards and backwards, for rays up to 80
+    degrees off the axis; rays at 90 degrees or more have no normalised coordinates."""
+    cam = g.Camera(1280, 960, 420.0, 421.5, 641.2, 478.9, dist, "fisheye")
+    rng = np.random.default_rng(4)
+    th, ph = rng.uniform(0, math.radians(80), 600), rng.uniform(-math.pi, math.pi, 600)
+    P = np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)]) * rng.uniform(0.5, 9, (600, 1))
+    ours = cam.project(P)
+    ref, _ = cv2.fisheye.projectPoints(P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K, np.array(dist))
+    np.testing.assert_allclose(ours, ref[:, 0, :], atol=1e-6)
+    xy = cam.normalized_from_pixels(ours)
+    np.testing.assert_allclose(xy, P[:, :2] / P[:, 2:], rtol=1e-9, atol=1e-9)
+    ref = cv2.fisheye.undistortPoints(ours.reshape(-1, 1, 2), cam.K, np.array(dist))[:, 0, :]
+    np.testing.assert_allclose(xy, ref, rtol=1e-6, atol=1e-6)
+    # a point beyond the lens's 90 degrees (theta_d past pi/2 on the equidistant lens) has no ray
+    if dist == FISHEYES[0]:
+        assert np.isnan(cam.normalized_from_pixels([[cam.cx + cam.fx * 1.7, cam.cy]])).all()
+    # a fisheye always distorts; it survives camera.json, scaling and cropping
+    assert cam.has_distortion and g.Camera.from_dict(cam.to_dict()) == cam
+    assert cam.scaled(2).model == "fisheye" and cam.shifted(5, 7).cx == cam.cx - 5
+    with pytest.raises(ValueError, match="4 values for the fisheye"):
+        g.Camera(10, 10, 5, 5, 4.5, 4.5, (0.1, 0, 0, 0, 0), "fisheye")
+    with pytest.raises(ValueError, match="model"):
+        g.Camera(10, 10, 5, 5, 4.5, 4.5, (0, 0, 0, 0), "omni")
+
+
 def test_quaternion_conventions_hamilton_xyzw():
     # 90 degrees about z maps x to y (Hamilton, active); TUM order puts qw last
     R = g.so3_exp([0, 0, math.pi / 2])

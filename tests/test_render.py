@@ -39,8 +39,12 @@ def sharp_datasets(tmp_path_factory):
     plain = spec_from(SPECS / "sharp.yaml")
     dist = spec_from(SPECS / "sharp.yaml", **{"camera.dist": [-0.22, 0.06, 0.001, -0.0007, -0.005], "name": "sharpdist",
                                               "camera.supersample": 2})
+    # a fisheye (OpenCV's Kannala-Brandt model) seeing 90 degrees across
+    fish = spec_from(SPECS / "sharp.yaml", **{"camera.model": "fisheye", "camera.hfov_deg": 90.0,
+                                              "camera.dist": [0.03, -0.012, 0.002, -0.0002], "name": "sharpfish",
+                                              "camera.supersample": 2})
     out = {}
-    for s in (plain, dist):
+    for s in (plain, dist, fish):
         generate(s, root / s.name, show_progress=False)
         out[s.name] = Dataset(root / s.name)
     return out
@@ -76,7 +80,7 @@ def _corner_errors(seq):
     return {k: np.array(v) for k, v in errs.items()}
 
 
-@pytest.mark.parametrize("name", ["sharp", "sharpdist"])
+@pytest.mark.parametrize("name", ["sharp", "sharpdist", "sharpfish"])
 def test_projection_consistency(sharp_datasets, name):
     """Corners found in rendered images agree with pad.json projected by the labels."""
     seq = sharp_datasets[name][0]
@@ -89,9 +93,11 @@ def test_projection_consistency(sharp_datasets, name):
     assert med <= 0.1 and worst <= 0.25, f"{name}: {detail} px"
 
 
-def test_frames_csv_corners_match_independent_projection(sharp_datasets):
-    seq = sharp_datasets["sharpdist"][0]
+@pytest.mark.parametrize("name", ["sharpdist", "sharpfish"])
+def test_frames_csv_corners_match_independent_projection(sharp_datasets, name):
+    seq = sharp_datasets[name][0]
     info = json.loads((seq.root / "camera.json").read_text())
+    assert info["model"] == ("fisheye" if name == "sharpfish" else "pinhole")
     K = np.array([[info["fx"], 0, info["cx"]], [0, info["fy"], info["cy"]], [0, 0, 1]])
     pad_doc = json.loads((seq.root / "pad.json").read_text())
     P = np.asarray(pad_doc["outer_corners"], float)
@@ -100,7 +106,12 @@ def test_frames_csv_corners_match_independent_projection(sharp_datasets):
         T = seq.cam2pad[k]
         R_C_P = T[:3, :3].T
         t_C_P = -R_C_P @ T[:3, 3]
-        px, _ = cv2.projectPoints(P, cv2.Rodrigues(R_C_P)[0], t_C_P, K, np.array(info["dist"]))
+        if info["model"] == "fisheye":
+            # points moved into the camera here: cv2.fisheye's own rvec conversion errs ~2e-3 px on some poses
+            Pc = P @ R_C_P.T + t_C_P
+            px, _ = cv2.fisheye.projectPoints(Pc[:, None, :], np.zeros(3), np.zeros(3), K, np.array(info["dist"]))
+        else:
+            px, _ = cv2.projectPoints(P, cv2.Rodrigues(R_C_P)[0], t_C_P, K, np.array(info["dist"]))
         px = px[:, 0, :]
         inside = (px[:, 0] >= -0.5) & (px[:, 0] <= info["width"] - 0.5) & (px[:, 1] >= -0.5) & (px[:, 1] <= info["height"] - 0.5)
         lab = seq.frame(k).corners_px
@@ -261,8 +272,16 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     from pad_design.errors import validate_model
 
     d = {"camera": {"hfov_deg": 94, "dist": [-0.28, 0.09, 0.0008, -0.0005, -0.012]}}
-    with pytest.raises(InputError, match="camera: dist: radial distortion"):
+    with pytest.raises(InputError, match="camera: dist: the radial distortion .* folds back"):
         validate_model(DatasetSpec, d)
+    # a fisheye must reach the image corners within 80 degrees of its axis, and has 4 coefficients
+    d = {"camera": {"model": "fisheye", "hfov_deg": 150, "width": 640, "height": 480, "dist": [0.02, 0, 0, 0]}}
+    with pytest.raises(InputError, match="camera: dist: the fisheye distortion .* passes 80 degrees"):
+        validate_model(DatasetSpec, d)
+    d["camera"].update(hfov_deg=120)
+    assert validate_model(DatasetSpec, d).camera.to_camera().model == "fisheye"
+    with pytest.raises(InputError, match="camera: dist: the fisheye model has 4 coefficients"):
+        validate_model(DatasetSpec, {"camera": {"model": "fisheye", "dist": [0, 0, 0, 0, 0]}})
 
 
 def test_translucent_meshes_never_hide_the_ground():
