@@ -163,6 +163,8 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         return None, "its sides and its colour hull disagree"
     else:  # the border's own profile, not a half level, says where its edge is
         refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
+        if _band_missing(rgb, refined, pad_geometry, camera):
+            return None, "its border band is missing along a side"
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     return OutlineQuad(refined, cue, side_px, res), "ok"
 
@@ -186,6 +188,52 @@ def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera
         if abs(np.linalg.det(A)) > 1e-6:
             out[j] = quad[j] + np.linalg.solve(A, [e[j - 1], e[j]])
     return out
+
+
+def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                  segments: int = 3, per: int = 6) -> bool:
+    """Whether a stretch of some side of ``quad_px`` lacks the border's solid band just inside it.
+
+    Sides fitted to the wrong edge (the platform's rim beside the pad, where JPEG's half-resolution
+    chroma has swelled the colour mask over it) are straight and fit with sub-pixel residuals, yet
+    put a corner several pixels out: the pose is then off by 10 % of the height and nothing else
+    objects.  Through the quad's homography, the border colour's chroma (``(R + B) / 2 - G`` over
+    the brightness, for the magenta border) is read half a band inside and half a band outside each
+    side, over ``segments`` stretches between the corner squares.  A stretch fails when its
+    contrast is both under a quarter of the median stretch's and under 0.03 in absolute terms: a
+    shadow across the pad lowers the first but not the second."""
+    s, b, w = geo.side_m / 2.0, geo.border_m, geo.border.solid_band_m
+    sq = np.array([[-s, s], [s, s], [s, -s], [-s, -s]])
+    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
+    if not np.isfinite(und).all():
+        return False
+    H = cv2.getPerspectiveTransform(sq.astype(np.float32), np.asarray(und, np.float32))
+    t = np.linspace(-s + b, s - b, segments * per)
+    pts = []
+    for j in range(4):
+        a, c = sq[j], sq[(j + 1) % 4]
+        d = (c - a) / np.linalg.norm(c - a)
+        n = np.array([-d[1], d[0]])
+        n = n if n @ -(a + c) > 0 else -n  # inward
+        base = (a + c) / 2 + t[:, None] * d
+        pts += [base + 0.5 * w * n, base - 0.5 * w * n]
+    px = cv2.perspectiveTransform(np.concatenate(pts)[None].astype(np.float64), H)[0]
+    if camera is not None and camera.has_distortion:
+        from .features import _distort_px
+
+        px = _distort_px(camera, px)
+    v = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    col = np.asarray(geo.border.color_rgb, np.float64)
+    dirn = (col - col.mean()) / (np.abs(col - col.mean()).max() + 1e-9)  # (R + B) / 2 - G for the magenta
+    ch = (v @ dirn).reshape(4, 2, segments, per)
+    norm = (ch / np.maximum(v.sum(axis=1), 30.0).reshape(4, 2, segments, per)).mean(axis=3)
+    raw = ch.mean(axis=3)
+    contrast, rel = norm[:, 0] - norm[:, 1], raw[:, 0] - raw[:, 1]
+    med = float(np.median(rel))
+    if med <= 0:
+        return False  # no band anywhere: not this test's to say
+    return bool(np.any((rel < 0.25 * med) & (contrast < 0.03)))
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None) -> tuple:

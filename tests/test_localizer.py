@@ -573,3 +573,31 @@ def test_image_only_tilt_sigma_is_calibrated_off_nadir(off_nadir_deg):
         sig.append(tilt_disagreement(cam, res.cam2pad, pts, px, up, 0.3)[1])
     measured = math.sqrt(np.mean(np.square(tilts)) / 2)  # per axis: the tilt angle is 2-D
     assert np.median(sig) == pytest.approx(measured, rel=0.2)
+
+
+@pytest.mark.parametrize("h", [6.0, 12.0])
+def test_sides_fitted_beside_the_border_are_told_from_the_border(pad, h):
+    """On a pitched 95-degree JPEG camera the outline's sides were fitted to the platform's rim
+    beside the pad (the colour mask swelled over it): straight sides, line residuals of 0.1 px, one
+    corner 5 to 10 px out, poses 10-15 % of the height off and accepted.  The border's solid band
+    must lie just inside every stretch of every side: it does for the true outline, in the sun,
+    under a hard shadow edge and through JPEG; it does not when a corner is pushed onto the rim
+    (by 15 % of the side: the sides near it 4-5 px out)."""
+    from hvloc.phases import _band_missing
+
+    rim = (128, 128, 130)
+    for yaw in (0.3, 1.4, 2.5, 4.0):
+        G = tilted(0.3, -0.2, h, yaw, 0.05, 0.1)
+        clean = warp_pad_view(pad, CAM, G, rim)
+        true = CAM.project_from(G, pad.geometry.outer_corners)
+        ok, jpg = cv2.imencode(".jpg", cv2.cvtColor(clean, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 50])
+        jpeg = cv2.cvtColor(cv2.imdecode(jpg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        for img in (clean, _hard_shadow(clean, G, 0.0), _hard_shadow(clean, G, 15.0 * 12 / h), jpeg):
+            assert not _band_missing(img, true, pad.geometry, CAM), yaw
+        side = np.linalg.norm(true[1] - true[0])
+        for k in range(4):
+            out = true.copy()
+            out[k] += (true[k] - true.mean(axis=0)) / np.linalg.norm(true[k] - true.mean(axis=0)) * 0.15 * side
+            # (a 50 px pad through JPEG 50 smears the border's chroma over the 7 px: not seen there)
+            for img in (clean, jpeg) if h < 10 else (clean,):
+                assert _band_missing(img, out, pad.geometry, CAM), (yaw, k)
