@@ -334,7 +334,13 @@ class DatasetSpec(_Model):
         """The spec's identity: a hash of the fields that differ from their defaults, so that adding an
         optional field (whose default renders as before) leaves every existing spec, cached dataset and
         frozen suite with the same hash.  The manifest keeps the full spec (``canonical_json``)."""
-        ident = json.dumps(self.model_dump(mode="json", exclude_defaults=True), sort_keys=True, separators=(",", ":"))
+        d = self.model_dump(mode="json", exclude_defaults=True)
+        cam = d.get("camera", {})
+        if "dist" in cam and not any(cam["dist"]):  # no distortion: as the 5-zero default was before camera.model
+            del cam["dist"]
+            if not cam:
+                del d["camera"]
+        ident = json.dumps(d, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(ident.encode()).hexdigest()
 
 

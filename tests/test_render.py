@@ -1,4 +1,5 @@
 """The renderer's labels agree with its images; datasets are deterministic, resumable, verified."""
+import hashlib
 import json
 import math
 import shutil
@@ -282,6 +283,12 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     assert validate_model(DatasetSpec, d).camera.to_camera().model == "fisheye"
     with pytest.raises(InputError, match="camera: dist: the fisheye model has 4 coefficients"):
         validate_model(DatasetSpec, {"camera": {"model": "fisheye", "dist": [0, 0, 0, 0, 0]}})
+    # the lens model is part of a spec's identity, yet a pinhole spec keeps the hash it had before
+    # the field existed (cached datasets, frozen suites and leaderboards stay valid)
+    plain = validate_model(DatasetSpec, {}).sha256()
+    assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
+    assert plain == hashlib.sha256(b"{}").hexdigest()
+    assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 
 def test_translucent_meshes_never_hide_the_ground():
