@@ -80,6 +80,20 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw
         a = rng.uniform(0, 2 * math.pi)
         return r * math.cos(a), r * math.sin(a), rng.uniform(0, math.pi)
 
+    def clear(x, y, yaw, sx, sy):
+        """``(x, y)`` moved out along its bearing until no point of the ``sx`` by ``sy`` footprint
+        (turned by ``yaw``) lies within ``keep_clear_m`` of the pad centre: the spec's promise is
+        about the distractor, not its centre (a 5 m box drawn 2.5 m away used to cover the pad)."""
+        r = math.hypot(x, y)
+        if r < 1e-9:
+            return x, y
+        ux, uy = x / r, y / r
+        # the footprint's half-extent toward the pad (its support function along the bearing)
+        reach = abs(sx / 2 * (ux * math.cos(yaw) + uy * math.sin(yaw))) + \
+            abs(sy / 2 * (-ux * math.sin(yaw) + uy * math.cos(yaw)))
+        r2 = max(r, lo + reach)
+        return ux * r2, uy * r2
+
     boxes = []
     for b in d.boxes_at:
         boxes.append((float(b.xy_m[0]), float(b.xy_m[1]), math.radians(b.yaw_deg), *map(float, b.size_m),
@@ -89,15 +103,18 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw
         sx, sy, sz = rng.uniform(1.0, 6.0), rng.uniform(1.0, 6.0), rng.uniform(0.4, 6.0)
         col = tuple(int(c) for c in rng.choice([(150, 60, 50), (120, 120, 125), (200, 195, 185), (90, 80, 70),
                                                 (60, 90, 140)]))
-        boxes.append((x, y, yaw, sx, sy, sz, col))
+        boxes.append((*clear(x, y, yaw, sx, sy), yaw, sx, sy, sz, col))
     patches = []
     for _ in range(ri(d.decoy_patches)):
         x, y, yaw = place()
-        patches.append((x, y, yaw, rng.uniform(0.3, 1.2), rng.uniform(0.3, 1.2)))
+        sx, sy = rng.uniform(0.3, 1.2), rng.uniform(0.3, 1.2)
+        patches.append((*clear(x, y, yaw, sx, sy), yaw, sx, sy))
     markers = []
     for i in range(ri(d.decoy_markers)):
         x, y, yaw = place()
-        markers.append((x, y, yaw, rng.uniform(0.15, 0.6), "finder" if i % 2 == 0 else "aruco", int(rng.integers(10, 50))))
+        size = rng.uniform(0.15, 0.6)
+        markers.append((*clear(x, y, yaw, size, size), yaw, size, "finder" if i % 2 == 0 else "aruco",
+                        int(rng.integers(10, 50))))
     return SceneDraw(str(rng.choice(env.ground)), math.radians(u(env.sun_elevation_deg)),
                      math.radians(u(env.sun_azimuth_deg)), u(env.sun_intensity), u(env.ambient),
                      boxes, patches, markers)

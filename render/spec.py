@@ -17,6 +17,13 @@ from pad_design.errors import load_yaml_model
 from pad_design.spec import PadSpec
 
 
+# Bumped when a change to the generator changes what an existing spec renders (not a new field, whose
+# default renders as before): a spec's identity (DatasetSpec.sha256) includes it, so cached datasets
+# and frozen suites of the old renderer are not taken for the new one's.
+#   2: distractors keep their whole footprint, not only their centre, keep_clear_m from the pad.
+RENDER_REVISION = 2
+
+
 def _range_ok(v):
     lo, hi = v
     if not (math.isfinite(lo) and math.isfinite(hi)):
@@ -340,6 +347,8 @@ class DatasetSpec(_Model):
             del cam["dist"]
             if not cam:
                 del d["camera"]
+        if RENDER_REVISION > 1:
+            d["render_revision"] = RENDER_REVISION
         ident = json.dumps(d, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(ident.encode()).hexdigest()
 
