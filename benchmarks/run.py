@@ -6,6 +6,8 @@ localizer package (``hvloc``) may import only ``pad_design`` (DESIGN.md, layout)
 from __future__ import annotations
 
 import json
+import os
+import sys
 import time
 from pathlib import Path
 
@@ -78,6 +80,8 @@ def localizer_class(kind: str):
             cls = eps[kind].load()
         elif ":" in kind:
             mod, _, attr = kind.partition(":")
+            if os.getcwd() not in sys.path and "" not in sys.path:  # as `python -m` would: your package here
+                sys.path.append(os.getcwd())
             cls = importlib.import_module(mod)
             for part in attr.split("."):
                 cls = getattr(cls, part)
@@ -294,17 +298,22 @@ def localize_main(argv: list) -> int:
     cfg = load_config(a.config) if a.config else LocalizerConfig()
     if not Path(a.dataset).is_dir():
         raise InputError(f"{a.dataset}: no such dataset folder")
+    from render.dataset import Dataset
+
     if a.localizer != "hierarchical":
         localizer_class(a.localizer)  # a kind that cannot be imported is refused before anything is written
-        from render.dataset import Dataset
-
-        ds = Dataset(a.dataset, verify=not a.no_verify)
-        if len(ds) == 0:
-            raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
-        variant = ds[0].pad.geometry.variant
-        if variant not in pad_variants(a.localizer):
-            raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of the "
-                             f"{' or '.join(pad_variants(a.localizer))} pad variant, this one has the {variant!r} pad")
+    ds = Dataset(a.dataset, verify=False)  # its pad only (localize_dataset verifies what it reads)
+    if len(ds) == 0:
+        raise InputError(f"{a.dataset}: the dataset has no complete sequence to localize")
+    geometry = ds[0].pad.geometry
+    # hvloc's own localizer reads any pad with its border and cue (the markers' phase falls through)
+    usable = geometry.border is not None if a.localizer == "hierarchical" else \
+        geometry.variant in pad_variants(a.localizer)
+    if not usable:
+        wants = "a pad with hvloc's border and cue" if a.localizer == "hierarchical" else \
+            f"the {' or '.join(pad_variants(a.localizer))} pad variant"
+        raise InputError(f"{a.dataset}: --localizer {a.localizer} needs a dataset of {wants}, this one has the "
+                         f"{geometry.variant!r} pad")
     prepare_out_dir(a.out)
     res = localize_dataset(a.dataset, a.out, cfg, use_imu=not a.no_imu, show_progress=not a.quiet,
                            kind=a.localizer, verify=not a.no_verify, mavlink=a.mavlink, mavlink_epoch_s=a.mavlink_epoch)

@@ -267,6 +267,9 @@ class HierarchicalLocalizer:
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
                  work: ImageWork | None = None):
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        if self.geometry.border is None or self.geometry.cue is None:
+            raise ValueError(f"the hierarchical localizer needs hvloc's pad (its coloured border and yaw cue); "
+                             f"this pad is {self.geometry.variant!r}")
         self.camera = camera
         self.config = config or LocalizerConfig()
         self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)

@@ -16,7 +16,7 @@ from .errors import InputError
 MARKER_NAMES = ("Top", "Right", "Bottom")
 TAG_NAMES = ("Large", "Small")  # the AprilTags of the apriltag variant: one nested in the other
 MARKER_KINDS = ("finder", "aruco", "apriltag")
-VARIANTS = ("paper", "nested", "aruco", "apriltag", "aruco_nested")
+VARIANTS = ("paper", "nested", "aruco", "apriltag", "aruco_nested", "artwork")
 _CORNER_SIGNS = np.array([[-1, 1], [1, 1], [1, -1], [-1, -1]])
 
 
@@ -155,12 +155,13 @@ class PadGeometry:
     field_side_m: float
     outer_corners: np.ndarray   # (4, 3) TL, TR, BR, BL
     field_corners: np.ndarray   # (4, 3)
-    border: Border
-    cue: Cue
+    border: Border | None       # None on an artwork pad (hvloc's border, cue and markers are not drawn)
+    cue: Cue | None
     markers: tuple              # of Marker
     spec: dict = field(default_factory=dict)
     frame: str = ""
     corner_order: str = ""
+    points: dict = field(default_factory=dict)  # name -> (3,): an artwork's points a localizer may use
 
     # ------------------------------------------------------------------ queries
     def markers_in(self, set_name: str | None = None, kind: str | None = None) -> list:
@@ -199,7 +200,8 @@ class PadGeometry:
         if variant not in VARIANTS:
             raise InputError(f"{w}.variant: {variant!r} is not one of {', '.join(VARIANTS)}")
         side = _number(_get(doc, "side_m", w), f"{w}.side_m")
-        border_m = _number(_get(doc, "border_m", w), f"{w}.border_m")
+        art = variant == "artwork"
+        border_m = _number(_get(doc, "border_m", w), f"{w}.border_m", positive=not art)
         field_side = _number(_get(doc, "field_side_m", w), f"{w}.field_side_m")
         if not math.isclose(field_side, side - 2 * border_m, rel_tol=0, abs_tol=1e-9):
             raise InputError(f"{w}.field_side_m: {field_side} is not side_m - 2 border_m")
@@ -207,6 +209,26 @@ class PadGeometry:
         if not np.allclose(np.abs(outer[:, :2]), side / 2, atol=1e-9):
             raise InputError(f"{w}.outer_corners: must be the square of side side_m centred on the pad origin")
         fieldc = _square_corners(_get(doc, "field_corners", w), f"{w}.field_corners")
+        points = {}
+        plist = doc.get("points", [])
+        if not isinstance(plist, list):
+            raise InputError(f"{w}.points: expected a list")
+        for i, pt in enumerate(plist):
+            name = str(_get(pt, "name", f"{w}.points.{i}"))
+            xyz = _array(_get(pt, "xyz", f"{w}.points.{i}"), (3,), f"{w}.points.{i}.xyz")
+            if name in points:
+                raise InputError(f"{w}.points.{i}.name: {name!r} twice")
+            if abs(xyz[2]) > 1e-9 or np.any(np.abs(xyz[:2]) > side / 2 + 1e-9):
+                raise InputError(f"{w}.points.{i}.xyz: must lie on the pad (z = 0, |x|, |y| <= side_m / 2)")
+            points[name] = xyz
+        if art:
+            if doc.get("border") is not None or doc.get("cue") is not None or doc.get("markers"):
+                raise InputError(f"{w}: an artwork pad has no border, cue or markers of hvloc's (they must be null)")
+            spec = doc.get("spec") or {}
+            if not isinstance(spec, dict):
+                raise InputError(f"{w}.spec: expected a mapping")
+            return cls(1, variant, side, border_m, field_side, outer, fieldc, None, None, (), dict(spec),
+                       str(doc.get("frame", "")), str(doc.get("corner_order", "")), points)
         b = _get(doc, "border", w)
         border = Border(_rgb(_get(b, "color_rgb", f"{w}.border"), f"{w}.border.color_rgb"),
                         _rgb(_get(b, "dark_color_rgb", f"{w}.border"), f"{w}.border.dark_color_rgb"),
@@ -258,7 +280,7 @@ class PadGeometry:
         if not isinstance(spec, dict):
             raise InputError(f"{w}.spec: expected a mapping")
         return cls(1, variant, side, border_m, field_side, outer, fieldc, border, cue, tuple(markers), dict(spec),
-                   str(doc.get("frame", "")), str(doc.get("corner_order", "")))
+                   str(doc.get("frame", "")), str(doc.get("corner_order", "")), points)
 
     def to_document(self) -> dict:
         """The ``pad.json`` document (without the texture part): the inverse of :meth:`from_document`."""
@@ -273,13 +295,18 @@ class PadGeometry:
                 d["aruco_id"] = m.aruco_id
             markers.append(d)
         b, c = self.border, self.cue
-        return {"version": self.version, "frame": self.frame, "corner_order": self.corner_order,
-                "variant": self.variant, "side_m": self.side_m, "border_m": self.border_m,
-                "field_side_m": self.field_side_m, "outer_corners": self.outer_corners.tolist(),
-                "field_corners": self.field_corners.tolist(),
-                "border": {"color_rgb": list(b.color_rgb), "dark_color_rgb": list(b.dark_color_rgb),
-                           "solid_band_m": b.solid_band_m, "checker_m": b.checker_m,
-                           "segmentation_hsv": b.segmentation_hsv.to_document()},
-                "cue": {"kind": c.kind, "corner": c.corner, "color_rgb": list(c.color_rgb), "corners": c.corners.tolist(),
-                        "segmentation_hsv": c.segmentation_hsv.to_document(), "note": c.note},
-                "markers": markers, "spec": dict(self.spec)}
+        doc = {"version": self.version, "frame": self.frame, "corner_order": self.corner_order,
+               "variant": self.variant, "side_m": self.side_m, "border_m": self.border_m,
+               "field_side_m": self.field_side_m, "outer_corners": self.outer_corners.tolist(),
+               "field_corners": self.field_corners.tolist(),
+               "border": None if b is None else {
+                   "color_rgb": list(b.color_rgb), "dark_color_rgb": list(b.dark_color_rgb),
+                   "solid_band_m": b.solid_band_m, "checker_m": b.checker_m,
+                   "segmentation_hsv": b.segmentation_hsv.to_document()},
+               "cue": None if c is None else {
+                   "kind": c.kind, "corner": c.corner, "color_rgb": list(c.color_rgb), "corners": c.corners.tolist(),
+                   "segmentation_hsv": c.segmentation_hsv.to_document(), "note": c.note},
+               "markers": markers, "spec": dict(self.spec)}
+        if self.points:  # (built-in pads' documents stay as they were)
+            doc["points"] = [{"name": k, "xyz": v.tolist()} for k, v in self.points.items()]
+        return doc

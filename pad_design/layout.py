@@ -103,8 +103,20 @@ def segmentation_range(rgb, hue_halfwidth_deg: float = 20.0, s_min: float = 0.45
             "hi": [round(hi_h, 2), 255, 255], "hue_wraps": bool(lo_h > hi_h)}
 
 
+FRAME_NOTE = "P: origin at pad centre on its surface, x to the right edge, y to the top edge, z up; metres"
+CORNER_NOTE = "TL, TR, BR, BL as printed: (-x,+y), (+x,+y), (+x,-y), (-x,-y)"
+
+
 def build_geometry(spec: PadSpec) -> PadGeometry:
     """The pad's features in the pad frame (the ``pad.json`` document, without texture info, validated)."""
+    if spec.variant == "artwork":  # the user's image over the whole pad, and the points it names
+        return PadGeometry.from_document({
+            "version": PAD_JSON_VERSION, "frame": FRAME_NOTE, "corner_order": CORNER_NOTE, "variant": "artwork",
+            "side_m": spec.side_m, "border_m": 0.0, "field_side_m": spec.side_m,
+            "outer_corners": square_corners(0.0, 0.0, spec.side_m), "field_corners": square_corners(0.0, 0.0, spec.side_m),
+            "border": None, "cue": None, "markers": [],
+            "points": [{"name": k, "xyz": [float(x), float(y), 0.0]} for k, (x, y) in spec.artwork_points.items()],
+            "spec": spec.to_jsonable()}, "pad layout")
     h = spec.side_m / 2.0
     f = h - spec.border_m
     size = spec.marker_size_m
@@ -131,8 +143,8 @@ def build_geometry(spec: PadSpec) -> PadGeometry:
                    "the other three border corners have the border colour, so the outline alone tells yaw."}
     return PadGeometry.from_document({
         "version": PAD_JSON_VERSION,
-        "frame": "P: origin at pad centre on its surface, x to the right edge, y to the top edge, z up; metres",
-        "corner_order": "TL, TR, BR, BL as printed: (-x,+y), (+x,+y), (+x,-y), (-x,-y)",
+        "frame": FRAME_NOTE,
+        "corner_order": CORNER_NOTE,
         "variant": spec.variant,
         "side_m": spec.side_m,
         "border_m": spec.border_m,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import colorsys
+import math
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -47,11 +48,13 @@ class PadSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, validate_default=True)
 
-    variant: Literal["paper", "nested", "aruco", "apriltag", "aruco_nested"] = Field(
+    variant: Literal["paper", "nested", "aruco", "apriltag", "aruco_nested", "artwork"] = Field(
         "paper", description="paper: three corner finder markers; nested: plus a small set in the centre "
         "for low altitude; aruco: OpenCV ArUco markers of the same outer size instead of finder markers; "
         "apriltag: a recursive AprilTag pad (a large tagCustom48h12 tag over the field, a small one in its centre); "
-        "aruco_nested: a large ArUco marker over the field and a small one of another dictionary in its centre")
+        "aruco_nested: a large ArUco marker over the field and a small one of another dictionary in its centre; "
+        "artwork: your own image over the whole pad (artwork_image), with the points a localizer may use "
+        "(artwork_points); hvloc's border, cue and markers are not drawn")
     side_m: float = Field(0.85, gt=0, le=20, description="side of the square pad")
     border_m: float = Field(0.10, gt=0, description="width of the coloured border")
     border_color: tuple = Field("#ff30e0", description="saturated border colour natural ground lacks")
@@ -73,6 +76,12 @@ class PadSpec(BaseModel):
     apriltag_total_m: float | None = Field(None, gt=0, description="outer side of the large AprilTag, data ring "
                                            "included (10 cells; its detected square is 6); default: the field less "
                                            "a one-cell white margin on each side (apriltag)")
+    artwork_image: str | None = Field(None, description="artwork: the pad's image file (PNG, JPEG; square, it "
+                                      "covers the whole side_m x side_m pad, top edge as printed at the top), a "
+                                      "path absolute or relative to the working directory")
+    artwork_points: dict[str, tuple[float, float]] = Field(
+        default_factory=dict, description="artwork: named points of the artwork a localizer may use, (x, y) in "
+        "metres in the pad frame (origin at the centre, x to the right edge, y to the top edge as printed)")
     texture_seed: int = Field(7, ge=0)
     texture_min_feature_m: float = Field(0.004, gt=0, description="smallest texture element")
     texture_max_feature_m: float = Field(0.03, gt=0, description="largest texture element")
@@ -115,6 +124,17 @@ class PadSpec(BaseModel):
 
     @model_validator(mode="after")
     def _fits(self):
+        if self.variant == "artwork":
+            if not self.artwork_image:
+                raise ValueError("artwork_image: the artwork variant needs its image file")
+            h = self.side_m / 2.0
+            for name, (x, y) in self.artwork_points.items():
+                if not (math.isfinite(x) and math.isfinite(y)) or abs(x) > h or abs(y) > h:
+                    raise ValueError(f"artwork_points: {name!r} at ({x}, {y}) lies outside the {self.side_m} m pad "
+                                     f"(|x|, |y| <= {h})")
+            return self  # hvloc's border, cue and markers are not drawn: nothing of theirs to fit
+        if self.artwork_image is not None or self.artwork_points:
+            raise ValueError("artwork_image, artwork_points: only for variant artwork")
         if self.border_m * 4 > self.side_m:
             raise ValueError(f"border_m: {self.border_m} m is more than a quarter of side_m {self.side_m} m")
         hue_b, hue_c = hsv_of(self.border_color)[0], hsv_of(self.cue_color)[0]
@@ -174,4 +194,7 @@ class PadSpec(BaseModel):
         d["aruco_ids"] = list(self.aruco_ids)
         d["aruco_nested_ids"] = list(self.aruco_nested_ids)
         d["apriltag_ids"] = list(self.apriltag_ids)
+        d["artwork_points"] = {k: list(v) for k, v in self.artwork_points.items()}
+        if self.variant != "artwork":  # built-in pads' documents stay as they were
+            del d["artwork_image"], d["artwork_points"]
         return d

@@ -11,6 +11,7 @@ Pixel convention (OpenCV): pixel (col j, row i) has its centre at pad coordinate
 from __future__ import annotations
 
 import math
+import os
 
 import cv2
 import numpy as np
@@ -176,6 +177,8 @@ def render_texture(spec: PadSpec, geometry: PadGeometry, ppm: float) -> np.ndarr
     """The pad as an ``(n, n, 3)`` uint8 RGB image, ``n = round(side * ppm)``."""
     if not ppm > 0:
         raise ValueError(f"ppm must be positive, got {ppm}")
+    if spec.variant == "artwork":
+        return artwork_texture(spec, ppm)
     cv = _Canvas(spec.side_m, ppm)
     h, b = cv.h, spec.border_m
     border = geometry.border
@@ -216,3 +219,33 @@ def render_texture(spec: PadSpec, geometry: PadGeometry, ppm: float) -> np.ndarr
 
             _paint_aruco(cv, m, aruco_dictionary_of(spec.to_jsonable(), m))
     return np.clip(np.round(cv.img), 0, 255).astype(np.uint8)
+
+
+def artwork_texture(spec: PadSpec, ppm: float) -> np.ndarray:
+    """The user's image resampled to the pad's texture grid (``n = round(side * ppm)`` pixels a side,
+    pixel-area averaging when shrinking), or :class:`InputError` naming ``pad.artwork_image``."""
+    from .errors import InputError
+
+    path = spec.artwork_image
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR) if path and os.path.isfile(path) else None
+    if bgr is None:
+        raise InputError(f"pad.artwork_image: {path!r} is missing or not a readable image")
+    h, w = bgr.shape[:2]
+    if abs(w - h) > 0.01 * max(w, h):
+        raise InputError(f"pad.artwork_image: {path} is {w}x{h} px; the artwork covers the square pad, so it must be "
+                         "square (within 1 %)")
+    n = int(round(spec.side_m * ppm))
+    interp = cv2.INTER_AREA if n < w else cv2.INTER_LINEAR
+    return cv2.cvtColor(cv2.resize(bgr, (n, n), interpolation=interp), cv2.COLOR_BGR2RGB)
+
+
+def artwork_sha256(path) -> str:
+    """The artwork file's SHA-256 (part of a dataset spec's identity: its pixels, not only its path)."""
+    import hashlib
+
+    from .errors import InputError
+
+    try:
+        return hashlib.sha256(open(path, "rb").read()).hexdigest()
+    except (OSError, TypeError) as err:
+        raise InputError(f"pad.artwork_image: {path!r} cannot be read ({err})") from None

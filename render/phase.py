@@ -92,7 +92,8 @@ def phase_markers(geometry: PadGeometry) -> tuple:
     from pad_design.layout import build_geometry
     from pad_design.spec import PadSpec
 
-    return build_geometry(PadSpec.model_validate({**geometry.spec, "variant": "paper"})).markers_in("corner")
+    spec = {k: v for k, v in geometry.spec.items() if not k.startswith("artwork_")}
+    return build_geometry(PadSpec.model_validate({**spec, "variant": "paper"})).markers_in("corner")
 
 
 def view_facts(camera: Camera, cam2pad: np.ndarray, geometry: PadGeometry, occluded=None,

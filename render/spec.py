@@ -349,6 +349,10 @@ class DatasetSpec(_Model):
                 del d["camera"]
         if RENDER_REVISION > 1:
             d["render_revision"] = RENDER_REVISION
+        if self.pad.variant == "artwork":  # the image's pixels, not only its path, are the pad
+            from pad_design.texture import artwork_sha256
+
+            d["artwork_sha256"] = artwork_sha256(self.pad.artwork_image)
         ident = json.dumps(d, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(ident.encode()).hexdigest()
 

@@ -35,6 +35,27 @@ def _int(lo, hi):
     return lambda rng: int(rng.integers(lo, hi + 1))
 
 
+def _artwork_files() -> tuple:
+    """Two small artwork images (an artwork pad's spec names a file), made once per machine."""
+    import tempfile
+    from pathlib import Path
+
+    import cv2
+
+    out = []
+    for i, colour in enumerate(((40, 120, 20), (200, 40, 40))):
+        p = Path(tempfile.gettempdir()) / f"hvloc_spec_space_artwork_{i}.png"
+        if not p.is_file():
+            img = np.full((256, 256, 3), 230, np.uint8)
+            cv2.rectangle(img, (0, 0), (255, 255), colour, 24)
+            cv2.circle(img, (128, 128), 60, (30, 30, 30), -1)
+            cv2.imwrite(str(p), img)
+        out.append(str(p))
+    return tuple(out)
+
+
+ARTWORK = _artwork_files()
+ART = {"pad.variant": "artwork", "pad.artwork_image": ARTWORK[0]}
 TILTED = {"camera.mount.rpy_deg": [200.0, 0.0, -90.0]}
 WIDE = {"camera.hfov_deg": 110.0}  # the legs are in view of a wide lens
 BLUR = {"camera.exposure_s": 0.02, "trajectory.gust_accel_mps2": [0.8, 0.8]}
@@ -83,6 +104,9 @@ FIELDS = {
     "pad.nested_marker_size_m": (_uniform(0.03, 0.04), 0.04, {"pad.variant": "nested"}),
     "pad.aruco_dictionary": (_choice(["DICT_4X4_50", "DICT_5X5_50"]), "DICT_5X5_50", {"pad.variant": "aruco"}),
     "pad.aruco_ids": (_choice([[0, 1, 2], [3, 7, 9]]), [3, 7, 9], {"pad.variant": "aruco"}),
+    # an artwork pad needs its image: random specs draw hvloc's variants (their draws are None / {})
+    "pad.artwork_image": (_choice([None]), ARTWORK[1], ART),
+    "pad.artwork_points": (_choice([{}]), {"dot": [0.1, -0.2]}, ART),
     "pad.texture_seed": (_int(0, 100), 99, {}),
     "pad.texture_min_feature_m": (_uniform(0.004, 0.006), 0.006, {}),
     "pad.texture_max_feature_m": (_uniform(0.02, 0.04), 0.04, {}),

@@ -186,3 +186,54 @@ def test_bad_spec_exits_2_naming_the_field_and_writes_nothing(tmp_path, text, na
 def test_spec_defaults_are_the_papers_pad():
     s = PadSpec()
     assert s.side_m == 0.85 and s.variant == "paper"
+
+
+def _artwork(path, size=(600, 600)):
+    """A helipad-like picture: a dark frame, a red ring, an H and scattered dots."""
+    rng = np.random.default_rng(0)
+    img = np.full((size[1], size[0], 3), 235, np.uint8)
+    s = min(size) / 900
+    cv2.rectangle(img, (0, 0), (size[0] - 1, size[1] - 1), (40, 120, 20), int(60 * s))
+    cv2.circle(img, (size[0] // 2, size[1] // 2), int(250 * s), (20, 20, 200), int(40 * s))
+    cv2.putText(img, "H", (int(330 * s), int(600 * s)), cv2.FONT_HERSHEY_SIMPLEX, 12 * s, (30, 30, 30), int(60 * s))
+    for _ in range(300):
+        x, y = rng.integers(int(70 * s), int(830 * s), 2)
+        cv2.circle(img, (int(x), int(y)), int(rng.integers(3, 12) * s) + 1, (int(rng.integers(0, 120)),) * 3, -1)
+    cv2.imwrite(str(path), img)
+    return path
+
+
+def test_a_pad_from_your_own_artwork_is_made_validated_and_printed(tmp_path):
+    """variant artwork: the user's image over the whole pad and the points it names; pad.json keeps
+    them (no border, cue or markers of hvloc's), pad.png is the image at the pad's resolution, and
+    the true-scale and A4 PDFs are written as for hvloc's own pads."""
+    from pad_design.pad import Pad
+
+    art = _artwork(tmp_path / "art.png")
+    spec = {"variant": "artwork", "side_m": 0.8, "artwork_image": str(art),
+            "artwork_points": {"ring_top": [0.0, 0.222], "corner_tl": [-0.4, 0.4]}}
+    pad = make_pad(spec, ppm=1000)
+    assert pad.texture_rgb.shape == (800, 800, 3) and pad.geometry.variant == "artwork"
+    assert pad.geometry.border is None and pad.geometry.cue is None and pad.geometry.markers == ()
+    np.testing.assert_allclose(pad.geometry.points["ring_top"], [0.0, 0.222, 0.0])
+    # the image, resampled: its top-left pixel is the frame's green, as printed
+    assert tuple(pad.texture_rgb[5, 5]) == (20, 120, 40)
+    files = write_pad(pad, tmp_path / "out")
+    assert {"pad.png", "pad.json", "pad.pdf", "pad_a4_tiles.pdf"} <= set(files)
+    back = Pad.load(files["pad.json"])
+    assert back.geometry.points.keys() == pad.geometry.points.keys() and back.geometry.border is None
+    assert np.array_equal(back.texture_rgb, pad.texture_rgb)
+    # bad artwork is refused naming the field, and writes nothing
+    for bad, field in (({**spec, "artwork_image": str(tmp_path / "nope.png")}, "pad.artwork_image"),
+                       ({**spec, "artwork_points": {"off": [0.5, 0.0]}}, "artwork_points"),
+                       ({k: v for k, v in spec.items() if k != "artwork_image"}, "artwork_image"),
+                       ({"variant": "paper", "artwork_image": str(art)}, "artwork_image")):
+        with pytest.raises(Exception, match=field):
+            make_pad(bad, ppm=1000)
+    _artwork(tmp_path / "wide.png", (600, 400))
+    with pytest.raises(Exception, match="must be square"):
+        make_pad({**spec, "artwork_image": str(tmp_path / "wide.png")}, ppm=1000)
+    (tmp_path / "bad.yaml").write_text(f"variant: artwork\nartwork_image: {tmp_path / 'nope.png'}\n")
+    assert_input_error(run_cli("pad", "make", "--spec", tmp_path / "bad.yaml", "--out", tmp_path / "bad"),
+                       "artwork_image")
+    assert not (tmp_path / "bad").exists() or not any((tmp_path / "bad").iterdir())

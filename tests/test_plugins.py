@@ -104,3 +104,58 @@ def test_a_kind_that_cannot_be_imported_is_refused_naming_it(tmp_path):
     assert "Missing" in r.stderr and not (tmp_path / "out").exists()
     (tmp_path / "t.yaml").write_text(SUITE.replace("tests.test_plugins:Flaky", "no_such_module_xyz:Thing", 1))
     assert_input_error(run_cli("bench", "run", tmp_path / "t.yaml", "--out", tmp_path / "o2", cwd=REPO), "no_such_module_xyz")
+
+
+def test_a_pad_from_your_own_artwork_is_rendered_labelled_and_scored(tmp_path):
+    """The whole path for a user's pad: a suite names a dataset whose pad is the user's image (with
+    the points it names), it renders with labels that pass verify's checks (the image check
+    included), and a localizer written for it (examples/artwork_match.py: SIFT against the pad's
+    texture) is scored on it, plain and behind hvloc's gates; hvloc's own localizer says plainly
+    that it cannot run on such a pad."""
+    from hvloc.localizer import HierarchicalLocalizer
+    from render.dataset import Dataset, verify_dataset
+    from tests.test_pad import _artwork
+
+    art = _artwork(tmp_path / "art.png")
+    (tmp_path / "art.yaml").write_text(f"""name: artwork
+datasets:
+  - spec: data_specs/tiny.yaml
+    sequences: 1
+    overrides:
+      name: arttiny
+      camera: {{width: 240, height: 240, fps: 5}}
+      pad: {{variant: artwork, side_m: 0.8, artwork_image: "{art}", artwork_points: {{ring_top: [0.0, 0.222]}}}}
+      trajectory: {{start_height_m: 3.0, duration_s: [6.0, 6.0], lateral_offset_m: [0.0, 0.2], families: [straight]}}
+localizers:
+  - {{name: artwork_match, kind: "examples.artwork_match:ArtworkMatch"}}
+  - {{name: artwork_match_gated, kind: "examples.artwork_match:ArtworkMatch", gates: true}}
+""")
+    r = run_cli("bench", "run", tmp_path / "art.yaml", "--out", tmp_path / "out", "--workers", "2", "-q", cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    (ds_root,) = (tmp_path / "out" / "datasets").iterdir()
+    assert verify_dataset(ds_root) == []
+    seq = Dataset(ds_root)[0]
+    assert seq.pad.geometry.variant == "artwork" and "ring_top" in seq.pad.geometry.points
+    s = json.loads((tmp_path / "out" / "results.json").read_text())["summary"]
+    assert s["artwork_match"]["all"]["frames"] == len(seq) > 20
+    assert s["artwork_match"]["all"]["availability"] > 0.5 and s["artwork_match_gated"]["all"]["false_accepts"] == 0
+    with pytest.raises(ValueError, match="needs hvloc's pad"):
+        HierarchicalLocalizer(seq.pad, seq.camera)
+    from tests.conftest import assert_input_error
+
+    assert_input_error(run_cli("localize", ds_root, "--out", tmp_path / "est"), "a pad with hvloc's border and cue")
+    assert not (tmp_path / "est").exists()
+
+
+def test_an_import_path_is_found_in_the_working_directory_as_python_m_would(tmp_path):
+    """The `hvloc` console script does not put the working directory on sys.path (python -m does):
+    `--localizer mylocs:Loc` from the folder that holds mylocs.py failed with "No module named"."""
+    import subprocess
+    import sys
+
+    (tmp_path / "mylocs.py").write_text("class Loc:\n    def process(self, image, t, imu=None):\n        pass\n")
+    code = ("import sys; sys.path[:] = [p for p in sys.path if p not in ('', '.')]\n"
+            "from benchmarks.run import localizer_class\nprint(localizer_class('mylocs:Loc').__name__)")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                       env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    assert r.returncode == 0 and r.stdout.strip() == "Loc", r.stderr
