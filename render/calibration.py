@@ -133,7 +133,10 @@ def _ros(doc: dict, path: str) -> Calibration:
     return _checked(w, h, fx, fy, cx, cy, dist, name, path)
 
 
-def _opencv(path: str) -> Calibration:
+def _opencv(path: str, model: str | None = None) -> Calibration:
+    """``model``: ``fisheye`` for a file of ``cv2.fisheye.calibrate`` (it writes K and D as
+    ``cv2.calibrateCamera`` does, so the file alone cannot say), unless a ``distortion_model``
+    string in the file says it."""
     import cv2
 
     try:
@@ -153,7 +156,20 @@ def _opencv(path: str) -> Calibration:
             raise InputError(f"{path}: no camera_matrix (or cameraMatrix, K) in this OpenCV file")
         fx, fy, cx, cy = _camera_matrix(k.mat(), f"{path}: {kname}")
         dname, d = node("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "distortion")
-        dist = _radtan(d.mat() if d is not None else [0, 0, 0, 0], f"{path}: {dname}")
+        _, dm = node("distortion_model", "camera_model")
+        said = dm.string().strip().lower() if dm is not None and dm.isString() else ""
+        if said in ("fisheye", "equidistant", "kannala_brandt", "kb4"):
+            said = "fisheye"
+        elif said in ("", "plumb_bob", "radtan", "radial-tangential", "pinhole"):
+            said = "pinhole" if said else ""
+        else:
+            raise InputError(f"{path}: distortion_model: {said!r}; hvloc's lenses are plumb_bob (radial-tangential) "
+                             "and fisheye (equidistant)")
+        if model and said and model != said:
+            raise InputError(f"{path}: distortion_model says {said}, --model says {model}")
+        model = model or said or "pinhole"
+        coeffs = d.mat() if d is not None else [0, 0, 0, 0]
+        dist = _equidistant(coeffs, f"{path}: {dname}") if model == "fisheye" else _radtan(coeffs, f"{path}: {dname}")
         _, w = node("image_width", "width")
         _, h = node("image_height", "height")
         if w is not None and h is not None:
@@ -166,24 +182,33 @@ def _opencv(path: str) -> Calibration:
             size = (int(v[0]), int(v[1]))
     finally:
         fs.release()
-    return _checked(size[0], size[1], fx, fy, cx, cy, dist, "OpenCV FileStorage", path)
+    return _checked(size[0], size[1], fx, fy, cx, cy, dist, "OpenCV FileStorage", path, model)
 
 
-def read_calibration(path, name: str | None = None) -> Calibration:
+def read_calibration(path, name: str | None = None, model: str | None = None) -> Calibration:
     """The calibration in ``path`` (format told by its content); ``name``: the camera of a Kalibr
-    camchain (default: the first, ``cam0``).  Any problem is an :class:`InputError` naming the field."""
-    p = Path(path)
+    camchain (default: the first, ``cam0``); ``model``: the lens model of an OpenCV file, which does
+    not say it (``fisheye`` for ``cv2.fisheye.calibrate``'s K and D).  Any problem is an
+    :class:`InputError` naming the field."""
+    cal = _read_calibration(Path(path), name, model)
+    if model and cal.camera.model != model:
+        raise InputError(f"{path}: the file says its lens is {cal.camera.model}, --model says {model}")
+    return cal
+
+
+def _read_calibration(p: Path, name: str | None, model: str | None) -> Calibration:
+    path = p
     text = read_user_text(p, "a calibration")
     head = text.lstrip()[:200]
     if head.startswith("%YAML") or head.startswith("<?xml") or "opencv-matrix" in text or p.suffix.lower() == ".xml":
-        return _opencv(str(p))
+        return _opencv(str(p), model)
     from pad_design.errors import yaml_load
 
     try:
         doc = yaml_load(text)
     except Exception as err:  # noqa: BLE001 - any parser complaint is the user's file
         if p.suffix.lower() == ".json":
-            return _opencv(str(p))
+            return _opencv(str(p), model)
         raise InputError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
     if not isinstance(doc, dict):
         raise InputError(f"{path}: not a calibration (expected a mapping at the top)")
@@ -192,5 +217,5 @@ def read_calibration(path, name: str | None = None) -> Calibration:
     if "camera_matrix" in doc and isinstance(doc["camera_matrix"], dict) and "data" in doc["camera_matrix"]:
         return _ros(doc, str(path))
     if p.suffix.lower() == ".json":
-        return _opencv(str(p))
+        return _opencv(str(p), model)
     raise InputError(f"{path}: not a Kalibr camchain, a ROS CameraInfo YAML or an OpenCV FileStorage file")

@@ -79,6 +79,9 @@ def camera_main(argv: list) -> int:
     i.add_argument("calibration", help="calibration file: Kalibr camchain YAML, ROS CameraInfo YAML, OpenCV "
                                        "FileStorage (YAML, XML, JSON)")
     i.add_argument("--name", help="the camera of a Kalibr camchain (default: the first, cam0)")
+    i.add_argument("--model", choices=("pinhole", "fisheye"),
+                   help="the lens model of an OpenCV file, which does not say it (fisheye: cv2.fisheye.calibrate's "
+                        "K and D); Kalibr and ROS files say their own")
     i.add_argument("--spec", help="a dataset spec whose camera to replace (with --out): its other fields stay")
     i.add_argument("--out", help="where to write that spec (with --spec); without, the camera block is printed")
     a = p.parse_args(argv)
@@ -88,10 +91,11 @@ def camera_main(argv: list) -> int:
 
     if (a.spec is None) != (a.out is None):
         raise InputError("--spec and --out go together (a spec to change, and where to write it)")
-    cal = read_calibration(a.calibration, a.name)
+    cal = read_calibration(a.calibration, a.name, a.model)
     fields = cal.spec_fields()
+    names = "k1 k2 p1 p2 k3" if cal.camera.model == "pinhole" else "fisheye k1 k2 k3 k4"
     header = (f"# {cal.source} from {a.calibration}: {cal.width}x{cal.height}, fx {cal.fx:.6g}, fy {cal.fy:.6g}, "
-              f"cx {cal.cx:.6g}, cy {cal.cy:.6g}, k1 k2 p1 p2 k3 {list(cal.dist)}\n")
+              f"cx {cal.cx:.6g}, cy {cal.cy:.6g}, {names} {list(cal.dist)}\n")
     if a.spec is None:
         print(header + yaml.safe_dump({"camera": fields}, sort_keys=False, default_flow_style=None), end="")
         return 0

@@ -110,6 +110,26 @@ def test_fisheye_calibrations_become_the_same_fisheye_camera(tmp_path):
     _same_camera(cal, cal.spec_fields())
     p.write_text(ROS.replace("plumb_bob", "equidistant"))  # five coefficients: not the equidistant model
     assert_input_error(run_cli("camera", "import", p), "distortion_coefficients")
+    # an OpenCV file of cv2.fisheye.calibrate (K and D, as calibrateCamera writes them): --model says it,
+    # or a distortion_model string in the file does
+    o = tmp_path / "fish_cv.yaml"
+    fs = cv2.FileStorage(str(o), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", 1280)
+    fs.write("image_height", 960)
+    fs.write("K", np.array([[600.5, 0, 641.0], [0, 601.0, 479.5], [0, 0, 1]]))
+    fs.write("D", np.array([[0.03], [-0.01], [0.002], [-0.0003]]))
+    fs.release()
+    assert read_calibration(o).camera.model == "pinhole"  # four radial-tangential coefficients, as far as it can tell
+    cal = read_calibration(o, model="fisheye")
+    assert cal.camera.model == "fisheye" and cal.dist == (0.03, -0.01, 0.002, -0.0003)
+    _same_camera(cal, cal.spec_fields())
+    r = run_cli("camera", "import", o, "--model", "fisheye")
+    assert r.returncode == 0 and "model: fisheye" in r.stdout and "fisheye k1 k2 k3 k4" in r.stdout, r.stderr
+    fs = cv2.FileStorage(str(o), cv2.FILE_STORAGE_APPEND)
+    fs.write("distortion_model", "equidistant")
+    fs.release()
+    assert read_calibration(o).camera.model == "fisheye"
+    assert_input_error(run_cli("camera", "import", o, "--model", "pinhole"), "--model says pinhole")
 
 
 def test_models_hvloc_cannot_render_are_refused_with_the_field_named(tmp_path):
