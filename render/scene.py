@@ -236,6 +236,8 @@ class LandingScene:
         # the layer that shadows on the ground lie in: above the pad when the pad lies on the ground
         # (a shadow in the pad's own plane z-fights with it: the depth test then draws it in stripes)
         self.ground_shadow_z = SHADOW_LIFT_M + (0.0 if self.has_platform_box else self.pad_surface_z)
+        self._ground_shadow_maps = []
+        self.platform_xy = np.zeros(2)
         if shadows and self.shadow_alpha > 0 and draw.boxes:
             self._add_box_shadows(draw.boxes)
         if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
@@ -255,6 +257,7 @@ class LandingScene:
                                                  parent=self.body_node))
         self.drone_size = drone_size_m
         self.drone_shadow = None
+        self.drone_masked = None  # the drone's shadow where it falls into other shadows (see set_drone)
         if shadows and self.shadow_alpha > 0:
             self.drone_shadow = self._add(self._shade(drone_size_m, drone_size_m), pose_xy(0, 0, -100), "shadow_drone")
 
@@ -262,7 +265,6 @@ class LandingScene:
         self.znear, self.zfar = float(znear), 2000.0
         self.cam_node = scene.add(pr.IntrinsicsCamera(fx=fx, fy=fy, cx=cx, cy=cy, znear=self.znear, zfar=self.zfar),
                                   pose=np.eye(4))
-        self.platform_xy = np.zeros(2)
         self.renderer = pr.OffscreenRenderer(camera.width, camera.height)
 
     def _add(self, mesh, pose=None, name: str = "mesh", parent=None):
@@ -293,23 +295,46 @@ class LandingScene:
         for p in polys:
             px = np.column_stack([(p[:, 0] - lo[0]) / m_per_px, (hi[1] - p[:, 1]) / m_per_px])
             cv2.fillPoly(alpha, [np.round(px * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
-        rgba = np.zeros((h, w, 4), np.uint8)
-        rgba[..., 3] = (alpha.astype(np.float32) * self.shadow_alpha).astype(np.uint8)
+        # the map, kept to tell where the ground is already in shadow (the drone's shadow must not
+        # darken it twice), in the frame of its parent (the platform's moves with it)
+        self._ground_shadow_maps.append((alpha.astype(np.float32) / 255.0, lo, hi, m_per_px, parent is not None))
+        sx, sy = w * m_per_px, h * m_per_px
+        mesh = self._shadow_mesh((alpha.astype(np.float32) * self.shadow_alpha).astype(np.uint8), sx, sy, (0.0, 0.0))
+        self._add(mesh, make_transform(np.eye(3), (lo[0], hi[1] - sy, self.ground_shadow_z)), "shadow_boxes",
+                  parent=parent)
+
+    def _shadow_mesh(self, alpha: np.ndarray, sx: float, sy: float, origin: tuple):
+        """A flat translucent black quad ``sx`` x ``sy`` m whose corner ``(0, 0)`` of the texture (its
+        top-left row) lies at ``origin + (0, sy)``; ``alpha`` (h, w) uint8, row 0 at the far +y edge."""
+        pr = self.pr
         from OpenGL.GL import GL_CLAMP_TO_EDGE, GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR
 
+        rgba = np.zeros(alpha.shape + (4,), np.uint8)
+        rgba[..., 3] = alpha
         tex = translucent_texture(pr.Texture(source=rgba, source_channels="RGBA",
                                              sampler=pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
                                                                 wrapS=GL_CLAMP_TO_EDGE, wrapT=GL_CLAMP_TO_EDGE)))
         mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
                                            alphaMode="BLEND")
-        sx, sy = w * m_per_px, h * m_per_px
-        pos = np.array([[0, 0, 0], [sx, 0, 0], [sx, sy, 0], [0, sy, 0]], np.float32)
+        x0, y0 = origin
+        pos = np.array([[x0, y0, 0], [x0 + sx, y0, 0], [x0 + sx, y0 + sy, 0], [x0, y0 + sy, 0]], np.float32)
         uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
         normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
         prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv, material=mat,
                             indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
-        self._add(pr.Mesh([prim]), make_transform(np.eye(3), (lo[0], hi[1] - sy, self.ground_shadow_z)), "shadow_boxes",
-                  parent=parent)
+        return pr.Mesh([prim])
+
+    def _ground_shadow_cover(self, xy_W: np.ndarray) -> np.ndarray:
+        """``(N,)`` how much of the sun the boxes' and the platform's shadows already take at ground
+        points (0 lit, 1 in full shadow; anti-aliased edges between)."""
+        cover = np.zeros(len(xy_W))
+        for alpha, lo, hi, m_per_px, on_platform in self._ground_shadow_maps:
+            xy = xy_W - (self.platform_xy if on_platform else 0.0)
+            u = ((xy[:, 0] - lo[0]) / m_per_px).astype(np.float32)
+            v = ((hi[1] - xy[:, 1]) / m_per_px).astype(np.float32)
+            a = cv2.remap(alpha, u[None], v[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)[0]
+            cover = np.maximum(cover, a)
+        return cover
 
     def set_platform(self, pad2world: np.ndarray) -> None:
         """Move the platform, the pad and the platform's shadow: ``T_W_P``'s horizontal position (the
@@ -335,7 +360,27 @@ class LandingScene:
                 break
         # one layer above the others (a translucent layer in another's plane z-fights with it too)
         z = surface + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
-        self.scene.set_pose(self.drone_shadow, make_transform(rotation_z(yaw), (xy[0], xy[1], z)))
+        pose = make_transform(rotation_z(yaw), (xy[0], xy[1], z))
+        if self.drone_masked is not None:
+            self.scene.remove_node(self.drone_masked)
+            self.drone_masked = None
+        # on the ground, where a box's or the platform's shadow already lies, the sun is already gone:
+        # there the drone's shadow takes nothing more (two translucent layers used to darken twice)
+        cover = None
+        if surface == 0.0 and self._ground_shadow_maps:
+            n, h = 24, self.drone_size / 2
+            g = (np.arange(n) + 0.5) / n * 2 * h - h
+            gx, gy = np.meshgrid(g, g[::-1])  # row 0 at the far +y edge, as _shadow_mesh lays it
+            c, sn = math.cos(yaw), math.sin(yaw)
+            pts = np.column_stack([xy[0] + c * gx.ravel() - sn * gy.ravel(), xy[1] + sn * gx.ravel() + c * gy.ravel()])
+            cover = self._ground_shadow_cover(pts).reshape(n, n)
+        if cover is None or cover.max() <= 0.0:
+            self.scene.set_pose(self.drone_shadow, pose)
+            return
+        self.scene.set_pose(self.drone_shadow, make_transform(np.eye(3), (0.0, 0.0, -100.0)))  # out of sight
+        alpha = np.round(self.shadow_alpha * (1.0 - cover) * 255).astype(np.uint8)
+        mesh = self._shadow_mesh(alpha, 2 * h, 2 * h, (-h, -h))
+        self.drone_masked = self._add(mesh, pose, "shadow_dronemasked")
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
         """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""

@@ -20,7 +20,8 @@ from pad_design.spec import PadSpec
 # Bumped when a change to the generator changes what an existing spec renders (not a new field, whose
 # default renders as before): a spec's identity (DatasetSpec.sha256) includes it, so cached datasets
 # and frozen suites of the old renderer are not taken for the new one's.
-#   2: distractors keep their whole footprint, not only their centre, keep_clear_m from the pad.
+#   2: distractors keep their whole footprint, not only their centre, keep_clear_m from the pad; the
+#      drone's shadow no longer darkens a box's or the platform's shadow a second time.
 RENDER_REVISION = 2
 
 

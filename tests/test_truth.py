@@ -552,3 +552,39 @@ def test_no_distractor_lies_within_keep_clear_of_the_pad():
             for x, y, yaw, size, *_ in d.decoy_markers:
                 assert nearest(x, y, yaw, size, size) >= keep - 1e-6
     assert checked > 250
+
+
+def test_the_drones_shadow_does_not_darken_a_box_shadow_twice():
+    """Two translucent shadow layers multiply: where the drone's shadow fell inside a box's, the
+    ground came out darker than either shadow (sun taken twice).  Now the drone's shadow takes
+    nothing where the ground is already in shadow: inside a box's shadow the ground is as dark
+    with the drone's shadow over it as without, and as dark as the drone's shadow on lit ground."""
+    from hvloc.geometry import Camera, look_at_cam2world, make_transform
+    from pad_design import make_pad
+    from render.scene import LandingScene, SceneDraw
+
+    e, a = math.radians(45.0), math.radians(90.0)  # the sun in the east: shadows fall west
+    draw = SceneDraw("concrete", e, a, 3.0, 0.35, [(3.0, 6.0, 0.0, 2.0, 2.0, 4.0, (120, 120, 125))], [], [])
+    cam = Camera.from_hfov(200, 200, math.radians(60))
+    scene = LandingScene(make_pad(ppm=500), draw, 0.0, 0.0, cam, (255, 48, 224), np.random.default_rng(0))
+    try:
+        s = draw.sun_dir_W
+        spot = np.array([-2.0, 6.0])  # the far edge of the box's shadow (it spans x from -2 to 4)
+        body = make_transform(np.eye(3), (*(spot + s[:2] * 2.0 / s[2]), 2.0))  # its shadow centred on the spot
+        scene.set_drone(body)
+        T_W_C = look_at_cam2world((-2.0, 6.0, 4.0), (-2.0, 6.0, 0.0))
+        img = cv2.cvtColor(scene.render(T_W_C), cv2.COLOR_RGB2GRAY).astype(float)
+        scene.set_drone(make_transform(np.eye(3), (50.0, 50.0, 2.0)))  # the drone far away
+        alone = cv2.cvtColor(scene.render(T_W_C), cv2.COLOR_RGB2GRAY).astype(float)
+    finally:
+        scene.close()
+
+    def luma(im, x, y):
+        u, v = np.round(cam.project_from(T_W_C, [[x, y, 0.0]])[0]).astype(int)
+        return float(np.median(im[v - 2:v + 3, u - 2:u + 3]))
+
+    box_only, both, drone_only, lit = luma(img, -1.0, 6.0), luma(img, -1.9, 6.0), luma(img, -2.1, 6.0), luma(img, -3.0, 6.0)
+    assert lit > 1.5 * box_only  # the scene has a real shadow
+    assert abs(luma(alone, -1.9, 6.0) - box_only) < 0.1 * box_only  # the box's shadow there, alone
+    assert abs(both - box_only) < 0.1 * box_only, (both, box_only)  # no second darkening
+    assert abs(drone_only - box_only) < 0.15 * box_only, (drone_only, box_only)  # one shadow, one darkness
