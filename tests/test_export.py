@@ -233,3 +233,24 @@ def test_mavlink_landing_target_file_and_udp_decode_with_pymavlink(ds, tmp_path)
     sock.close()
     assert len(got) == res["mavlink_sent"] == len(msgs)
     assert got[0].time_usec == msgs[0].time_usec + 1_700_000_000_000_000 and got[-1].x == msgs[-1].x
+
+
+def test_a_fisheye_exports_as_the_equidistant_model_its_readers_know(tmp_path):
+    """EuRoC/Kalibr and ROS call OpenCV's fisheye 'equidistant', with four coefficients; the export
+    says so (a radial-tangential line would make every reader undistort it wrongly)."""
+    from rosbags.highlevel import AnyReader
+
+    spec = {**SPEC, "name": "exfish", "sequences": 1,
+            "camera": {"width": 160, "height": 120, "fps": 5, "model": "fisheye", "hfov_deg": 110,
+                       "dist": [0.02, -0.01, 0.002, -0.0002]}}
+    generate(DatasetSpec.model_validate(spec), tmp_path / "ds", show_progress=False)
+    seq = Dataset(tmp_path / "ds")[0]
+    export_dataset("euroc", tmp_path / "ds", tmp_path / "eu", epoch_s=1.6e9)
+    sensor = yaml.safe_load((tmp_path / "eu" / seq.id / "mav0" / "cam0" / "sensor.yaml").read_text())
+    assert sensor["distortion_model"] == "equidistant" and sensor["distortion_coefficients"] == list(seq.camera.dist)
+    assert "k3" not in sensor
+    export_dataset("rosbag2", tmp_path / "ds", tmp_path / "rb", epoch_s=1.6e9)
+    (meta,) = (tmp_path / "rb").rglob("metadata.yaml")
+    with AnyReader([meta.parent]) as r:
+        infos = [r.deserialize(raw, c.msgtype) for c, _, raw in r.messages() if c.msgtype.endswith("CameraInfo")]
+    assert infos and infos[0].distortion_model == "equidistant" and list(infos[0].d) == list(seq.camera.dist)
