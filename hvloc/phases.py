@@ -103,29 +103,15 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
     # the two sides beside it meet (:func:`_hull_quad`).
-    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
-    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    side = pad_geometry.side_m
-    field_side = pad_geometry.field_side_m
-    ring_share = 1.0 - (field_side / side) ** 2  # expected border share of the pad's area
-    best, best_score = None, -1.0
-    for c in contours:
-        area = cv2.contourArea(c)
-        if area < 36:
-            continue
-        quad = _hull_quad(cv2.convexHull(c))
-        if quad is None:
-            continue
-        qa = abs(_signed_area(quad))
-        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-        if qa <= 0 or sides.min() / sides.max() < 0.4:
-            continue
-        share = _mask_share(full, quad)
-        if not (0.5 * ring_share <= share <= min(0.95, 1.6 * ring_share)):
-            continue  # a solid patch of the colour, or a thin frame: not the pad
-        score = qa * (1.0 - abs(share - ring_share))
-        if score > best_score:
-            best, best_score = quad, score
+    best = _best_ring(mask, pad_geometry)
+    if best is None:
+        # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
+        # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
+        # under noon glare); then the colour is read relative to brightness everywhere, as in shadow
+        # (the checker's dark cells wash out first: the ring may be the solid band alone)
+        band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
+        best = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
+                          min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
             return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
@@ -145,7 +131,7 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
-    band_px = side_px * pad_geometry.border.solid_band_m / side
+    band_px = side_px * pad_geometry.border.solid_band_m / pad_geometry.side_m
     hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
     # only the quad's neighbourhood is converted (a full 1080p frame costs milliseconds)
     bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
@@ -170,6 +156,34 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     return OutlineQuad(refined, cue, side_px, res, None if field is None else field + [bx0, by0]), "ok"
+
+
+def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, min_share: float | None = None) -> np.ndarray | None:
+    """The mask's blob most like the pad's border ring (a convex quadrilateral whose area is
+    border-coloured in about the ring's share, at least ``min_share``: half the ring's by default),
+    by area and share."""
+    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2  # the border's share of the pad
+    best, best_score = None, -1.0
+    for c in contours:
+        area = cv2.contourArea(c)
+        if area < 36:
+            continue
+        quad = _hull_quad(cv2.convexHull(c))
+        if quad is None:
+            continue
+        qa = abs(_signed_area(quad))
+        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+        if qa <= 0 or sides.min() / sides.max() < 0.4:
+            continue
+        share = _mask_share(full, quad)
+        if not ((0.5 * ring_share if min_share is None else min_share) <= share <= min(0.95, 1.6 * ring_share)):
+            continue  # a solid patch of the colour, or a thin frame: not the pad
+        score = qa * (1.0 - abs(share - ring_share))
+        if score > best_score:
+            best, best_score = quad, score
+    return best
 
 
 def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera: Camera | None) -> np.ndarray:
