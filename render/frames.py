@@ -141,6 +141,7 @@ class SequenceRenderer:
         cam2pad = invert(T_W_P) @ cam2world
         self.scene.set_platform(T_W_P)
         self.scene.set_drone(T_W_B)
+        self._pad2world_now = T_W_P
         rgb_r, z_r = self.scene.render_with_depth(cam2world)
         t1 = time.perf_counter()
         facts = view_facts(self.camera, cam2pad, self.pad.geometry,
@@ -242,6 +243,11 @@ class SequenceRenderer:
         lobe = (np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::8, ::8].shape[:2]).astype(np.float32)
         lobe = cv2.resize(lobe, (lobe.shape[1] * 8, lobe.shape[0] * 8), interpolation=cv2.INTER_LINEAR)
         lobe = lobe[:r1 - r0, :c1 - c0] * (on * np.float32(self.material["gloss"]))
+        # no glare where the sun does not reach the pad (the drone's shadow, a box's): pixel by pixel
+        if self.scene.shadows and on.any():
+            T_W_P = self._pad2world_now
+            vis = self.scene.pad_sun_visibility(P[on][:, :2].astype(np.float64) + T_W_P[:2, 3])
+            lobe[on] *= vis.astype(np.float32)
         roi = linear[r0:r1, c0:c1]
         roi += lobe[..., None]
 

@@ -258,6 +258,7 @@ class LandingScene:
         self.drone_size = drone_size_m
         self.drone_shadow = None
         self.drone_masked = None  # the drone's shadow where it falls into other shadows (see set_drone)
+        self._drone_shadow_at = None  # (xy, yaw) of the drone's shadow square as last placed
         if shadows and self.shadow_alpha > 0:
             self.drone_shadow = self._add(self._shade(drone_size_m, drone_size_m), pose_xy(0, 0, -100), "shadow_drone")
 
@@ -324,6 +325,23 @@ class LandingScene:
                             indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
         return pr.Mesh([prim])
 
+    def pad_sun_visibility(self, xy_W: np.ndarray) -> np.ndarray:
+        """``(N,)`` how much of the sun reaches points of the pad's surface (1 lit, 0 in a shadow):
+        the drone's shadow as last placed, and the boxes' where the pad lies on the ground (on a
+        platform their shadows stay on the ground).  What the sun's glare on the pad is weighted by."""
+        xy_W = np.asarray(xy_W, np.float64).reshape(-1, 2)
+        shade = np.zeros(len(xy_W))
+        if not self.has_platform_box and self._ground_shadow_maps:
+            shade = self._ground_shadow_cover(xy_W)
+        if self._drone_shadow_at is not None:
+            (cx, cy), yaw = self._drone_shadow_at
+            c, sn = math.cos(yaw), math.sin(yaw)
+            dx, dy = xy_W[:, 0] - cx, xy_W[:, 1] - cy
+            h = self.drone_size / 2
+            inside = (np.abs(c * dx + sn * dy) <= h) & (np.abs(-sn * dx + c * dy) <= h)
+            shade = np.maximum(shade, inside.astype(np.float64))
+        return 1.0 - shade
+
     def _ground_shadow_cover(self, xy_W: np.ndarray) -> np.ndarray:
         """``(N,)`` how much of the sun the boxes' and the platform's shadows already take at ground
         points (0 lit, 1 in full shadow; anti-aliased edges between)."""
@@ -361,6 +379,7 @@ class LandingScene:
         # one layer above the others (a translucent layer in another's plane z-fights with it too)
         z = surface + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
         pose = make_transform(rotation_z(yaw), (xy[0], xy[1], z))
+        self._drone_shadow_at = (np.array(xy, np.float64), yaw)
         if self.drone_masked is not None:
             self.scene.remove_node(self.drone_masked)
             self.drone_masked = None

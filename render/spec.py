@@ -21,7 +21,8 @@ from pad_design.spec import PadSpec
 # default renders as before): a spec's identity (DatasetSpec.sha256) includes it, so cached datasets
 # and frozen suites of the old renderer are not taken for the new one's.
 #   2: distractors keep their whole footprint, not only their centre, keep_clear_m from the pad; the
-#      drone's shadow no longer darkens a box's or the platform's shadow a second time.
+#      drone's shadow no longer darkens a box's or the platform's shadow a second time; no glare on
+#      a glossy pad where a shadow lies on it.
 RENDER_REVISION = 2
 
 

@@ -588,3 +588,34 @@ def test_the_drones_shadow_does_not_darken_a_box_shadow_twice():
     assert abs(luma(alone, -1.9, 6.0) - box_only) < 0.1 * box_only  # the box's shadow there, alone
     assert abs(both - box_only) < 0.1 * box_only, (both, box_only)  # no second darkening
     assert abs(drone_only - box_only) < 0.15 * box_only, (drone_only, box_only)  # one shadow, one darkness
+
+
+def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
+    """The sun's glare was added over the whole pad, inside the drone's own shadow too (there the
+    border came out grey instead of dark magenta).  Same descent with and without gloss: pad pixels
+    in the drone's shadow are equal, lit pad pixels gain the glare."""
+    base = {"name": "glossy", "seed": 8, "sequences": 1, "pad_ppm": 600,
+            "camera": {"width": 240, "height": 240, "fps": 4, "hfov_deg": 60},
+            "environment": {"sun_elevation_deg": [84.0, 86.0], "ground": ["sand"]},
+            "trajectory": {"families": ["straight"], "start_height_m": 4.0, "duration_s": [4.0, 4.0],
+                           "lateral_offset_m": [0.0, 0.2]},
+            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+    glossy = _spec({**base, "pad_material": {"gloss": [0.6, 0.6]}})
+    checked = 0
+    with SequenceRenderer(_spec(base), 0) as plain_r, SequenceRenderer(glossy, 0) as gloss_r:
+        for k in range(len(gloss_r)):
+            a, b = plain_r.render(k).rgb.astype(float), gloss_r.render(k).rgb.astype(float)
+            g = np.linspace(-0.4, 0.4, 41)
+            P = np.column_stack([np.repeat(g, len(g)), np.tile(g, len(g)), np.zeros(len(g) ** 2)])
+            vis = gloss_r.scene.pad_sun_visibility(P[:, :2] + gloss_r.pad2world[k][:2, 3])
+            px = np.round(gloss_r.camera.project_from(gloss_r.cam2pad(k), P)).astype(int)
+            ok = np.all((px >= 2) & (px < 238), axis=1)
+            dark, lit = ok & (vis == 0.0), ok & (vis == 1.0)
+            if dark.sum() < 20 or lit.sum() < 20:
+                continue
+            # inside the shadow (away from its edge: the blur of the lens) nothing is added
+            d = np.abs(b[px[dark, 1], px[dark, 0]] - a[px[dark, 1], px[dark, 0]]).mean(axis=1)
+            gain = (b[px[lit, 1], px[lit, 0]] - a[px[lit, 1], px[lit, 0]]).mean()
+            assert np.median(d) <= 1.0 and gain > 10.0, (k, np.median(d), gain)
+            checked += 1
+    assert checked >= 2
