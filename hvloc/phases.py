@@ -207,6 +207,29 @@ def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera
     return out
 
 
+def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray):
+    """``(N, 2)`` pixels of pad-plane points ``pts_xy`` (metres, pad frame) where the homography that
+    takes the pad's outer corners (in order) onto ``quad_px`` puts them, the lens included; ``None``
+    when the quad has a corner the lens cannot undistort."""
+    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
+    if not np.isfinite(und).all():
+        return None
+    H = cv2.getPerspectiveTransform(geo.outer_corners[:, :2].astype(np.float32), np.asarray(und, np.float32))
+    px = cv2.perspectiveTransform(np.asarray(pts_xy, np.float64).reshape(1, -1, 2), H)[0]
+    if camera is not None and camera.has_distortion:
+        from .features import _distort_px
+
+        px = _distort_px(camera, px)
+    return px
+
+
+def _colour_direction(colour_rgb, dtype=np.float64) -> np.ndarray:
+    """(3,) weights whose dot product with an RGB is the colour's own chroma (for the magenta border
+    about ``(R + B) / 2 - G``): the colour less its grey, scaled to a largest weight of 1."""
+    c = np.asarray(colour_rgb, dtype)
+    return (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
+
+
 def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                   segments: int = 3, per: int = 6) -> bool:
     """Whether a stretch of some side of ``quad_px`` lacks the border's solid band just inside it.
@@ -220,11 +243,7 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     contrast is both under a quarter of the median stretch's and under 0.03 in absolute terms: a
     shadow across the pad lowers the first but not the second."""
     s, b, w = geo.side_m / 2.0, geo.border_m, geo.border.solid_band_m
-    sq = np.array([[-s, s], [s, s], [s, -s], [-s, -s]])
-    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
-    if not np.isfinite(und).all():
-        return False
-    H = cv2.getPerspectiveTransform(sq.astype(np.float32), np.asarray(und, np.float32))
+    sq = geo.outer_corners[:, :2]
     t = np.linspace(-s + b, s - b, segments * per)
     pts = []
     for j in range(4):
@@ -234,16 +253,12 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
         n = n if n @ -(a + c) > 0 else -n  # inward
         base = (a + c) / 2 + t[:, None] * d
         pts += [base + 0.5 * w * n, base - 0.5 * w * n]
-    px = cv2.perspectiveTransform(np.concatenate(pts)[None].astype(np.float64), H)[0]
-    if camera is not None and camera.has_distortion:
-        from .features import _distort_px
-
-        px = _distort_px(camera, px)
+    px = _through_quad(quad_px, geo, camera, np.concatenate(pts))
+    if px is None:
+        return False
     v = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-    col = np.asarray(geo.border.color_rgb, np.float64)
-    dirn = (col - col.mean()) / (np.abs(col - col.mean()).max() + 1e-9)  # (R + B) / 2 - G for the magenta
-    ch = (v @ dirn).reshape(4, 2, segments, per)
+    ch = (v @ _colour_direction(geo.border.color_rgb)).reshape(4, 2, segments, per)
     norm = (ch / np.maximum(v.sum(axis=1), 30.0).reshape(4, 2, segments, per)).mean(axis=3)
     raw = ch.mean(axis=3)
     contrast, rel = norm[:, 0] - norm[:, 1], raw[:, 0] - raw[:, 1]
@@ -269,17 +284,9 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     the other way).  On throw-away measurements over 1,080 found outlines (the conditions suite and
     a pitched JPEG-70 scene): the largest corner error's median 1.68 -> 0.62 px, p90 3.71 -> 2.92 px
     on the JPEG frames; never used on the others."""
-    s = geo.side_m / 2.0
-    sq = np.array([[-s, s], [s, s], [s, -s], [-s, -s]])
-    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
-    if not np.isfinite(und).all():
+    guess = _through_quad(quad_px, geo, camera, geo.field_corners[:, :2])
+    if guess is None:
         return None
-    H = cv2.getPerspectiveTransform(sq.astype(np.float32), np.asarray(und, np.float32))
-    guess = cv2.perspectiveTransform((sq * (geo.field_side_m / geo.side_m))[None].astype(np.float64), H)[0]
-    if camera is not None and camera.has_distortion:
-        from .features import _distort_px
-
-        guess = _distort_px(camera, guess)
     side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
     checker_px = side_px * (geo.border_m - geo.border.solid_band_m) / geo.side_m
     gray = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY).astype(np.float32)
@@ -331,8 +338,7 @@ def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chro
     wide = type(rng)(np.array([(lo_h - half) % 180.0, 0, 16]), np.array([(hi_h + half) % 180.0, 255, 255]),
                      hue_wraps=bool((lo_h - half) % 180.0 > (hi_h + half) % 180.0))
     hue_ok = _hsv_mask(hsv, wide)
-    c = np.asarray(colour_rgb, np.float32)
-    d = (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
+    d = _colour_direction(colour_rgb, np.float32)
     chroma = cv2.transform(np.ascontiguousarray(rgb), d[None, :].astype(np.float32))  # uint8, negatives at 0
     need = cv2.multiply(np.ascontiguousarray(hsv[..., 2]), min_chroma, dtype=cv2.CV_8U)
     ev = cv2.bitwise_and(hue_ok, cv2.compare(chroma.reshape(need.shape), need, cv2.CMP_GE))
@@ -573,13 +579,9 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
         t = a * (k - c)
         R = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
         turned.append(pts @ R.T + cen)
-    und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
-    H = cv2.getPerspectiveTransform(outer.astype(np.float32), np.asarray(und, np.float32))
-    px = cv2.perspectiveTransform(np.concatenate(turned)[None].astype(np.float64), H)[0]
-    if camera is not None and camera.has_distortion:
-        from .features import _distort_px
-
-        px = _distort_px(camera, px)
+    px = _through_quad(quad_px, geo, camera, np.concatenate(turned))
+    if px is None:
+        return np.zeros(4)
     vals = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
     H_img, W_img = rgb.shape[:2]
