@@ -219,3 +219,102 @@ def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndar
         den = y0 - 2 * y1 + y2
         out[i] = es[b] + (0.5 * (y0 - y2) / den * (FINE_E[1] - FINE_E[0]) if den > 0 and np.isfinite(den) else 0.0)
     return out
+
+
+_SRGB_TO_LINEAR = (np.where(np.arange(256) <= 10, np.arange(256) / 255.0 / 12.92,
+                            ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4) * 255.0).astype(np.float32)
+
+
+def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
+    """8-bit sRGB to linear light, float32 on the same 0..255 scale.  Blur (motion, defocus) mixes
+    light, so a blurred edge is symmetric about its true position in linear values only: in sRGB the
+    dark side of a ramp is lifted and a wide ramp's centre moves by a pixel or more."""
+    return _SRGB_TO_LINEAR[np.asarray(rgb, np.uint8)]
+
+
+def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, levels: np.ndarray,
+                          camera: Camera | None = None, reach_px: float = 16.0, trim: float = 0.25,
+                          step: float = 0.5, segments: int = 2) -> tuple:
+    """``(offsets (4, segments), blur (4, segments), at (segments,))``: where (px, along each side's
+    inward normal from the sides of ``quad_px``) the outer edge of a banded border lies, read from
+    the centroid of the border's cross-profile over each of ``segments`` equal stretches of the
+    side's middle (centred at fractions ``at`` of the side), and how wide a box blur along that
+    normal the profile's spread shows; NaN where a stretch cannot be told.
+
+    For motion blur wider than an edge fit's window (a 12 px smear of a 6 px border) there is no
+    edge left to fit, but blur by any kernel symmetric about the frame time (the exposure is centred
+    on it) moves no mass: the profile's centroid is the sharp border's, whose place behind the edge
+    the design fixes (bands ending at ``bands_px[i]`` with ``levels`` relative to the first).
+    ``chan`` must be linear in light (:func:`srgb_to_linear`); its ground and field levels are read
+    just outside the bump around the profile's peak and taken away."""
+    g = chan if chan.dtype == np.float32 else chan.astype(np.float32)
+    q = np.asarray(quad_px, np.float64).reshape(4, 2)
+    starts, ends = q, np.roll(q, -1, axis=0)
+    per = int(np.clip(np.linalg.norm(ends - starts, axis=1).max() * (1 - 2 * trim) / segments, 4, 20))
+    pts, nrm = _side_points_batch(starts, ends, per * segments, trim, camera)
+    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
+    at = trim + (1 - 2 * trim) * (np.arange(segments) + 0.5) / segments
+    bands = np.asarray(bands_px, np.float64).reshape(4, -1)
+    lv = np.asarray(levels, np.float64)
+    offsets, blur = np.full((4, segments), np.nan), np.full((4, segments), np.nan)
+    for i in range(4):
+        edges = np.concatenate([[0.0], bands[i]])
+        mass = lv * np.diff(edges)  # the sharp profile: level lv[k] between edges k and k + 1
+        c0 = float(np.sum(mass * (edges[1:] + edges[:-1]) / 2) / mass.sum())
+        var0 = float(np.sum(lv * np.diff(edges**3) / 3) / mass.sum() - c0**2)
+        r = np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step)
+        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+        for k in range(segments):
+            y = prof[k * per:(k + 1) * per].mean(axis=0)
+            p = int(np.argmax(y))
+            low = y < 0.15 * y[p]
+            before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
+            if y[p] <= 0 or not len(before) or not len(after):
+                continue  # no bump, or one that runs out of the window
+            a, b = before[-1], p + after[0]          # the first low samples either side of the bump
+            n = max(2, int(round(2.0 / step)))
+            base_out = float(np.median(y[max(0, a - n):a + 1]))
+            base_in = float(np.median(y[b:b + n + 1]))
+            lo, hi = max(0, a - n), min(len(y), b + n + 1)
+            rr = r[lo:hi]
+            base = base_out + (base_in - base_out) * np.clip((rr - r[a]) / max(r[b] - r[a], 1e-9), 0.0, 1.0)
+            v = np.clip(y[lo:hi] - base, 0.0, None)
+            if v.sum() <= 0:
+                continue
+            c = float(np.sum(v * rr) / v.sum())
+            offsets[i, k] = c - c0
+            blur[i, k] = float(np.sqrt(max(12.0 * (np.sum(v * (rr - c) ** 2) / v.sum() - var0), 0.0)))
+    return offsets, blur, at
+
+
+def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: Camera | None = None,
+              reach_px: float = 12.0, trim: float = 0.3, step: float = 0.5) -> np.ndarray:
+    """(4,) the width (px) of the box blur that the steepest rising edge within ``reach_px`` of
+    ``at_px[i]`` (px along side i's inward normal from ``quad_px``) shows across that side, NaN
+    where none is found: sqrt(12) times the spread of the profile's derivative, the blur kernel
+    seen edge-on.  ``gray`` should be linear in light.  Motion blur smears luma as much as colour;
+    JPEG's half-resolution chroma leaves luma sharp, so a luma edge tells the two apart."""
+    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+    q = np.asarray(quad_px, np.float64).reshape(4, 2)
+    m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
+    pts, nrm = _side_points_batch(q, np.roll(q, -1, axis=0), m, trim, camera)
+    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
+    out = np.full(4, np.nan)
+    for i in range(4):
+        r = np.arange(at_px[i] - reach_px, at_px[i] + reach_px + 1e-9, step)
+        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        y = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64).mean(axis=0)
+        d = np.clip(np.diff(y), 0.0, None)
+        x = (r[1:] + r[:-1]) / 2
+        p = int(np.argmax(d))
+        low = d < 0.15 * d[p]
+        before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
+        if d[p] <= 0 or not len(before) or not len(after):
+            continue
+        v, xx = d[before[-1]:p + after[0] + 1], x[before[-1]:p + after[0] + 1]
+        c = float(np.sum(v * xx) / v.sum())
+        out[i] = float(np.sqrt(12.0 * np.sum(v * (xx - c) ** 2) / v.sum()))
+    return out
