@@ -22,6 +22,12 @@ def _distort_px(camera: Camera, px_und: np.ndarray) -> np.ndarray:
     return np.column_stack([xy[:, 0] * camera.fx + camera.cx, xy[:, 1] * camera.fy + camera.cy])
 
 
+def _inside(px: np.ndarray, shape) -> np.ndarray:
+    """``px[..., 0:2]`` within the image of ``shape`` (pixel centres at integers), interpolation
+    included."""
+    return (px[..., 0] >= 0) & (px[..., 1] >= 0) & (px[..., 0] <= shape[1] - 1) & (px[..., 1] <= shape[0] - 1)
+
+
 def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None):
     """Refine 4 corners (in order around the quad) of a quadrilateral seen in ``gray``.
 
@@ -85,8 +91,12 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     lo = prof[:, :k].mean(axis=1)
     hi = prof[:, -k:].mean(axis=1)
     contrast = hi - lo
+    # a profile that leaves the image reads the replicated edge row: no edge of the quad's there (a
+    # pad cut by the image's edge has sides that run out of it)
+    seen = _inside(P, g.shape).reshape(S * m, nr).all(axis=1)
+    contrast = np.where(seen, contrast, 0.0)
     med = np.median(np.abs(contrast).reshape(S, m), axis=1).repeat(m)
-    strong = np.abs(contrast) >= np.maximum(4.0, 0.25 * med)
+    strong = seen & (np.abs(contrast) >= np.maximum(4.0, 0.25 * med))
     v = (prof - 0.5 * (lo + hi)[:, None]) * np.sign(contrast)[:, None]
     cross = (v[:, :-1] < 0) & (v[:, 1:] >= 0) & strong[:, None]
     dist = np.where(cross, np.abs(u[:-1])[None, :], np.inf)
@@ -189,7 +199,10 @@ def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndar
         P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
         prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-        y = prof.mean(axis=0)
+        seen = _inside(P, g.shape).all(axis=1)
+        if seen.sum() < 3:
+            continue
+        y = prof[seen].mean(axis=0)
         edges = np.concatenate([[0.0], bands[i]])
 
         def sse_of(es, sigmas):
@@ -266,8 +279,12 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
         P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
         prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+        seen = _inside(P, g.shape).all(axis=1)
         for k in range(segments):
-            y = prof[k * per:(k + 1) * per].mean(axis=0)
+            part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
+            if len(part) < 2:
+                continue
+            y = part.mean(axis=0)
             p = int(np.argmax(y))
             low = y < 0.15 * y[p]
             before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
@@ -305,8 +322,11 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
     for i in range(4):
         r = np.arange(at_px[i] - reach_px, at_px[i] + reach_px + 1e-9, step)
         P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        seen = _inside(P, g.shape).all(axis=1)
+        if seen.sum() < 2:
+            continue
         y = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64).mean(axis=0)
+                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)[seen].mean(axis=0)
         d = np.clip(np.diff(y), 0.0, None)
         x = (r[1:] + r[:-1]) / 2
         p = int(np.argmax(d))

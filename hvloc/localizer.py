@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
-from .pose import PoseResult, solve_planar_pose
+from .pose import PIXEL_SIGMA, PoseResult, solve_planar_pose
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -413,9 +413,11 @@ class HierarchicalLocalizer:
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C)
             if det is not None:
+                sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
                 pose = self.work(lambda: ("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
-                                          array_key(prior) if up_C is None else None),
-                                 solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior)
+                                          array_key(prior) if up_C is None else None, array_key(sigma)),
+                                 solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior,
+                                 sigma_px=sigma)
                 if pose is not None:
                     return (pose, len(det.pts_P), dict(det.info, roi=r is not None, tilt_err_deg=pose.tilt_err_deg,
                                                        tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"

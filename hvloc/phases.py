@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 
 from . import markers as mk
-from .features import (band_centroid_offsets, banded_edge_offsets, refine_quad, refine_quads, srgb_to_linear,
-                       step_blur)
+from .features import (_inside, band_centroid_offsets, banded_edge_offsets, refine_quad, refine_quads,
+                       srgb_to_linear, step_blur)
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
@@ -63,6 +63,7 @@ class OutlineQuad:
     side_px: float
     line_rms: object
     field_px: np.ndarray | None = None  # the field's corners, where they are to be used instead (:func:`_field_quad`)
+    sigma_scale: np.ndarray | None = None  # (4,) how much less sure each corner is than a seen one (:func:`_corner_sigma_scale`)
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -104,7 +105,14 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
     # the two sides beside it meet (:func:`_hull_quad`).
+    # the sides of the searched area that are the image's own edges, where a pad can be cut off
+    H_img, W_img = rgb.shape[:2]
+    cut_edges = (x0 == 0, y0 == 0, x0 + img.shape[1] >= W_img, y0 + img.shape[0] >= H_img)
     best = _best_ring(mask, pad_geometry)
+    if best is not None and _at_cut(best, small.shape, cut_edges).any():
+        best = None  # a hull squeezed against the image's edge: not the pad's own corners
+    if best is None:  # the pad running out of the image: three corners and the sides toward the fourth
+        best = _best_cut(mask, pad_geometry, cut_edges)
     if best is None:
         # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
         # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
@@ -113,11 +121,14 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
         best = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
                           min_share=0.5 * band)
+        if best is not None and _at_cut(best, small.shape, cut_edges).any():
+            best = None
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
             return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
         return None, "no pad-coloured quadrilateral"
     quad = best
+    cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
         return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
@@ -146,6 +157,8 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         if again is not None:
             refined, res = again, res2
     field = None
+    if refined is None and cut:
+        return None, "pad cut by the image's edge, and its sides there not found"
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
@@ -167,7 +180,113 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
                 return None, "its border band is missing along a side"
         field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
-    return OutlineQuad(refined, cue, side_px, res, None if field is None else field + [bx0, by0]), "ok"
+    scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
+    if scale_sigma is not None and not np.isfinite(scale_sigma).all():
+        return None, "pad cut by the image's edge, a side of its hidden corner out of view"
+    return OutlineQuad(refined, cue, side_px, res, None if field is None else field + [bx0, by0], scale_sigma), "ok"
+
+
+def _corner_sigma_scale(quad_px: np.ndarray, shape) -> np.ndarray:
+    """(4,) for a quad with corners out of the image: 1 for a seen corner, and for a hidden one how
+    many times less sure it is, as the intersection of lines fitted to the stretches of its two
+    sides that are seen.  A line fitted over a stretch ``l`` long is off at distance ``D`` from the
+    stretch's middle by sqrt(1 + 12 D^2 / l^2) times its error there; a seen corner lies at the end
+    of its stretches (D = l / 2), a hidden one beyond.  The worse of its two sides counts."""
+    H, W = shape[:2]
+    out = np.ones(4)
+    t = np.linspace(0.0, 1.0, 257)
+    for k in range(4):
+        if ((quad_px[k] >= -0.5) & (quad_px[k] <= [W - 0.5, H - 0.5])).all():
+            continue
+        worst = 1.0
+        for other in ((k - 1) % 4, (k + 1) % 4):
+            a, b = quad_px[other], quad_px[k]
+            p = a + t[:, None] * (b - a)
+            seen = t[((p >= -0.5) & (p <= [W - 0.5, H - 0.5])).all(axis=1)]
+            if len(seen) < 2:
+                return np.full(4, np.inf)
+            length = (seen[-1] - seen[0]) * np.linalg.norm(b - a)
+            D = (1.0 - 0.5 * (seen[0] + seen[-1])) * np.linalg.norm(b - a)
+            worst = max(worst, np.sqrt(1.0 + 12.0 * D**2 / max(length, 1e-9) ** 2) / 2.0)
+        out[k] = worst
+    return out
+
+
+def _at_cut(px: np.ndarray, shape, cut_edges, tol: float = 1.5) -> np.ndarray:
+    """(N, 4) whether each point lies on the left, top, right, bottom edge of an image of ``shape``,
+    for the edges flagged in ``cut_edges`` (those of the searched area that are the image's)."""
+    x, y = px[:, 0], px[:, 1]
+    near = np.stack([x <= tol, y <= tol, x >= shape[1] - 1 - tol, y >= shape[0] - 1 - tol], axis=1)
+    return near & np.asarray(cut_edges, bool)[None, :]
+
+
+def _cut_quad(hull: np.ndarray, shape, cut_edges, min_seen: float = 0.25) -> np.ndarray | None:
+    """The whole quadrilateral of a pad whose convex hull ``hull`` is cut by the image's edge, one
+    corner outside it, or ``None``.  Along the hull, away from the image's edge, lie a stretch of
+    one side, two whole sides and a stretch of the fourth (cut corners merged as in
+    :func:`_hull_quad`); the hidden corner is where the two stretches' lines meet, outside the
+    image.  Each stretch must be at least ``min_seen`` of a whole side, so that the corner is
+    extrapolated less than three times as far as its sides are seen."""
+    pts = hull.reshape(-1, 2).astype(np.float64)
+    on = _at_cut(pts, shape, cut_edges)
+    along = np.any(on & np.roll(on, -1, axis=0), axis=1)  # side i (pts[i] -> pts[i + 1]) runs along an edge
+    starts = np.nonzero(np.roll(along, 1) & ~along)[0]
+    if not along.any() or len(starts) != 1:
+        return None  # not cut, or cut in two places
+    # from the image's edge round to it again, simplified as an open curve (its ends stay on the edge,
+    # however short the cut: a corner just out of view)
+    run = np.roll(pts, -int(starts[0]), axis=0)[:int((~along).sum()) + 1]
+    eps = max(0.01 * cv2.arcLength(hull.reshape(-1, 1, 2).astype(np.float32), True), 0.5)
+    chain = cv2.approxPolyDP(run.reshape(-1, 1, 2).astype(np.float32), eps, False)[:, 0, :].astype(np.float64)
+    while len(chain) > 5:  # cut corners between the whole sides: merged as in _hull_quad
+        lengths = np.linalg.norm(np.diff(chain, axis=0), axis=1)
+        i = 1 + int(np.argmin(lengths[1:-1]))  # the short side chain[i] -> chain[i + 1], not a stretch
+        x = _meet(chain[i - 1], chain[i], chain[i + 1], chain[i + 2], lengths[i])
+        if x is not None:
+            chain[i] = x
+        chain = np.delete(chain, i + 1, axis=0)
+    if len(chain) != 5:
+        return None
+    a0, a1, b0, b1 = chain[0], chain[1], chain[3], chain[4]
+    da, db = a0 - a1, b1 - b0
+    den = da[0] * db[1] - da[1] * db[0]
+    if abs(den) < 1e-9:
+        return None
+    t = ((b0[0] - a1[0]) * db[1] - (b0[1] - a1[1]) * db[0]) / den
+    hidden = a1 + t * da
+    quad = np.array([chain[1], chain[2], chain[3], hidden])
+    whole = np.linalg.norm(chain[2] - chain[1]) + np.linalg.norm(chain[3] - chain[2])
+    seen = min(np.linalg.norm(da), np.linalg.norm(db)) / (whole / 2)
+    inside = (hidden >= -0.5).all() and (hidden <= [shape[1] - 0.5, shape[0] - 0.5]).all()
+    if t <= 1.0 or seen < min_seen or inside:
+        return None
+    return quad
+
+
+def _best_cut(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges) -> np.ndarray | None:
+    """The largest blob of ``mask`` that runs into the image's edge and is a pad cut by it
+    (:func:`_cut_quad`), its seen part border-coloured in about the ring's share."""
+    if not any(cut_edges):
+        return None
+    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2
+    best, best_area = None, 0.0
+    for c in contours:
+        area = cv2.contourArea(c)
+        if area < 36 or not _at_cut(c[:, 0, :].astype(np.float64), mask.shape, cut_edges).any():
+            continue
+        quad = _cut_quad(cv2.convexHull(c), mask.shape, cut_edges)
+        if quad is None:
+            continue
+        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+        if sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
+            continue
+        if not 0.5 * ring_share <= _mask_share(full, quad) <= min(0.95, 1.6 * ring_share):
+            continue
+        if area > best_area:
+            best, best_area = quad, area
+    return best
 
 
 def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, min_share: float | None = None) -> np.ndarray | None:
@@ -321,14 +440,17 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
         return False
     v = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    seen = _inside(px, rgb.shape).reshape(4, 2, segments, per).all(axis=1).mean(axis=2) >= 0.5  # (4, segments)
     ch = (v @ _colour_direction(geo.border.color_rgb)).reshape(4, 2, segments, per)
     norm = (ch / np.maximum(v.sum(axis=1), 30.0).reshape(4, 2, segments, per)).mean(axis=3)
     raw = ch.mean(axis=3)
     contrast, rel = norm[:, 0] - norm[:, 1], raw[:, 0] - raw[:, 1]
-    med = float(np.median(rel))
+    if not seen.any():
+        return False
+    med = float(np.median(rel[seen]))  # (stretches out of the image tell nothing)
     if med <= 0:
         return False  # no band anywhere: not this test's to say
-    return bool(np.any((rel < 0.25 * med) & (contrast < 0.03)))
+    return bool(np.any(seen & (rel < 0.25 * med) & (contrast < 0.03)))
 
 
 def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -381,6 +503,9 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}
+    if found.sigma_scale is not None:  # a pad cut by the image's edge: its hidden corner is less sure
+        info.update(corners_seen=int(np.sum(found.sigma_scale == 1.0)),
+                    px_sigma_scale=[round(float(v), 3) for v in found.sigma_scale[order]])
     if found.field_px is not None:  # the colour edges are smeared: the field's luma edges instead
         return Detection(pad_geometry.field_corners, found.field_px[order], "outline", {**info, "corners": "field"}), "ok"
     refined = refined[order]

@@ -29,6 +29,9 @@ class PoseResult:
     tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
 
 
+PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
+
+
 def tilt_disagreement(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
                       sigma_px: float) -> tuple:
     """``(angle, sigma)`` in degrees: how far the pad normal of an image-only pose is from the IMU's
@@ -131,17 +134,24 @@ def _linearised(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.n
             normal[0], ((normal[1:] - normal[0]) / eps).T)
 
 
+def _row_sigmas(sigma_px, n: int) -> np.ndarray:
+    """(2n,) pixel noise per residual row from a scalar or one value per point."""
+    return np.repeat(np.broadcast_to(np.asarray(sigma_px, np.float64), (n,)), 2)
+
+
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
                     sigma_up_rad: float | None = None) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector of ``R_P_C @ exp(d)``, i.e. about
     the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
-    ``min_sigma_px`` squared).  With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
+    ``min_sigma_px`` squared: a scalar, or one per point where some are less sure than others).
+    With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
     gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too."""
     r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
     dof = max(r0.size - 6, 1)
-    sigma2 = max(float(r0 @ r0) / dof, min_sigma_px ** 2)
-    info = J.T @ J / sigma2
+    s = _row_sigmas(min_sigma_px, len(r0) // 2)
+    r0, J = r0 / s, J / s[:, None]
+    info = J.T @ J / max(float(r0 @ r0) / dof, 1.0)
     if up_C is not None and sigma_up_rad:
         info = info + Jn.T @ Jn / sigma_up_rad ** 2
     try:
@@ -161,10 +171,12 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
     T = cam2pad.copy()
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
 
+    s = _row_sigmas(sigma_px, len(pts_P))
+
     def system(T):  # whitened residuals and Jacobian: pixels, then the normal's distance from up
         r, J, n, Jn = _linearised(camera, T, pts_P, px)
-        return (np.concatenate([r / sigma_px, (n - up) / sigma_up_rad]),
-                np.concatenate([J / sigma_px, Jn / sigma_up_rad], axis=0))
+        return (np.concatenate([r / s, (n - up) / sigma_up_rad]),
+                np.concatenate([J / s[:, None], Jn / sigma_up_rad], axis=0))
 
     r0, J = system(T)
     lam = 1e-6
@@ -221,8 +233,9 @@ def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy
 
 def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
-                      gravity_sigma_deg: float | None = 0.5, sigma_px: float = 0.3) -> PoseResult | None:
-    """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels.
+                      gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA) -> PoseResult | None:
+    """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
+    ``sigma_px`` (a scalar, or one per point).
 
     ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
     the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
