@@ -81,8 +81,9 @@ class SequenceRenderer:
                                   znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m),
                                   pad_texture=dirty_texture(pad.texture_rgb, self.material["dirt"],
                                                             self.material["dirt_seed"]),
-                                  legs=self.legs)
+                                  legs=self.legs, pad_relief=self.material.get("relief"))
         self.samples = PadSamples.of(pad.geometry)
+        self.relief_px: list = []  # per frame: how far the features' images on the relief lie from the labels'
         self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames
         traj = plan.trajectory
         self.body2world = traj.body_poses(self.times)
@@ -145,7 +146,7 @@ class SequenceRenderer:
         rgb_r, z_r = self.scene.render_with_depth(cam2world)
         t1 = time.perf_counter()
         facts = view_facts(self.camera, cam2pad, self.pad.geometry,
-                           depth_occlusion(self.imaging.render_camera, z_r, cam2pad), self.samples)
+                           self._occlusion(z_r, cam2pad), self.samples)
         depth = self.imaging.depth_to_pixels(z_r)
         n, flows, half = 1, None, self.exposure / 2
         if self.flow is not None:
@@ -161,6 +162,8 @@ class SequenceRenderer:
             linear = self.imaging.linear(rgb_r)
             if self.ground is not None:
                 self.ground.apply(linear, depth, cam2world, T_W_P)
+            if self.material.get("relief") is not None:
+                self._relief_shading(linear, depth, cam2pad)
             if self.material["gloss"] > 0:
                 self._glare(linear, depth, cam2pad)
             t3 = time.perf_counter()
@@ -173,6 +176,8 @@ class SequenceRenderer:
         rgb = self.imaging.finish(linear, k, float(self.exposure_gain[k]) if k < len(self.exposure_gain) else 1.0)
         t5 = time.perf_counter()
         labels = self._labels(k, t, cam2pad, facts, n, T_W_B, T_W_P)
+        if self.material.get("relief") is not None:
+            self.relief_px.append(self._relief_offset_px(cam2pad))
         t6 = time.perf_counter()
         for name, dt in (("raster+readback", t1 - t0), ("visibility+flow", t2 - t1), ("lens+linear", t3 - t2),
                          ("blur", t4 - t3), ("noise+tone", t5 - t4), ("labels", t6 - t5)):
@@ -214,8 +219,39 @@ class SequenceRenderer:
             self.scene.airframe_only(False)
         return np.isfinite(self.imaging.depth_to_pixels(z))
 
-    def _glare(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
-        """The sun's specular glare on a glossy pad (Blinn-Phong), added in linear light."""
+    def _occlusion(self, z_render: np.ndarray, cam2pad: np.ndarray):
+        """What hides a pad point: the depth test of :func:`depth_occlusion`, at the point's place
+        on the wrinkled surface where the pad has relief (its own bulges do not hide it)."""
+        occluded = depth_occlusion(self.imaging.render_camera, z_render, cam2pad)
+        relief = self.material.get("relief")
+        return occluded if relief is None else (lambda pts: occluded(relief.on_surface(pts)))
+
+    def _relief_offset_px(self, cam2pad: np.ndarray) -> float:
+        """The largest distance (px, NaN when none is in view) between a labelled feature's image on
+        the ideal plane (the outer corners, every marker's corners) and on the wrinkled surface."""
+        pts = np.concatenate([self.samples.corners] + [m[:4] for m in self.samples.markers.values()])
+        flat = self.camera.project_from(cam2pad, pts)
+        real = self.camera.project_from(cam2pad, self.material["relief"].on_surface(pts))
+        seen = self.camera.in_image(flat) & self.camera.in_image(real)
+        return float(np.max(np.linalg.norm(real[seen] - flat[seen], axis=1))) if seen.any() else float("nan")
+
+    def relief_report(self) -> dict | None:
+        """meta.json's ``pad_relief``: the relief drawn, what the labels follow, and how far it moves
+        the features' images from them over the sequence (None for a flat pad)."""
+        relief = self.material.get("relief")
+        if relief is None:
+            return None
+        d = np.array([v for v in self.relief_px if np.isfinite(v)])
+        stats = {"median": float(np.median(d)), "p95": float(np.percentile(d, 95)), "max": float(d.max())} if len(d) \
+            else None
+        return {"labels": "the pad's ideal plane (z = 0 of the pad frame): the relief is not in the labels",
+                **relief.to_dict(), "label_offset_px": stats,
+                "label_offset_note": "per frame, the largest image distance of a feature (outer corners, marker "
+                                     "corners) on the surface from its label on the plane; over the frames"}
+
+    def _pad_pixels(self, depth: np.ndarray, cam2pad: np.ndarray):
+        """``(rows, cols, P, on)``: the window of the image around the pad, its pixels' points in the
+        pad frame (from the depth) and which of them lie on the pad; ``None`` when none do."""
         px = self.camera.project_from(cam2pad, self.pad.outer_corners_P)
         H, W = depth.shape
         if not np.isfinite(px).all():
@@ -224,15 +260,38 @@ class SequenceRenderer:
             (c0, r0), (c1, r1) = np.floor(px.min(axis=0)).astype(int) - 2, np.ceil(px.max(axis=0)).astype(int) + 3
             r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1, H), min(c1, W)
             if r1 <= r0 or c1 <= c0:
-                return
+                return None
         xn, yn = self.rays[0][r0:r1, c0:c1], self.rays[1][r0:r1, c0:c1]
         z = depth[r0:r1, c0:c1]
         zc = np.where(np.isfinite(z), z, 0.0).astype(np.float32)
         P = cv2.transform(cv2.merge([xn * zc, yn * zc, zc]), cam2pad[:3, :].astype(np.float32))
         h = self.pad.side_m / 2
-        on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (np.abs(P[..., 2]) < 0.003) & (zc > 0)
-        if not on.any():
+        top = self.scene.relief_top_m
+        on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (P[..., 2] > -0.003) & (P[..., 2] < top + 0.003) & (zc > 0)
+        return (slice(r0, r1), slice(c0, c1), P, on) if on.any() else None
+
+    def _relief_shading(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
+        """A wrinkled pad's facets lit by the sun as they face it (the renders are flat-shaded for a
+        horizontal surface), where the sun reaches them; in linear light."""
+        got = self._pad_pixels(depth, cam2pad)
+        if got is None:
             return
+        rows, cols, P, on = got
+        xy = P[on][:, :2].astype(np.float64)
+        f = self.scene.relative_light(self.material["relief"].normal(xy))
+        if self.scene.shadows:
+            vis = self.scene.pad_sun_visibility(xy + self._pad2world_now[:2, 3])
+            f = vis * f + (1.0 - vis)
+        roi = linear[rows, cols]
+        roi[on] *= f.astype(np.float32)[:, None]
+
+    def _glare(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
+        """The sun's specular glare on a glossy pad (Blinn-Phong), added in linear light."""
+        got = self._pad_pixels(depth, cam2pad)
+        if got is None:
+            return
+        rows, cols, P, on = got
+        r0, r1, c0, c1 = rows.start, rows.stop, cols.start, cols.stop
         # the lobe varies slowly over the pad: evaluated on every 8th pixel, interpolated between
         Q = P[::8, ::8].reshape(-1, 3).astype(np.float64)
         view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame

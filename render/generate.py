@@ -51,6 +51,9 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
                                  "trajectory": spec.trajectory.model_dump(mode="json"),
                                  "platform": spec.platform.model_dump(mode="json")},
                 "phase_rule": "render/phase.py", "min_module_px": spec.phase_rule.min_module_px}
+        relief = r.relief_report()
+        if relief is not None:
+            meta["pad_relief"] = relief
         files = writer.close(camera_info=info, pad_document=r.pad.document(f"../{ds.PAD_TEXTURE}"),
                              imu_columns=IMU_FILE_COLUMNS, imu_rows=plan.imu.tolist(), meta=meta)
     return {"id": sid, "index": index, "seed": plan.seed, "family": plan.family, "frames": len(r.times),

@@ -9,6 +9,7 @@ import numpy as np
 
 from hvloc.geometry import Camera, focal_from_hfov
 
+from .relief import PadRelief
 from .spec import DatasetSpec
 
 
@@ -106,6 +107,8 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     u3 = lambda r: float(r3.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731
     material = {"gloss": u3(m.gloss), "gloss_roughness": u3(m.gloss_roughness), "dirt": u3(m.dirt),
                 "dirt_seed": int(r3.integers(2**31))}
+    relief = u3(m.relief_m)  # drawn after the older fields: their draws stay as they were
+    material["relief"] = None if relief <= 0 else PadRelief.draw(relief, m.relief_wavelength_m, spec.pad.side_m, r3)
     times, kept = frame_timing(cam, n, np.random.default_rng(rng.integers(2**63)))  # drawn last, as r3
     imu[:, 0] += spec.imu.time_offset_s  # on the IMU's own clock
     return SequencePlan(index, seed, family, traj, draw, imaging, times, imu, material, kept)

@@ -129,9 +129,10 @@ class LandingScene:
     def __init__(self, pad, draw: SceneDraw, platform_height: float, platform_size: float,
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
                  znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
-                 pad_texture: np.ndarray | None = None, legs: list | None = None):
+                 pad_texture: np.ndarray | None = None, legs: list | None = None, pad_relief=None):
         """``pad_texture``: what the pad looks like here (default: its design); ``legs``: the
-        airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame."""
+        airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame;
+        ``pad_relief``: the printed pad's departure from flat (:class:`render.relief.PadRelief`)."""
         pr = import_pyrender()
         self.pr = pr
         self.camera = camera
@@ -140,16 +141,21 @@ class LandingScene:
         self.platform_height = platform_height
         self.platform_size = platform_size
         self.pad_surface_z = platform_height + PAD_THICKNESS_M
+        self.pad_relief = pad_relief
+        # shadows are drawn as layers just above what they fall on: above the relief's highest point
+        self.relief_top_m = float(pad_relief.amplitude_m) if pad_relief is not None else 0.0
         amb = draw.ambient
         scene = pr.Scene(bg_color=[0.6, 0.7, 0.85, 1.0], ambient_light=[1.0, 1.0, 1.0])
         self.scene = scene
         self._count = 0
         from OpenGL.GL import GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_REPEAT, GL_CLAMP_TO_EDGE
 
-        def textured_quad(img, sx, sy, uv_repeat=1.0, repeat=False, soft_edge_px=0):
+        def textured_quad(img, sx, sy, uv_repeat=1.0, repeat=False, soft_edge_px=0, relief=None):
             """A flat quad.  ``soft_edge_px``: surround the texture with that many transparent
             texels (edge colour replicated) and alpha-blend it, so the quad's outline is filtered
-            like any texture edge (sub-pixel exact) instead of being a hard, aliased polygon edge."""
+            like any texture edge (sub-pixel exact) instead of being a hard, aliased polygon edge.
+            ``relief``: a height field (:class:`render.relief.PadRelief`) the quad follows, as a grid
+            fine enough for its shortest wrinkle."""
             sampler = pr.Sampler(magFilter=GL_LINEAR, minFilter=GL_LINEAR_MIPMAP_LINEAR,
                                  wrapS=GL_REPEAT if repeat else GL_CLAMP_TO_EDGE,
                                  wrapT=GL_REPEAT if repeat else GL_CLAMP_TO_EDGE)
@@ -169,12 +175,18 @@ class LandingScene:
             mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
                                                alphaMode="BLEND" if soft_edge_px else "OPAQUE")
             hx, hy = sx / 2, sy / 2
-            pos = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], np.float32)
+            n = 2 if relief is None else int(np.ceil(max(sx, sy) / max(relief.shortest_m / 8, 1e-3))) + 1
+            u, v = np.meshgrid(np.linspace(0.0, 1.0, n), np.linspace(0.0, 1.0, n))
+            xy = np.column_stack([(u.ravel() - 0.5) * sx, (v.ravel() - 0.5) * sy])
+            z = np.zeros(len(xy)) if relief is None else relief.height(xy)
+            pos = np.column_stack([xy, z]).astype(np.float32)
             # pyrender flips the image on upload, so v = 1 is its top row (pad +y)
-            uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32) * uv_repeat
-            normals = np.tile(np.array([[0, 0, 1]], np.float32), (4, 1))
-            prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv,
-                                indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32), material=mat)
+            uv = (np.column_stack([u.ravel(), v.ravel()]) * uv_repeat).astype(np.float32)
+            normals = (np.tile([[0.0, 0.0, 1.0]], (len(xy), 1)) if relief is None else relief.normal(xy)).astype(np.float32)
+            i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+            tris = np.concatenate([np.column_stack([i, i + 1, i + n + 1]), np.column_stack([i, i + n + 1, i + n])])
+            prim = pr.Primitive(positions=pos, normals=normals, texcoord_0=uv, indices=tris.astype(np.uint32),
+                                material=mat)
             return pr.Mesh([prim])
 
         def flat_quad(rgb, sx, sy, alpha=1.0):
@@ -217,7 +229,7 @@ class LandingScene:
                       pose=pose_xy(0, 0, platform_height / 2), parent=self.platform_node)
         # the pad's outline is a labelled feature: soft (texture-filtered) edges, not aliased ones
         tex = pad.texture_rgb if pad_texture is None else pad_texture
-        self.pad_node = self._add(textured_quad(tex, pad.side_m, pad.side_m, soft_edge_px=16),
+        self.pad_node = self._add(textured_quad(tex, pad.side_m, pad.side_m, soft_edge_px=16, relief=pad_relief),
                                   pose=pose_xy(0, 0, self.pad_surface_z), parent=self.platform_node)
         for x, y, yaw, sx, sy, sz, col in draw.boxes:
             self._add(box((sx, sy, sz), col, yaw), pose=pose_xy(x, y, sz / 2, yaw))
@@ -229,13 +241,14 @@ class LandingScene:
 
         # what the sun adds to a horizontal surface, relative to ambient alone (applied in imaging)
         self.irradiance = horizontal
+        self._amb, self._direct = amb, direct
         # planar shadows: what the sun does not reach gets only ambient light (alpha in sRGB)
         k = amb / horizontal
         self.shadow_alpha = float(np.clip(1 - k ** (1 / 2.2), 0.0, 0.95)) if shadows else 0.0
         self._shade = lambda sx, sy: flat_quad((0, 0, 0), sx, sy, self.shadow_alpha)
         # the layer that shadows on the ground lie in: above the pad when the pad lies on the ground
         # (a shadow in the pad's own plane z-fights with it: the depth test then draws it in stripes)
-        self.ground_shadow_z = SHADOW_LIFT_M + (0.0 if self.has_platform_box else self.pad_surface_z)
+        self.ground_shadow_z = SHADOW_LIFT_M + (0.0 if self.has_platform_box else self.pad_surface_z + self.relief_top_m)
         self._ground_shadow_maps = []
         self.platform_xy = np.zeros(2)
         if shadows and self.shadow_alpha > 0 and draw.boxes:
@@ -325,6 +338,11 @@ class LandingScene:
                             indices=np.array([[0, 1, 2], [0, 2, 3]], np.uint32))
         return pr.Mesh([prim])
 
+    def relative_light(self, normals_W: np.ndarray) -> np.ndarray:
+        """``(N,)`` the light a sunlit facet of normal ``normals_W`` gets, relative to a horizontal one
+        (what the renders are normalised to), as the boxes' faces are shaded."""
+        return (self._amb + self._direct * np.clip(np.asarray(normals_W) @ self.draw.sun_dir_W, 0.0, None)) / self.irradiance
+
     def pad_sun_visibility(self, xy_W: np.ndarray) -> np.ndarray:
         """``(N,)`` how much of the sun reaches points of the pad's surface (1 lit, 0 in a shadow):
         the drone's shadow as last placed, and the boxes' where the pad lies on the ground (on a
@@ -377,7 +395,7 @@ class LandingScene:
             if surface == 0.0 or on_platform:
                 break
         # one layer above the others (a translucent layer in another's plane z-fights with it too)
-        z = surface + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
+        z = surface + self.relief_top_m + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
         pose = make_transform(rotation_z(yaw), (xy[0], xy[1], z))
         self._drone_shadow_at = (np.array(xy, np.float64), yaw)
         if self.drone_masked is not None:

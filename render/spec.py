@@ -178,6 +178,20 @@ class PadMaterialSpec(_Model):
                                "relative to a sunlit white (0: matte)")
     gloss_roughness: Range = Field((0.15, 0.3), description="spread of the glare (Blinn-Phong, 0 mirror-like to 1)")
     dirt: NonNegRange = Field((0.0, 0.0), description="share of the pad's area covered by stains and wear")
+    relief_m: NonNegRange = Field((0.0, 0.0), description="how far the printed pad departs from flat: the highest "
+                                  "point of its wrinkles and sag above where it rests (0: flat). Labels stay on the "
+                                  "ideal plane; meta.json's pad_relief says how far the features' images move")
+    relief_wavelength_m: NonNegRange = Field((0.15, 0.5), description="wavelength of the wrinkles")
+
+    @model_validator(mode="after")
+    def _relief(self):
+        if self.relief_m[1] > 0.1:
+            raise ValueError(f"pad_material.relief_m: up to {self.relief_m[1]} m; a printed pad's wrinkles and sag "
+                             "stay within 0.1 m")
+        if self.relief_wavelength_m[0] < 0.03:
+            raise ValueError(f"pad_material.relief_wavelength_m: from {self.relief_wavelength_m[0]} m; wrinkles "
+                             "shorter than 0.03 m are creases, not relief")
+        return self
 
 
 Family = Literal["straight", "spiral", "hover_correct", "manoeuvres"]

@@ -115,6 +115,8 @@ FIELDS = {
     "pad_material.gloss_roughness": (_rng_range(0.1, 0.4), [0.05, 0.05], {"pad_material.gloss": [0.8, 0.8],
                                                                         "environment.sun_elevation_deg": [85.0, 85.0]}),
     "pad_material.dirt": (_rng_range(0.0, 0.4), [0.4, 0.4], {}),
+    "pad_material.relief_m": (_rng_range(0.0, 0.02), [0.03, 0.03], {}),
+    "pad_material.relief_wavelength_m": (_rng_range(0.15, 0.5), [0.08, 0.08], {"pad_material.relief_m": [0.02, 0.02]}),
     "airframe.legs": (_choice([0, 0, 2, 4]), 4, WIDE),
     "airframe.leg_length_m": (_uniform(0.15, 0.25), 0.3, {**WIDE, "airframe.legs": 4}),
     "airframe.leg_diameter_m": (_uniform(0.015, 0.03), 0.04, {**WIDE, "airframe.legs": 4}),

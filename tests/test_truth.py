@@ -619,3 +619,46 @@ def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
             assert np.median(d) <= 1.0 and gain > 10.0, (k, np.median(d), gain)
             checked += 1
     assert checked >= 2
+
+
+def test_a_wrinkled_pad_is_drawn_on_its_surface_and_labelled_on_its_plane():
+    """``pad_material.relief_m``: the printed pad's wrinkles and sag.  The depth the renderer draws
+    lies on the relief (not on the plane), the sun shades its facets, the labels stay those of the
+    flat pad's ideal plane, and meta's ``pad_relief`` says how far the features' images moved."""
+    base = {"name": "wrinkled", "seed": 8, "sequences": 1, "pad_ppm": 600,
+            "camera": {"width": 240, "height": 240, "fps": 4, "hfov_deg": 60},
+            "environment": {"sun_elevation_deg": [30.0, 35.0], "ground": ["sand"]},
+            "trajectory": {"families": ["straight"], "start_height_m": 3.0, "duration_s": [4.0, 4.0],
+                           "lateral_offset_m": [0.0, 0.2]},
+            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+    with SequenceRenderer(_spec(base), 0) as flat, \
+            SequenceRenderer(_spec({**base, "pad_material": {"relief_m": [0.02, 0.02]}}), 0) as wrinkled:
+        relief = wrinkled.material["relief"]
+        moved = []
+        for k in (4, 10, 14):
+            a, b = flat.render(k), wrinkled.render(k)
+            assert a.labels.keys() == b.labels.keys()
+            for c, v in a.labels.items():
+                assert v == b.labels[c] or (v != v and b.labels[c] != b.labels[c]), c  # NaN == NaN
+            for r, expect_relief in ((flat, False), (wrinkled, True)):
+                cam2pad = r.cam2pad(k)
+                _, z = r.scene.render_with_depth(r.pad2world[k] @ cam2pad)
+                rows, cols, P, on = r._pad_pixels(r.imaging.depth_to_pixels(z), cam2pad)
+                Q = P[on].astype(np.float64)
+                want = relief.height(Q[:, :2]) if expect_relief else 0.0
+                assert np.median(np.abs(Q[:, 2] - want)) < 1e-3, (k, expect_relief)
+            assert Q[:, 2].max() > 0.6 * relief.amplitude_m
+            diff = np.abs(a.rgb.astype(float) - b.rgb)[rows, cols][on]
+            assert diff.mean() > 2.0, (k, diff.mean())  # shading and parallax are drawn
+            # the features' images on the surface against the labels (an independent projection)
+            pts = wrinkled.pad.geometry.outer_corners
+            lifted = pts + np.column_stack([np.zeros((4, 2)), relief.height(pts[:, :2])])
+            on_plane, on_relief = (wrinkled.camera.project_from(wrinkled.cam2pad(k), p) for p in (pts, lifted))
+            seen = wrinkled.camera.in_image(on_plane) & wrinkled.camera.in_image(on_relief)
+            moved.append(np.linalg.norm(on_relief - on_plane, axis=1)[seen].max() if seen.any() else 0.0)
+        rep = wrinkled.relief_report()
+        assert flat.relief_report() is None
+        assert rep["labels"].startswith("the pad's ideal plane") and rep["amplitude_m"] == 0.02
+        assert 0.3 < max(moved) <= rep["label_offset_px"]["max"] + 1e-9, (moved, rep["label_offset_px"])
+    with pytest.raises(ValueError, match="pad_material.relief_m"):
+        _spec({**base, "pad_material": {"relief_m": [0.0, 0.3]}})
