@@ -338,3 +338,31 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
         c = float(np.sum(v * xx) / v.sum())
         out[i] = float(np.sqrt(12.0 * np.sum(v * (xx - c) ** 2) / v.sum()))
     return out
+
+
+def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = None, lo: float = -2.0,
+                 hi: float = 5.0, span: float = 3.0, step: float = 0.25, trim: float = 0.25) -> np.ndarray:
+    """(4,) where (px along each side's inward normal, within ``lo``..``hi``) the mean profile across
+    the middle of each side of ``quad_px`` rises over ``span`` px going inward by at least 0.6 of its
+    largest rise there, nearest the side: the edge of a bright inside, found before a narrow fit (0
+    for a side out of view).  Rises are of log brightness: a hard shadow's edge (a quarter of the
+    light) rises less than white paper over a dark checker, in the shadow or out of it."""
+    q = np.asarray(quad_px, np.float64).reshape(4, 2)
+    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
+    m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
+    pts, nrm = _side_points_batch(q, np.roll(q, -1, axis=0), m, trim, camera)
+    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
+    k = max(1, int(round(span / 2 / step)))
+    r = np.arange(lo - k * step, hi + k * step + 1e-9, step)
+    out = np.zeros(4)
+    for i in range(4):
+        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        seen = _inside(P, g.shape).all(axis=1)
+        if seen.sum() < 3:
+            continue
+        y = np.log(cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_REPLICATE)[seen].mean(axis=0) + 1.0)
+        rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
+        strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
+        out[i] = at[strong][np.argmin(np.abs(at[strong]))] if rise.max() > 0 else 0.0
+    return out

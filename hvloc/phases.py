@@ -11,7 +11,7 @@ import numpy as np
 
 from . import markers as mk
 from .features import (_inside, band_centroid_offsets, banded_edge_offsets, refine_quad, refine_quads,
-                       srgb_to_linear, step_blur)
+                       rise_offsets, srgb_to_linear, step_blur)
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
@@ -178,7 +178,8 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
             if _band_missing(rgb, refined, pad_geometry, camera):
                 return None, "its border band is missing along a side"
-        field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
+        if smeared is None:  # (under blur the field's luma edge is smeared as much as the colour's)
+            field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
@@ -475,7 +476,10 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
     checker_px = side_px * (geo.border_m - geo.border.solid_band_m) / geo.side_m
     gray = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY).astype(np.float32)
-    fitted, rms = refine_quad(gray, guess, half_width=float(np.clip(0.45 * checker_px, 1.0, 2.5)), camera=camera)
+    # the swollen outline puts the guess pixels outside the field, beyond the fit's narrow window
+    # (it must stay inside the checker): each side starts at the nearest strong rise into the white
+    start = _moved_sides(guess, rise_offsets(gray, guess, camera))
+    fitted, rms = refine_quad(gray, start, half_width=float(np.clip(0.45 * checker_px, 1.0, 2.5)), camera=camera)
     if fitted is None or rms > max_rms_px:
         return None
     move = float(np.max(np.linalg.norm(fitted - guess, axis=1)))

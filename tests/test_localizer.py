@@ -608,8 +608,10 @@ def test_jpeg_outline_is_fitted_on_luma_where_its_colour_edges_smear(pad, ground
     """JPEG keeps chroma at half resolution: the magenta border's colour edges smear outward and the
     outline's largest corner error was 1.1 to 3.5 px in the median on JPEG 50 views of a 40-80 px
     pad (a grey platform worst).  The white field's edge is sharp in luma: where it says the outline
-    is swollen, its corners are used, and the median falls under 0.7 px on every ground."""
-    for h in (8.0, 12.0):
+    is swollen, its corners are used, and the median falls under 0.7 px on every ground.  The field's
+    sides start where luma rises most into the white (the swollen outline put them beyond the fit's
+    narrow window: 7 px off on a grey platform), so no view is 2 px off."""
+    for h in (8.0, 12.0, 16.0):
         errs, field = [], 0
         for yaw in np.linspace(0.1, 2 * np.pi, 8, endpoint=False):
             G = tilted(0.3, -0.2, h, yaw, 0.05, 0.1)
@@ -621,8 +623,8 @@ def test_jpeg_outline_is_fitted_on_luma_where_its_colour_edges_smear(pad, ground
                 continue
             field += det.info.get("corners") == "field"
             errs.append(np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1).max())
-        assert len(errs) >= 6 and field >= len(errs) // 2, (h, len(errs), field)
-        assert np.median(errs) < 0.7, (h, np.round(errs, 2))
+        assert len(errs) >= 5 and field >= len(errs) // 2, (h, len(errs), field)
+        assert np.median(errs) < 0.7 and max(errs) < 2.0, (h, np.round(errs, 2))
 
 
 @pytest.mark.parametrize("h", [6.0, 12.0])
