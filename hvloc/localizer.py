@@ -32,6 +32,9 @@ METHOD_ORDER = {"approaching": ("outline", "markers"),
                 "touchdown": ("markers", "flow", "outline")}
 
 
+HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines this long (the AHRS drifts)
+
+
 def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
     """The switching policy: thresholds with hysteresis on the last accepted height ``h``.
     A plain function so that the benchmark's sweep replays exactly this policy."""
@@ -287,6 +290,7 @@ class HierarchicalLocalizer:
         self.frame_dt: float | None = None       # the usual time between frames (a running estimate)
         self.gap = False                         # this frame follows a gap (dropped or missing frames)
         self.gates = FalsePoseGates(self.config, self.T_B_C)
+        self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
 
     # ------------------------------------------------------------------ public
@@ -355,7 +359,7 @@ class HierarchicalLocalizer:
             if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")
                 continue
-            res, why = self._try(method, rgb, gray, up_C, t)
+            res, why = self._try(method, rgb, gray, up_C, t, R_W_B)
             if res is None:
                 reasons.append(f"{method}: {why}")
                 continue
@@ -373,6 +377,8 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
+            if R_W_B is not None:
+                self.heading_t = t
             self._after_accept(method, est, gray)
             return est
         self.flow.skip()
@@ -387,7 +393,30 @@ class HierarchicalLocalizer:
     def _prior(self):
         return self.last.cam2pad if self.last is not None else None
 
-    def _try(self, method: str, rgb, gray, up_C, t: float):
+    def _heading_hint(self, found, R_W_B, up_C, t: float):
+        """The pixel of the outline's TL corner as the IMU's heading names it, or ``None``.
+
+        The pad's orientation in the world (the gates' running vision-IMU offset, confirmed by an
+        accepted pose at most ``HEADING_MAX_AGE_S`` ago; a pad turns slowly if at all) and the AHRS's
+        orientation of the body predict the camera's rotation in the pad frame.  Of the outline's four namings the one
+        whose pose turns least from it wins, when it is within 30 degrees and the others are not:
+        its turns are a quarter apart, so the AHRS's heading drift of a degree or two cannot swap
+        them.  This names the outline where the cue cannot be read (a few pixels of yellow under
+        JPEG's chroma) and the last pose is too old to be a prior."""
+        R_W_P = self.gates.R_W_P
+        if R_W_B is None or R_W_P is None or self.heading_t is None or not 0.0 <= t - self.heading_t <= HEADING_MAX_AGE_S:
+            return None
+        R_P_C = R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
+        turns = []
+        for k in range(4):
+            pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C)
+            turns.append(rotation_angle(pose.cam2pad[:3, :3], R_P_C) if pose is not None else np.inf)
+        k = int(np.argmin(turns))
+        if turns[k] > math.radians(30) or np.partition(turns, 1)[1] < math.radians(60):
+            return None
+        return found.quad_px[k]
+
+    def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None):
         prior = self._prior()
         cfg = self.config
         if method == "flow":
@@ -407,6 +436,10 @@ class HierarchicalLocalizer:
                 if found is not None:
                     hint = self.camera.project_from(prior, self.outer_P[:1])[0] if prior is not None else None
                     det, why = ph.name_outline(found, self.geometry, hint)
+                    if det is None and hint is None:  # no prior to name it by: the IMU's heading may
+                        hint = self._heading_hint(found, R_W_B, up_C, t)
+                        if hint is not None:
+                            det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading")
             else:
                 use_rgb = rgb if cfg.use_outline else None
                 det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C)),

@@ -489,10 +489,11 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     return fitted if swollen and move_px < move <= max(3.0, 0.1 * side_px) else None
 
 
-def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None) -> tuple:
+def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None,
+                 hint_from: str = "previous") -> tuple:
     """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
     (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0`` (the
-    predicted TL pixel)."""
+    predicted TL pixel; ``hint_from`` says where the prediction came from)."""
     refined, yellow = found.quad_px, found.cue
     info_yellow = [round(float(y), 2) for y in yellow]
     order = None
@@ -503,7 +504,7 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     elif yaw_hint_corner0 is not None:
         k = int(np.argmin(np.linalg.norm(refined - yaw_hint_corner0, axis=1)))
         order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
-        how = "previous"
+        how = hint_from
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}

@@ -747,3 +747,28 @@ def test_a_pad_cut_by_the_image_edge_is_posed_from_what_is_seen(pad):
                     err = pose.cam2pad[:3, 3] - G[:3, 3]
                     assert err @ np.linalg.solve(pose.cov[:3, :3], err) < 16.3, (h, yaw, ang, err)  # chi2(3), 99.9 %
     assert clear >= 20 and found_clear >= 0.8 * clear, (clear, found_clear, found)
+
+
+def test_an_outline_whose_cue_cannot_be_read_is_named_by_the_imus_heading(pad):
+    """Under JPEG a far pad's yellow cue is a few smeared pixels, and with no recent pose to name the
+    outline by it was lost ("yaw cue unreadable and there is no prior").  The pad's heading in the
+    world, learnt from the last accepted pose, and the AHRS name it; without the IMU it stays lost."""
+    geo = pad.geometry
+    cfg = LocalizerConfig(use_markers=False)  # the outline alone, as far away
+    first = tilted(0.4, -0.3, 9.0, 0.7, 0.02, -0.03)
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    e = loc.process(warp_pad_view(pad, CAM, first, GROUND), 0.0, _imu_from(first))
+    assert e.ok and e.extras.get("yaw_from") == "cue", (e.status, e.reason, e.extras)
+    for k, yaw in enumerate((0.9, 2.4, -1.9)):
+        G = tilted(-0.6, 0.5, 8.0, yaw, -0.03, 0.02)
+        img = warp_pad_view(pad, CAM, G, GROUND)
+        cv2.fillConvexPoly(img, np.round(CAM.project_from(G, geo.cue.corners)).astype(np.int32),
+                           tuple(int(c) for c in geo.border.color_rgb))  # no cue to read
+        t = 5.0 * (k + 1)  # long after the last pose: no prior
+        blind = HierarchicalLocalizer(pad, CAM, cfg)
+        blind.process(warp_pad_view(pad, CAM, first, GROUND), t - 5.0, _imu_from(first))
+        lost = blind.process(img, t, None)
+        assert not lost.ok and "cue is unreadable" in lost.reason, lost.reason
+        e = loc.process(img, t, _imu_from(G, extra=so3_exp([0.0, 0.0, math.radians(2.0)])))  # 2 deg of AHRS yaw drift
+        assert e.ok and e.extras.get("yaw_from") == "imu heading", (yaw, e.status, e.reason)
+        assert pose_error(e.cam2pad, G)[0] < 0.02 * 8.0, pose_error(e.cam2pad, G)
