@@ -93,7 +93,7 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     contrast = hi - lo
     # a profile that leaves the image reads the replicated edge row: no edge of the quad's there (a
     # pad cut by the image's edge has sides that run out of it)
-    seen = _inside(P, g.shape).reshape(S * m, nr).all(axis=1)
+    seen = _inside(P, g.shape).reshape(S * m, nr).all(axis=1) & np.isfinite(prof).all(axis=1)  # (NaN: masked out)
     contrast = np.where(seen, contrast, 0.0)
     med = np.median(np.abs(contrast).reshape(S, m), axis=1).repeat(m)
     strong = seen & (np.abs(contrast) >= np.maximum(4.0, 0.25 * med))

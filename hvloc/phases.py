@@ -81,15 +81,31 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     return name_outline(found, pad_geometry, yaw_hint_corner0)
 
 
+OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
+                 "its border band is missing beside a corner", "its sides and its colour hull disagree")
+
+
 def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                  max_scale: int = 8) -> tuple:
     """``(OutlineQuad | None, reason)``: the image work of :func:`detect_outline` (segmentation,
-    quad, sub-pixel sides, the cue colour at each corner), which no prior influences."""
+    quad, sub-pixel sides, the cue colour at each corner), which no prior influences.  A pad with a
+    corner hidden by something in the scene is looked for when no whole one is found
+    (:func:`_occluded_outline`)."""
+    found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
+    if found is None and why in OCCLUDED_WHEN:
+        hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
+        if hidden is not None:
+            return hidden, "ok"
+        if why_hidden:
+            why = f"{why} (and {why_hidden})"
+    return found, why
+
+
+def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int) -> tuple:
+    """``(img, x0, y0, scale, small, hsv, mask)``: the searched area, its copy reduced ``scale`` times
+    (when large: the corners are refined at full resolution afterwards, so this costs no accuracy),
+    and the border colour's mask there, in shadow too."""
     img, x0, y0 = _crop(rgb, roi)
-    if img.shape[0] < 8 or img.shape[1] < 8:
-        return None, "image too small"
-    # segment on a smaller copy when the search area is large: the corners are refined at full
-    # resolution afterwards, so this costs no accuracy
     scale = 1
     while scale < max_scale and img.shape[1] // (2 * scale) >= 480 and img.shape[0] // (2 * scale) >= 270:
         scale *= 2
@@ -102,6 +118,18 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     if box is not None:  # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
         sl = np.s_[box[1]:box[3], box[0]:box[2]]
         mask[sl] = _shadowed_too(small[sl], hsv[sl], mask[sl], border, pad_geometry.border.color_rgb)
+    return img, x0, y0, scale, small, hsv, mask
+
+
+def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
+                   max_scale: int = 8) -> tuple:
+    """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
+    the others are in view (a corner may be out of the image)."""
+    img, x0, y0 = _crop(rgb, roi)
+    if img.shape[0] < 8 or img.shape[1] < 8:
+        return None, "image too small"
+    img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale)
+    border = pad_geometry.border.segmentation_hsv
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
     # the two sides beside it meet (:func:`_hull_quad`).
@@ -125,13 +153,13 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
             best = None
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
         return None, "no pad-coloured quadrilateral"
     quad = best
     cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return find_outline(rgb, pad_geometry, camera, roi, max_scale=1)
+        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
@@ -159,6 +187,8 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     field = None
     if refined is None and cut:
         return None, "pad cut by the image's edge, and its sides there not found"
+    if cut and _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera):
+        return None, "pad cut by the image's edge and smeared by motion"
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
@@ -178,6 +208,8 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
             if _band_missing(rgb, refined, pad_geometry, camera):
                 return None, "its border band is missing along a side"
+            if _corner_missing(rgb, refined, pad_geometry, camera):
+                return None, "its border band is missing beside a corner"
         if smeared is None:  # (under blur the field's luma edge is smeared as much as the colour's)
             field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
@@ -187,7 +219,117 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     return OutlineQuad(refined, cue, side_px, res, None if field is None else field + [bx0, by0], scale_sigma), "ok"
 
 
-def _corner_sigma_scale(quad_px: np.ndarray, shape) -> np.ndarray:
+def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
+    """(N,) pixels in the image and, with ``visible`` (a test of pixels), not hidden."""
+    px = np.asarray(px, np.float64).reshape(-1, 2)
+    ok = _inside(px, shape)
+    return ok if visible is None else ok & visible(px)
+
+
+def _occluded_outline(rgb: np.ndarray, geo: PadGeometry, camera: Camera | None, roi, max_scale: int) -> tuple:
+    """``(OutlineQuad | None, reason)``: a pad with one corner hidden by something in the scene (a
+    box, a leg), none found whole.  Its colour's hull is then cut by the occluder's edge: each of
+    the hull's sides is tried as that cut, the rest of the hull read as a stretch of one side, two
+    whole sides and a stretch of the fourth (:func:`_chain_quad`), the hidden corner beyond the cut.
+    Only what is on the near side of the cut is read (the fit, the band, the cue); the outline must
+    agree with its hull, show its band along every side in view, and be the only reading that does.
+    The hidden corner's pixel noise is scaled as for a corner out of the image."""
+    img, x0, y0, scale, small, hsv, mask = _segment(rgb, geo, roi, max_scale)
+    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    found = []
+    for c in sorted(contours, key=cv2.contourArea, reverse=True)[:3]:
+        if cv2.contourArea(c) < 36:
+            break
+        hull = cv2.convexHull(c)
+        poly = cv2.approxPolyDP(hull, max(0.01 * cv2.arcLength(hull, True), 0.5), True)[:, 0, :].astype(np.float64)
+        if not 5 <= len(poly) <= 8:
+            continue
+        centre = poly.mean(axis=0)
+        for i in range(len(poly)):
+            a, b = poly[i], poly[(i + 1) % len(poly)]  # the cut, a -> b
+            quad = _chain_quad(np.roll(poly, -(i + 1), axis=0))
+            if quad is None:
+                continue
+            n = np.array([b[1] - a[1], a[0] - b[0]]) / max(np.linalg.norm(b - a), 1e-9)
+            n = n if (a - centre) @ n > 0 else -n  # away from the pad's seen part, toward what hides it
+            if (quad[3] - a) @ n < 1.0:
+                continue  # the hidden corner must lie behind the cut
+            got = _refine_occluded(rgb, (quad + 0.5) * scale - 0.5 + [x0, y0], (a + 0.5) * scale - 0.5 + [x0, y0],
+                                   (b + 0.5) * scale - 0.5 + [x0, y0], n, geo, camera)
+            if got is not None:
+                found.append(got)
+    if not found:
+        return None, ""
+    if any(min(np.abs(np.roll(f.quad_px, k, axis=0) - found[0].quad_px).max() for k in range(4)) > 2.0
+           for f in found[1:]):
+        return None, "a pad partly hidden, read more than one way"
+    return found[0], "ok"
+
+
+def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None):
+    """The :func:`_occluded_outline` candidate ``quad`` (full-resolution pixels; the cut from ``a`` to
+    ``b`` with normal ``n`` toward the hidden part) refined and checked, or ``None``."""
+    def visible(px):  # the seen side of the cut, a pixel and a half clear of it
+        return (np.asarray(px, np.float64).reshape(-1, 2) - a) @ n < -1.5
+
+    # an occluder's edge crosses the pad: just this side of it lies the field, not the border (a
+    # hull side that is the pad's own edge has its band all along; then nothing is hidden)
+    along = a + np.linspace(0.2, 0.8, 16)[:, None] * (b - a) - 2.5 * n
+    v = cv2.remap(rgb, along[:, 0].astype(np.float32)[None], along[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    border = np.asarray(geo.border.color_rgb, np.float64)
+    level = float(border @ _colour_direction(border)) / max(border.sum(), 30.0)
+    if np.mean((v @ _colour_direction(border)) / np.maximum(v.sum(axis=1), 30.0) > 0.5 * level) > 0.5:
+        return None
+
+    side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+    sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+    if side_px < 12 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
+        return None
+    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
+    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
+    f = rgb[by0:by1, bx0:bx1]
+    if f.shape[0] < 8 or f.shape[1] < 8:
+        return None
+    chan = _border_channel(f)
+    yy, xx = np.mgrid[by0:by0 + f.shape[0], bx0:bx0 + f.shape[1]]
+    chan[~visible(np.column_stack([xx.ravel(), yy.ravel()])).reshape(f.shape[:2])] = np.nan  # read nothing behind the cut
+    cam_s = _shifted(camera, bx0, by0)
+    hw = float(np.clip(side_px * geo.border.solid_band_m / geo.side_m * 0.9, 1.0, 3.0))
+    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)
+    if refined is not None:
+        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
+        if again is not None:
+            refined, res = again, res2
+    if refined is None or res > 0.5:
+        return None
+    refined = refined + [bx0, by0]
+    if np.max(np.linalg.norm(refined - quad, axis=1)) > max(3.0, 0.1 * side_px):
+        return None  # its sides and its colour hull disagree
+    if visible(refined[3:4])[0] or not visible(refined[:3]).all():
+        return None  # three corners seen, the fourth behind the cut
+    if (_band_missing(rgb, refined, geo, camera, visible=visible) or _corner_missing(rgb, refined, geo, camera, visible)
+            or _too_smeared(rgb, refined, geo, camera)):
+        return None
+    # and something does hide it: behind the cut, the border's band must be missing (a whole pad
+    # whose outline was refused for another reason, JPEG's smeared colour, is no hidden one)
+    got = _band_stretches(rgb, refined, geo, camera, segments=6, per=3)
+    hidden = _band_stretches(rgb, refined, geo, camera, segments=6, per=3, visible=lambda px: ~visible(px),
+                             min_share=1.0)
+    if got is None or hidden is None or not hidden[2].any():
+        return None
+    (rel, _, seen), (_, _, behind) = got, hidden
+    med = float(np.median(rel[seen & ~behind])) if (seen & ~behind).any() else 0.0
+    if med <= 0 or np.any(rel[behind] >= 0.25 * med):
+        return None
+    scale_sigma = _corner_sigma_scale(refined, rgb.shape, visible)
+    if not np.isfinite(scale_sigma).all():
+        return None
+    return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma)
+
+
+def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None) -> np.ndarray:
     """(4,) for a quad with corners out of the image: 1 for a seen corner, and for a hidden one how
     many times less sure it is, as the intersection of lines fitted to the stretches of its two
     sides that are seen.  A line fitted over a stretch ``l`` long is off at distance ``D`` from the
@@ -197,13 +339,12 @@ def _corner_sigma_scale(quad_px: np.ndarray, shape) -> np.ndarray:
     out = np.ones(4)
     t = np.linspace(0.0, 1.0, 257)
     for k in range(4):
-        if ((quad_px[k] >= -0.5) & (quad_px[k] <= [W - 0.5, H - 0.5])).all():
+        if _seen(quad_px[k:k + 1], shape, visible)[0]:
             continue
         worst = 1.0
         for other in ((k - 1) % 4, (k + 1) % 4):
             a, b = quad_px[other], quad_px[k]
-            p = a + t[:, None] * (b - a)
-            seen = t[((p >= -0.5) & (p <= [W - 0.5, H - 0.5])).all(axis=1)]
+            seen = t[_seen(a + t[:, None] * (b - a), shape, visible)]
             if len(seen) < 2:
                 return np.full(4, np.inf)
             length = (seen[-1] - seen[0]) * np.linalg.norm(b - a)
@@ -239,6 +380,21 @@ def _cut_quad(hull: np.ndarray, shape, cut_edges, min_seen: float = 0.25) -> np.
     run = np.roll(pts, -int(starts[0]), axis=0)[:int((~along).sum()) + 1]
     eps = max(0.01 * cv2.arcLength(hull.reshape(-1, 1, 2).astype(np.float32), True), 0.5)
     chain = cv2.approxPolyDP(run.reshape(-1, 1, 2).astype(np.float32), eps, False)[:, 0, :].astype(np.float64)
+    got = _chain_quad(chain, min_seen)
+    if got is None:
+        return None
+    quad, hidden = got, got[3]
+    inside = (hidden >= -0.5).all() and (hidden <= [shape[1] - 0.5, shape[0] - 0.5]).all()
+    return None if inside else quad
+
+
+def _chain_quad(chain: np.ndarray, min_seen: float = 0.25) -> np.ndarray | None:
+    """The quadrilateral whose outline runs along the open polyline ``chain``: a stretch of one side,
+    two whole sides, a stretch of the fourth, the rest hidden (cut corners between them merged as
+    in :func:`_hull_quad`).  Its corners in order, the hidden one (where the stretches' lines meet,
+    beyond both) last; ``None`` when a stretch is under ``min_seen`` of a side or they do not meet
+    beyond their ends."""
+    chain = np.array(chain, np.float64)
     while len(chain) > 5:  # cut corners between the whole sides: merged as in _hull_quad
         lengths = np.linalg.norm(np.diff(chain, axis=0), axis=1)
         i = 1 + int(np.argmin(lengths[1:-1]))  # the short side chain[i] -> chain[i + 1], not a stretch
@@ -255,13 +411,12 @@ def _cut_quad(hull: np.ndarray, shape, cut_edges, min_seen: float = 0.25) -> np.
         return None
     t = ((b0[0] - a1[0]) * db[1] - (b0[1] - a1[1]) * db[0]) / den
     hidden = a1 + t * da
-    quad = np.array([chain[1], chain[2], chain[3], hidden])
+    u = ((hidden - b0) @ db) / max(db @ db, 1e-12)  # along the other stretch: beyond its end too
     whole = np.linalg.norm(chain[2] - chain[1]) + np.linalg.norm(chain[3] - chain[2])
     seen = min(np.linalg.norm(da), np.linalg.norm(db)) / (whole / 2)
-    inside = (hidden >= -0.5).all() and (hidden <= [shape[1] - 0.5, shape[0] - 0.5]).all()
-    if t <= 1.0 or seen < min_seen or inside:
+    if t <= 1.0 or u <= 1.0 or seen < min_seen:
         return None
-    return quad
+    return np.array([chain[1], chain[2], chain[3], hidden])
 
 
 def _best_cut(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges) -> np.ndarray | None:
@@ -365,10 +520,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     lengths = np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)
     bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
     q, cam = quad_px - lo, _shifted(camera, *lo)
-    # the white field's edge in luma: smeared by motion, sharp under JPEG's smeared chroma (whose
-    # blur is linear in the encoded values, not in light: the centroid would not hold there)
-    luma = np.ascontiguousarray(lin @ np.array([0.2126, 0.7152, 0.0722], np.float32))
-    if not np.nanmax(np.append(step_blur(luma, q, bands[:, 1], cam), 0.0)) > min_blur_px:
+    if not _smear_px(lin, q, bands, cam) > min_blur_px:
         return None
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px)
@@ -388,6 +540,27 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
     return out + lo
+
+
+def _smear_px(lin: np.ndarray, quad_px: np.ndarray, bands: np.ndarray, camera: Camera | None) -> float:
+    """How far (px) motion smears the white field's edge in luma, the most over the sides of
+    ``quad_px`` (0 when none can be read); ``lin`` is the image in linear light.  Luma, not colour:
+    JPEG's chroma is smeared linearly in the encoded values, not in light, while its luma stays
+    sharp, and only motion smears both."""
+    luma = np.ascontiguousarray(lin @ np.array([0.2126, 0.7152, 0.0722], np.float32))
+    return float(np.nanmax(np.append(step_blur(luma, quad_px, bands[:, 1], camera), 0.0)))
+
+
+def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                 limit_px: float = 5.0) -> bool:
+    """Whether motion smears the field's edge past ``limit_px`` around ``quad_px`` (the outline of a
+    partly seen pad cannot then be placed: its sides' centroids need the whole border)."""
+    lo = np.maximum(np.floor(quad_px.min(axis=0) - 12), 0).astype(int)
+    hi = np.ceil(quad_px.max(axis=0) + 13).astype(int)
+    lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
+    lengths = np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)
+    bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
+    return _smear_px(lin, quad_px - lo, bands, _shifted(camera, *lo)) > limit_px
 
 
 def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray):
@@ -414,7 +587,7 @@ def _colour_direction(colour_rgb, dtype=np.float64) -> np.ndarray:
 
 
 def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-                  segments: int = 3, per: int = 6) -> bool:
+                  segments: int = 3, per: int = 6, visible=None) -> bool:
     """Whether a stretch of some side of ``quad_px`` lacks the border's solid band just inside it.
 
     Sides fitted to the wrong edge (the platform's rim beside the pad, where JPEG's half-resolution
@@ -423,8 +596,57 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     objects.  Through the quad's homography, the border colour's chroma (``(R + B) / 2 - G`` over
     the brightness, for the magenta border) is read half a band inside and half a band outside each
     side, over ``segments`` stretches between the corner squares.  A stretch fails when its
-    contrast is both under a quarter of the median stretch's and under 0.03 in absolute terms: a
-    shadow across the pad lowers the first but not the second."""
+    contrast is under a quarter of the median stretch's both raw and over the brightness (and under
+    0.03 there): a shadow across the pad lowers the first but not the second; a box over a corner
+    both."""
+    got = _band_stretches(rgb, quad_px, geo, camera, segments, per, visible)
+    if got is None:
+        return False
+    rel, contrast, seen = got
+    if not seen.any():
+        return False
+    med = float(np.median(rel[seen]))  # (stretches out of the image tell nothing)
+    if med <= 0:
+        return False  # no band anywhere: not this test's to say
+    # in a shadow the band's chroma over brightness holds; behind a box, beside a rim, it does not
+    floor = max(0.03, 0.25 * float(np.median(contrast[seen])))
+    return bool(np.any(seen & (rel < 0.25 * med) & (contrast < floor)))
+
+
+def _corner_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                    visible=None) -> bool:
+    """Whether the border's solid band is missing just past some corner square of ``quad_px`` (on
+    both sides beside it), where the other corners show it.  A corner hidden by a box, whose hull
+    put the quad's corner tens of pixels off, passed the sides' band check (its sides' stretches
+    lie mostly on the band); the squares beside a corner do not.  Read as the band check reads
+    chroma (over brightness, so shadows pass); corners out of view tell nothing."""
+    s, b, w = geo.side_m / 2.0, geo.border_m, geo.border.solid_band_m
+    sq = geo.outer_corners[:, :2]
+    cen = sq.mean(axis=0)
+    t = b + np.linspace(0.1, 0.9, 4) * b
+    pts = []
+    for j in range(4):
+        ex, ey = np.sign(cen - sq[j]) * [1.0, 0.0], np.sign(cen - sq[j]) * [0.0, 1.0]
+        pts += [sq[j] + t[:, None] * ex + 0.5 * w * ey, sq[j] + t[:, None] * ey + 0.5 * w * ex]
+    px = _through_quad(quad_px, geo, camera, np.concatenate(pts))
+    if px is None:
+        return False
+    v = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    seen = _seen(px, rgb.shape, visible).reshape(4, -1).all(axis=1)
+    chroma = ((v @ _colour_direction(geo.border.color_rgb)) / np.maximum(v.sum(axis=1), 30.0)).reshape(4, -1).mean(axis=1)
+    if seen.sum() < 2:
+        return False
+    med = float(np.median(chroma[seen]))
+    return bool(med > 0 and np.any(seen & (chroma < 0.25 * med)))
+
+
+def _band_stretches(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                    segments: int = 3, per: int = 6, visible=None, min_share: float = 0.5):
+    """``(rel, contrast, seen)``, each ``(4, segments)``, or ``None``: the border colour's chroma
+    half a band inside less half a band outside each stretch of each side of ``quad_px`` (raw, and
+    over the brightness), and whether the stretch is in view (at least ``min_share`` of it;
+    :func:`_band_missing`)."""
     s, b, w = geo.side_m / 2.0, geo.border_m, geo.border.solid_band_m
     sq = geo.outer_corners[:, :2]
     t = np.linspace(-s + b, s - b, segments * per)
@@ -438,20 +660,14 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
         pts += [base + 0.5 * w * n, base - 0.5 * w * n]
     px = _through_quad(quad_px, geo, camera, np.concatenate(pts))
     if px is None:
-        return False
+        return None
     v = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None], cv2.INTER_LINEAR,
                   borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-    seen = _inside(px, rgb.shape).reshape(4, 2, segments, per).all(axis=1).mean(axis=2) >= 0.5  # (4, segments)
+    seen = _seen(px, rgb.shape, visible).reshape(4, 2, segments, per).all(axis=1).mean(axis=2) >= min_share  # (4, segments)
     ch = (v @ _colour_direction(geo.border.color_rgb)).reshape(4, 2, segments, per)
     norm = (ch / np.maximum(v.sum(axis=1), 30.0).reshape(4, 2, segments, per)).mean(axis=3)
     raw = ch.mean(axis=3)
-    contrast, rel = norm[:, 0] - norm[:, 1], raw[:, 0] - raw[:, 1]
-    if not seen.any():
-        return False
-    med = float(np.median(rel[seen]))  # (stretches out of the image tell nothing)
-    if med <= 0:
-        return False  # no band anywhere: not this test's to say
-    return bool(np.any(seen & (rel < 0.25 * med) & (contrast < 0.03)))
+    return raw[:, 0] - raw[:, 1], norm[:, 0] - norm[:, 1], seen
 
 
 def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -743,7 +959,8 @@ def _meet(a0, a1, b0, b1, cut: float):
     return x
 
 
-def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None) -> np.ndarray:
+def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None,
+                visible=None) -> np.ndarray:
     """(4,) how much the border square at each corner of ``quad_px`` has the cue's colour, read
     against the border squares beside it: 1 for a corner square of the cue's chromaticity next
     to border of the border's, 0 where it looks like its neighbours.  Chromaticity (r, g, b over
@@ -777,8 +994,7 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
         return np.zeros(4)
     vals = cv2.remap(rgb, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-    H_img, W_img = rgb.shape[:2]
-    inside = np.all((px > -0.5) & (px < [W_img - 0.5, H_img - 0.5]), axis=1).reshape(4, -1).all(axis=1)
+    inside = _seen(px, rgb.shape, visible).reshape(4, -1).all(axis=1)
     target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
     m = len(own)
     out = np.zeros(4)
