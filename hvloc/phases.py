@@ -187,7 +187,8 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     field = None
     if refined is None and cut:
         return None, "pad cut by the image's edge, and its sides there not found"
-    if cut and _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera):
+    if cut and _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=10.0):
+        # (the border's centroid needs every side whole; the edge fit holds to twice its window)
         return None, "pad cut by the image's edge and smeared by motion"
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
