@@ -28,6 +28,22 @@ def _inside(px: np.ndarray, shape) -> np.ndarray:
     return (px[..., 0] >= 0) & (px[..., 1] >= 0) & (px[..., 0] <= shape[1] - 1) & (px[..., 1] <= shape[0] - 1)
 
 
+def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: float, camera: Camera | None) -> list:
+    """For each side of ``quad``: ``(profiles (m, R), seen (m,))``, the image sampled across the side
+    at ``offsets[i]`` px along its inward normal, at ``m`` places along its middle, and which of
+    those profiles lie wholly in the image and read no NaN (masked out)."""
+    pts, nrm = _side_points_batch(quad, np.roll(quad, -1, axis=0), m, trim, camera)
+    inward = np.sign(np.sum((quad.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
+    out = []
+    for i in range(4):
+        r = np.asarray(offsets[i], np.float64)
+        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
+        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+        out.append((prof, _inside(P, g.shape).all(axis=1) & np.isfinite(prof).all(axis=1)))
+    return out
+
+
 def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None):
     """Refine 4 corners (in order around the quad) of a quadrilateral seen in ``gray``.
 
@@ -189,17 +205,11 @@ def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndar
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     starts, ends = q, np.roll(q, -1, axis=0)
     m = int(np.clip(np.linalg.norm(ends - starts, axis=1).max() * (1 - 2 * trim), 6, 40))
-    pts, nrm = _side_points_batch(starts, ends, m, trim, camera)
-    centre = q.mean(axis=0)
-    inward = np.sign(np.sum((centre - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))  # (4,)
     bands = np.asarray(bands_px, np.float64).reshape(4, -1)
+    rs = [np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step) for i in range(4)]
     out = np.full(4, np.nan)
-    for i in range(4):
-        r = np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step)
-        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
-        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-        seen = _inside(P, g.shape).all(axis=1)
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, m, trim, camera)):
+        r = rs[i]
         if seen.sum() < 3:
             continue
         y = prof[seen].mean(axis=0)
@@ -264,22 +274,17 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     starts, ends = q, np.roll(q, -1, axis=0)
     per = int(np.clip(np.linalg.norm(ends - starts, axis=1).max() * (1 - 2 * trim) / segments, 4, 20))
-    pts, nrm = _side_points_batch(starts, ends, per * segments, trim, camera)
-    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
     at = trim + (1 - 2 * trim) * (np.arange(segments) + 0.5) / segments
     bands = np.asarray(bands_px, np.float64).reshape(4, -1)
     lv = np.asarray(levels, np.float64)
     offsets, blur = np.full((4, segments), np.nan), np.full((4, segments), np.nan)
-    for i in range(4):
+    rs = [np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step) for i in range(4)]
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
+        r = rs[i]
         edges = np.concatenate([[0.0], bands[i]])
         mass = lv * np.diff(edges)  # the sharp profile: level lv[k] between edges k and k + 1
         c0 = float(np.sum(mass * (edges[1:] + edges[:-1]) / 2) / mass.sum())
         var0 = float(np.sum(lv * np.diff(edges**3) / 3) / mass.sum() - c0**2)
-        r = np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step)
-        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
-        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
-        seen = _inside(P, g.shape).all(axis=1)
         for k in range(segments):
             part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
             if len(part) < 2:
@@ -316,17 +321,13 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
-    pts, nrm = _side_points_batch(q, np.roll(q, -1, axis=0), m, trim, camera)
-    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
+    rs = [np.arange(at_px[i] - reach_px, at_px[i] + reach_px + 1e-9, step) for i in range(4)]
     out = np.full(4, np.nan)
-    for i in range(4):
-        r = np.arange(at_px[i] - reach_px, at_px[i] + reach_px + 1e-9, step)
-        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
-        seen = _inside(P, g.shape).all(axis=1)
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, m, trim, camera)):
+        r = rs[i]
         if seen.sum() < 2:
             continue
-        y = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)[seen].mean(axis=0)
+        y = prof[seen].mean(axis=0)
         d = np.clip(np.diff(y), 0.0, None)
         x = (r[1:] + r[:-1]) / 2
         p = int(np.argmax(d))
@@ -350,18 +351,13 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
-    pts, nrm = _side_points_batch(q, np.roll(q, -1, axis=0), m, trim, camera)
-    inward = np.sign(np.sum((q.mean(axis=0) - pts.mean(axis=1)) * nrm.mean(axis=1), axis=1))
     k = max(1, int(round(span / 2 / step)))
     r = np.arange(lo - k * step, hi + k * step + 1e-9, step)
     out = np.zeros(4)
-    for i in range(4):
-        P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
-        seen = _inside(P, g.shape).all(axis=1)
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, [r] * 4, m, trim, camera)):
         if seen.sum() < 3:
             continue
-        y = np.log(cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                             borderMode=cv2.BORDER_REPLICATE)[seen].mean(axis=0) + 1.0)
+        y = np.log(prof[seen].mean(axis=0) + 1.0)
         rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
         strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
         out[i] = at[strong][np.argmin(np.abs(at[strong]))] if rise.max() > 0 else 0.0

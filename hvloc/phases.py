@@ -125,22 +125,19 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                    max_scale: int = 8) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
     the others are in view (a corner may be out of the image)."""
-    img, x0, y0 = _crop(rgb, roi)
-    if img.shape[0] < 8 or img.shape[1] < 8:
+    if min(_crop(rgb, roi)[0].shape[:2]) < 8:
         return None, "image too small"
     img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale)
     border = pad_geometry.border.segmentation_hsv
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
-    # the two sides beside it meet (:func:`_hull_quad`).
-    # the sides of the searched area that are the image's own edges, where a pad can be cut off
+    # the two sides beside it meet (:func:`_hull_quad`).  The sides of the searched area that are
+    # the image's own edges are where a pad can be cut off.
     H_img, W_img = rgb.shape[:2]
     cut_edges = (x0 == 0, y0 == 0, x0 + img.shape[1] >= W_img, y0 + img.shape[0] >= H_img)
-    best = _best_ring(mask, pad_geometry)
-    if best is not None and _at_cut(best, small.shape, cut_edges).any():
-        best = None  # a hull squeezed against the image's edge: not the pad's own corners
+    best = _best_ring(mask, pad_geometry, cut_edges)
     if best is None:  # the pad running out of the image: three corners and the sides toward the fourth
-        best = _best_cut(mask, pad_geometry, cut_edges)
+        best = _best_ring(mask, pad_geometry, cut_edges, cut=True)
     if best is None:
         # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
         # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
@@ -148,9 +145,7 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         # (the checker's dark cells wash out first: the ring may be the solid band alone)
         band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
         best = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
-                          min_share=0.5 * band)
-        if best is not None and _at_cut(best, small.shape, cut_edges).any():
-            best = None
+                          cut_edges, min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
             return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
@@ -171,19 +166,8 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
-    band_px = side_px * pad_geometry.border.solid_band_m / pad_geometry.side_m
-    hw = float(np.clip(band_px * 0.9, 1.0, 3.0))
-    # only the quad's neighbourhood is converted (a full 1080p frame costs milliseconds)
-    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
-    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
-    f = rgb[by0:by1, bx0:bx1]
-    chan = _border_channel(f)
+    refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera)
     cam_s = _shifted(camera, bx0, by0)
-    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)  # coarse quad
-    if refined is not None:  # then narrow, around the refined sides
-        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
-        if again is not None:
-            refined, res = again, res2
     field = None
     if refined is None and cut:
         return None, "pad cut by the image's edge, and its sides there not found"
@@ -268,6 +252,32 @@ def _occluded_outline(rgb: np.ndarray, geo: PadGeometry, camera: Camera | None, 
     return found[0], "ok"
 
 
+def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeometry, camera: Camera | None,
+               visible=None) -> tuple:
+    """``(refined | None, rms, crop, border channel, (x0, y0))``: the sides of the coarse ``quad``
+    fitted on the border channel of the quad's neighbourhood (only that is converted: a full 1080p
+    frame costs milliseconds), first over a wide window, then narrow around the fitted sides;
+    ``refined`` in the crop's pixels.  With ``visible`` (a test of image pixels), what it rejects
+    reads NaN: nothing behind an occluder's edge is fitted."""
+    hw = float(np.clip(side_px * geo.border.solid_band_m / geo.side_m * 0.9, 1.0, 3.0))
+    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
+    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
+    f = rgb[by0:by1, bx0:bx1]
+    chan = _border_channel(f)
+    if f.shape[0] < 8 or f.shape[1] < 8:
+        return None, float("inf"), f, chan, (bx0, by0)
+    if visible is not None:
+        yy, xx = np.mgrid[by0:by0 + f.shape[0], bx0:bx0 + f.shape[1]]
+        chan[~visible(np.column_stack([xx.ravel(), yy.ravel()])).reshape(f.shape[:2])] = np.nan
+    cam_s = _shifted(camera, bx0, by0)
+    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)  # coarse quad
+    if refined is not None:  # then narrow, around the refined sides
+        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
+        if again is not None:
+            refined, res = again, res2
+    return refined, res, f, chan, (bx0, by0)
+
+
 def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None):
     """The :func:`_occluded_outline` candidate ``quad`` (full-resolution pixels; the cut from ``a`` to
     ``b`` with normal ``n`` toward the hidden part) refined and checked, or ``None``."""
@@ -288,21 +298,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
     if side_px < 12 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
         return None
-    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
-    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
-    f = rgb[by0:by1, bx0:bx1]
-    if f.shape[0] < 8 or f.shape[1] < 8:
-        return None
-    chan = _border_channel(f)
-    yy, xx = np.mgrid[by0:by0 + f.shape[0], bx0:bx0 + f.shape[1]]
-    chan[~visible(np.column_stack([xx.ravel(), yy.ravel()])).reshape(f.shape[:2])] = np.nan  # read nothing behind the cut
-    cam_s = _shifted(camera, bx0, by0)
-    hw = float(np.clip(side_px * geo.border.solid_band_m / geo.side_m * 0.9, 1.0, 3.0))
-    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)
-    if refined is not None:
-        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
-        if again is not None:
-            refined, res = again, res2
+    refined, res, _, _, (bx0, by0) = _fit_sides(rgb, quad, side_px, geo, camera, visible)
     if refined is None or res > 0.5:
         return None
     refined = refined + [bx0, by0]
@@ -420,36 +416,16 @@ def _chain_quad(chain: np.ndarray, min_seen: float = 0.25) -> np.ndarray | None:
     return np.array([chain[1], chain[2], chain[3], hidden])
 
 
-def _best_cut(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges) -> np.ndarray | None:
-    """The largest blob of ``mask`` that runs into the image's edge and is a pad cut by it
-    (:func:`_cut_quad`), its seen part border-coloured in about the ring's share."""
-    if not any(cut_edges):
-        return None
-    full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
-    contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2
-    best, best_area = None, 0.0
-    for c in contours:
-        area = cv2.contourArea(c)
-        if area < 36 or not _at_cut(c[:, 0, :].astype(np.float64), mask.shape, cut_edges).any():
-            continue
-        quad = _cut_quad(cv2.convexHull(c), mask.shape, cut_edges)
-        if quad is None:
-            continue
-        sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-        if sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
-            continue
-        if not 0.5 * ring_share <= _mask_share(full, quad) <= min(0.95, 1.6 * ring_share):
-            continue
-        if area > best_area:
-            best, best_area = quad, area
-    return best
-
-
-def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, min_share: float | None = None) -> np.ndarray | None:
+def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) * 4, min_share: float | None = None,
+               cut: bool = False) -> np.ndarray | None:
     """The mask's blob most like the pad's border ring (a convex quadrilateral whose area is
     border-coloured in about the ring's share, at least ``min_share``: half the ring's by default),
-    by area and share."""
+    by area and share.  ``cut_edges`` flags the mask's sides that are the image's own: a whole
+    ring's hull may not touch them (a hull squeezed against the image's edge has corners that are
+    not the pad's); with ``cut``, only blobs running into them are read, as a pad cut by the image's
+    edge (:func:`_cut_quad`)."""
+    if cut and not any(cut_edges):
+        return None
     full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2  # the border's share of the pad
@@ -458,12 +434,17 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, min_share: float | N
         area = cv2.contourArea(c)
         if area < 36:
             continue
-        quad = _hull_quad(cv2.convexHull(c))
-        if quad is None:
+        if cut:
+            if not _at_cut(c[:, 0, :].astype(np.float64), mask.shape, cut_edges).any():
+                continue
+            quad = _cut_quad(cv2.convexHull(c), mask.shape, cut_edges)
+        else:
+            quad = _hull_quad(cv2.convexHull(c))
+        if quad is None or (not cut and _at_cut(quad, mask.shape, cut_edges).any()):
             continue
         qa = abs(_signed_area(quad))
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-        if qa <= 0 or sides.min() / sides.max() < 0.4:
+        if qa <= 0 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
             continue
         share = _mask_share(full, quad)
         if not ((0.5 * ring_share if min_share is None else min_share) <= share <= min(0.95, 1.6 * ring_share)):
@@ -478,9 +459,7 @@ def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera
     """``quad`` with each side moved onto the border's outer edge as :func:`banded_edge_offsets`
     finds it (the solid band and the checker inside it, at each side's own scale); a side it
     cannot tell, or would move by a pixel or more, stays."""
-    lengths = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-    bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
-    e = banded_edge_offsets(chan, quad, bands, camera)
+    e = banded_edge_offsets(chan, quad, _bands_px(quad, geo), camera)
     e = np.where(np.isfinite(e) & (np.abs(e) < 1.0), e, 0.0)
     if not np.any(e):
         return quad
@@ -512,17 +491,13 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     Measured on the conditions suite's gusty descent (12 px of blur at 12 m, a 55 px pad): the
     edge fit put every corner 4-5 px outside the pad, the pose 3.8 m off, accepted; the centroid
     leaves 0.5-0.7 px, the outward bias of an image whose tone curve is not exactly sRGB."""
-    lo = np.maximum(np.floor(quad_px.min(axis=0) - reach_px - 3), 0).astype(int)
-    hi = np.ceil(quad_px.max(axis=0) + reach_px + 4).astype(int)
-    lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
     levels = _border_channel(srgb_to_linear(np.array([geo.border.color_rgb, geo.border.dark_color_rgb])))
     if levels[0] <= 0:
         return None
-    lengths = np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)
-    bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
-    q, cam = quad_px - lo, _shifted(camera, *lo)
-    if not _smear_px(lin, q, bands, cam) > min_blur_px:
+    lin, lo, smear = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
+    if not smear > min_blur_px:
         return None
+    q, cam, bands = quad_px - lo, _shifted(camera, *lo), _bands_px(quad_px, geo)
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px)
     if not np.all(np.isfinite(e)) or np.any(np.abs(e) > blur / 2 + 2.0):
@@ -543,25 +518,34 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     return out + lo
 
 
-def _smear_px(lin: np.ndarray, quad_px: np.ndarray, bands: np.ndarray, camera: Camera | None) -> float:
-    """How far (px) motion smears the white field's edge in luma, the most over the sides of
-    ``quad_px`` (0 when none can be read); ``lin`` is the image in linear light.  Luma, not colour:
-    JPEG's chroma is smeared linearly in the encoded values, not in light, while its luma stays
-    sharp, and only motion smears both."""
+def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
+    """(4, 2) where the border's solid band and its checker end, px inward of each side of ``quad_px``
+    (at that side's scale)."""
+    lengths = np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)
+    return np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
+
+
+def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                margin_px: float) -> tuple:
+    """``(linear crop, its origin, smear px)``: the neighbourhood of ``quad_px`` (``margin_px``
+    around it) in linear light, and how far motion smears the white field's edge there in luma, the
+    most over the sides (0 when none can be read).  Luma, not colour: JPEG's chroma is smeared
+    linearly in the encoded values, not in light, while its luma stays sharp; only motion smears
+    both."""
+    lo = np.maximum(np.floor(quad_px.min(axis=0) - margin_px), 0).astype(int)
+    hi = np.ceil(quad_px.max(axis=0) + margin_px + 1).astype(int)
+    lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
     luma = np.ascontiguousarray(lin @ np.array([0.2126, 0.7152, 0.0722], np.float32))
-    return float(np.nanmax(np.append(step_blur(luma, quad_px, bands[:, 1], camera), 0.0)))
+    q = quad_px - lo
+    smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo))
+    return lin, lo, float(np.nanmax(np.append(smear, 0.0)))
 
 
 def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                  limit_px: float = 5.0) -> bool:
     """Whether motion smears the field's edge past ``limit_px`` around ``quad_px`` (the outline of a
     partly seen pad cannot then be placed: its sides' centroids need the whole border)."""
-    lo = np.maximum(np.floor(quad_px.min(axis=0) - 12), 0).astype(int)
-    hi = np.ceil(quad_px.max(axis=0) + 13).astype(int)
-    lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
-    lengths = np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)
-    bands = np.outer(lengths / geo.side_m, [geo.border.solid_band_m, geo.border_m])
-    return _smear_px(lin, quad_px - lo, bands, _shifted(camera, *lo)) > limit_px
+    return _smear_near(rgb, quad_px, geo, camera, 12.0)[2] > limit_px
 
 
 def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray):

@@ -590,16 +590,22 @@ def test_the_drones_shadow_does_not_darken_a_box_shadow_twice():
     assert abs(drone_only - box_only) < 0.15 * box_only, (drone_only, box_only)  # one shadow, one darkness
 
 
+def _pad_close_up(name: str, sun_elevation_deg: list, start_height_m: float) -> dict:
+    """A short noiseless straight descent over sand, 240x240, the pad large in view: a spec to
+    compare a pad material against the plain pad on (same seed: same flight, scene and light)."""
+    return {"name": name, "seed": 8, "sequences": 1, "pad_ppm": 600,
+            "camera": {"width": 240, "height": 240, "fps": 4, "hfov_deg": 60},
+            "environment": {"sun_elevation_deg": sun_elevation_deg, "ground": ["sand"]},
+            "trajectory": {"families": ["straight"], "start_height_m": start_height_m, "duration_s": [4.0, 4.0],
+                           "lateral_offset_m": [0.0, 0.2]},
+            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+
+
 def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
     """The sun's glare was added over the whole pad, inside the drone's own shadow too (there the
     border came out grey instead of dark magenta).  Same descent with and without gloss: pad pixels
     in the drone's shadow are equal, lit pad pixels gain the glare."""
-    base = {"name": "glossy", "seed": 8, "sequences": 1, "pad_ppm": 600,
-            "camera": {"width": 240, "height": 240, "fps": 4, "hfov_deg": 60},
-            "environment": {"sun_elevation_deg": [84.0, 86.0], "ground": ["sand"]},
-            "trajectory": {"families": ["straight"], "start_height_m": 4.0, "duration_s": [4.0, 4.0],
-                           "lateral_offset_m": [0.0, 0.2]},
-            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+    base = _pad_close_up("glossy", [84.0, 86.0], 4.0)
     glossy = _spec({**base, "pad_material": {"gloss": [0.6, 0.6]}})
     checked = 0
     with SequenceRenderer(_spec(base), 0) as plain_r, SequenceRenderer(glossy, 0) as gloss_r:
@@ -625,12 +631,7 @@ def test_a_wrinkled_pad_is_drawn_on_its_surface_and_labelled_on_its_plane():
     """``pad_material.relief_m``: the printed pad's wrinkles and sag.  The depth the renderer draws
     lies on the relief (not on the plane), the sun shades its facets, the labels stay those of the
     flat pad's ideal plane, and meta's ``pad_relief`` says how far the features' images moved."""
-    base = {"name": "wrinkled", "seed": 8, "sequences": 1, "pad_ppm": 600,
-            "camera": {"width": 240, "height": 240, "fps": 4, "hfov_deg": 60},
-            "environment": {"sun_elevation_deg": [30.0, 35.0], "ground": ["sand"]},
-            "trajectory": {"families": ["straight"], "start_height_m": 3.0, "duration_s": [4.0, 4.0],
-                           "lateral_offset_m": [0.0, 0.2]},
-            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+    base = _pad_close_up("wrinkled", [30.0, 35.0], 3.0)
     with SequenceRenderer(_spec(base), 0) as flat, \
             SequenceRenderer(_spec({**base, "pad_material": {"relief_m": [0.02, 0.02]}}), 0) as wrinkled:
         relief = wrinkled.material["relief"]
