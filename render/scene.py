@@ -120,6 +120,19 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw
                      boxes, patches, markers)
 
 
+def _sample_at(img: np.ndarray, u: np.ndarray, v: np.ndarray, row: int = 4096) -> np.ndarray:
+    """``img`` bilinearly at the ``(N,)`` pixel positions ``u, v`` (0 outside).  The points are laid
+    out in rows of ``row``: ``cv2.remap``'s maps may not be 32767 or more wide, and a pad near the
+    camera covers more pixels than that."""
+    n = len(u)
+    rows = max(1, -(-n // row))
+    pad = rows * row - n
+    U = np.append(np.asarray(u, np.float32), np.full(pad, -1.0, np.float32)).reshape(rows, row)
+    V = np.append(np.asarray(v, np.float32), np.full(pad, -1.0, np.float32)).reshape(rows, row)
+    out = cv2.remap(img, U, V, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return out.reshape(-1)[:n]
+
+
 class LandingScene:
     """A pyrender scene plus an offscreen renderer for one camera size.
 
@@ -368,8 +381,7 @@ class LandingScene:
             xy = xy_W - (self.platform_xy if on_platform else 0.0)
             u = ((xy[:, 0] - lo[0]) / m_per_px).astype(np.float32)
             v = ((hi[1] - xy[:, 1]) / m_per_px).astype(np.float32)
-            a = cv2.remap(alpha, u[None], v[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)[0]
-            cover = np.maximum(cover, a)
+            cover = np.maximum(cover, _sample_at(alpha, u, v))
         return cover
 
     def set_platform(self, pad2world: np.ndarray) -> None:

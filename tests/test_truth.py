@@ -663,3 +663,20 @@ def test_a_wrinkled_pad_is_drawn_on_its_surface_and_labelled_on_its_plane():
         assert 0.3 < max(moved) <= rep["label_offset_px"]["max"] + 1e-9, (moved, rep["label_offset_px"])
     with pytest.raises(ValueError, match="pad_material.relief_m"):
         _spec({**base, "pad_material": {"relief_m": [0.0, 0.3]}})
+
+
+def test_sun_visibility_is_read_at_any_number_of_pad_points():
+    """A pad on the ground near the camera covers more than 32,767 pixels, and reading the boxes'
+    ground shadows at all of them at once broke cv2.remap's size limit (a 1280x720 descent onto a
+    wrinkled pad on the ground crashed the renderer at touchdown).  Many points read as few do."""
+    spec = _spec({**_pad_close_up("on_ground", [20.0, 24.0], 3.0), "platform": {"height_m": 0.0},
+                  "environment": {"sun_elevation_deg": [20.0, 24.0], "ground": ["sand"],
+                                  "distractors": {"boxes": [3, 3], "keep_clear_m": 1.0}}})
+    with SequenceRenderer(spec, 0) as r:
+        assert r.scene._ground_shadow_maps, "the scene should have box shadows on the ground"
+        rng = np.random.default_rng(3)
+        xy = rng.uniform(-6.0, 6.0, (50_000, 2))
+        many = r.scene.pad_sun_visibility(xy)
+        few = np.concatenate([r.scene.pad_sun_visibility(xy[k:k + 5000]) for k in range(0, len(xy), 5000)])
+        assert many.shape == (50_000,) and np.array_equal(many, few)
+        assert 0.0 < np.mean(many < 1.0) < 1.0  # some in shadow, some lit
