@@ -55,8 +55,8 @@ def _hsv_mask(hsv: np.ndarray, rng) -> np.ndarray:
 @dataclass
 class OutlineQuad:
     """The pad's outline found in an image, not yet named: ``quad_px`` (4, 2) sub-pixel corners in
-    image order (counter-clockwise on screen), ``cue`` (4,) how clearly each corner holds the cue
-    (:func:`_cue_scores`)."""
+    image order (counter-clockwise on screen), ``cue`` (2, 4) how clearly each corner holds the cue,
+    by colour and by brightness (:func:`_cue_scores`)."""
 
     quad_px: np.ndarray
     cue: np.ndarray
@@ -695,12 +695,12 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
     (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0`` (the
     predicted TL pixel; ``hint_from`` says where the prediction came from)."""
-    refined, yellow = found.quad_px, found.cue
-    info_yellow = [round(float(y), 2) for y in yellow]
+    refined = found.quad_px
+    info_yellow = "colour {}, brightness {}".format(*([round(float(y), 2) for y in row] for row in found.cue))
     order = None
-    how = "cue"
-    if yellow.max() >= 0.2 and np.sort(yellow)[-2] < 0.34 * yellow.max():
-        k, c = int(np.argmax(yellow)), _cue_corner(pad_geometry)  # image corner k is pad corner c
+    k, how = _cue_corner_seen(found.cue)
+    if k is not None:
+        c = _cue_corner(pad_geometry)  # image corner k is pad corner c
         order = [(k + j - c) % 4 for j in range(4)]
     elif yaw_hint_corner0 is not None:
         k = int(np.argmin(np.linalg.norm(refined - yaw_hint_corner0, axis=1)))
@@ -946,12 +946,21 @@ def _meet(a0, a1, b0, b1, cut: float):
 
 def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None,
                 visible=None) -> np.ndarray:
-    """(4,) how much the border square at each corner of ``quad_px`` has the cue's colour, read
-    against the border squares beside it: 1 for a corner square of the cue's chromaticity next
-    to border of the border's, 0 where it looks like its neighbours.  Chromaticity (r, g, b over
-    their sum) does not change in shadow or dim light, and its neighbours share its light, so the
-    reading holds under a shadow edge, at dusk, on any ground (brown soil lies in a yellow cue's
-    colour range, and it never enters the squares), and wherever the quad is right."""
+    """(2, 4) how much the border square at each corner of ``quad_px`` holds the cue, read against
+    the border squares beside it (which share its light): row 0 by colour, row 1 by brightness.
+
+    Colour: 1 for a corner square of the cue's chromaticity next to border of the border's, 0
+    where it looks like its neighbours.  Chromaticity (r, g, b over their sum) does not change in
+    shadow or dim light, so the reading holds under a shadow edge, at dusk, on any ground (brown
+    soil lies in a yellow cue's colour range, and it never enters the squares), and wherever the
+    quad is right.
+
+    Brightness: the log ratio of the square's linear luma to its neighbours', over the design's
+    (the yellow cue is 2.3x as bright as the magenta border); 0 for all four when the design's two
+    colours are too alike in brightness to tell.  JPEG and H.264 keep luma at full resolution
+    and halve chroma, so on a far pad (a cue square of 3 to 4 pixels) brightness still shows the
+    cue where colour is smeared into the ground.  A shadow edge between a square and its
+    neighbours moves it; :func:`_cue_corner_seen` uses it only where colour agrees."""
     geo = pad_geometry
     outer = geo.outer_corners[:, :2]
     sq = geo.cue.corners[:, :2]
@@ -981,13 +990,48 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
     inside = _seen(px, rgb.shape, visible).reshape(4, -1).all(axis=1)
     target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
+    luma = srgb_to_linear(vals.round()) @ _LUMA
+    design = math.log(_luma(geo.cue.color_rgb) / max(_luma(geo.border.color_rgb), 1e-3))
     m = len(own)
-    out = np.zeros(4)
-    for k, v in enumerate(vals.reshape(4, 3 * m, 3)):
+    out = np.zeros((2, 4))
+    for k, (v, y) in enumerate(zip(vals.reshape(4, 3 * m, 3), luma.reshape(4, 3 * m))):
         if inside[k]:  # a corner outside the image tells nothing
             here, beside = _chroma(v[:m].mean(axis=0)), _chroma(v[m:].mean(axis=0))
-            out[k] = max(0.0, float((here - beside) @ target / (target @ target)))
+            out[0, k] = max(0.0, float((here - beside) @ target / (target @ target)))
+            if abs(design) >= _CUE_MIN_LOG_LUMA:
+                out[1, k] = math.log(max(float(y[:m].mean()), 1e-3) / max(float(y[m:].mean()), 1e-3)) / design
     return out
+
+
+_LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB weights, on linear values
+_CUE_MIN_LOG_LUMA = 0.3  # a cue and border at most 1.35x apart in brightness: brightness tells nothing
+
+
+def _luma(rgb) -> float:
+    """Linear luma of an 8-bit sRGB colour."""
+    return float(srgb_to_linear(np.asarray(rgb, np.uint8)) @ _LUMA)
+
+
+def _standout(v: np.ndarray, floor: float = 0.2, ratio: float = 0.34) -> int | None:
+    """Index of the one entry of ``v`` that stands out: at least ``floor``, and every other one
+    under ``ratio`` of it; ``None`` when none does."""
+    s = np.sort(v)
+    return int(np.argmax(v)) if s[-1] >= floor and s[-2] < ratio * s[-1] else None
+
+
+def _cue_corner_seen(cue: np.ndarray) -> tuple:
+    """``(k, how)``: image corner ``k`` holds the cue, from :func:`_cue_scores`, or ``(None, "")``.
+    Colour alone decides where one corner stands out in it.  Otherwise colour and brightness must
+    point at the same corner: their geometric mean (brightness taken above the median corner's,
+    since the squares beside a corner catch more of the white field than the corner does) must
+    stand out.  Each alone misleads somewhere (colour on a far JPEG pad, brightness at a shadow
+    edge); the two are read from different channels, and a corner both pick is the cue."""
+    k = _standout(cue[0])
+    if k is not None:
+        return k, "cue"
+    lum = cue[1] - np.median(cue[1])
+    k = _standout(np.sqrt(np.clip(cue[0], 0.0, None) * np.clip(lum, 0.0, None)))
+    return (k, "cue (colour and brightness)") if k is not None else (None, "")
 
 
 def _cue_corner(pad_geometry: PadGeometry) -> int:

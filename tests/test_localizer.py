@@ -11,7 +11,7 @@ from hypothesis.extra.numpy import arrays
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import Camera, compose, make_transform, rotation_angle, so3_exp
 from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer
-from hvloc.phases import FlowTracker, detect_markers, detect_outline, find_outline
+from hvloc.phases import FlowTracker, detect_markers, detect_outline, find_outline, name_outline
 from hvloc.pose import planar_pose_candidates, solve_planar_pose
 from render.planar import nadir_cam2pad, warp_pad_view
 
@@ -810,3 +810,61 @@ def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad):
                 err = pose.cam2pad[:3, 3] - G[:3, 3]
                 assert err @ np.linalg.solve(pose.cov[:3, :3], err) < 16.3, (h, yaw, k, err)  # chi2(3), 99.9 %
     assert found >= 0.6 * tried, (found, tried)
+
+
+def _jpeg(img, quality):
+    ok, jpg = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
+    return cv2.cvtColor(cv2.imdecode(jpg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+
+
+@pytest.mark.parametrize("ground", [(150, 130, 80), (90, 110, 60)])
+def test_a_far_jpeg_pad_is_named_where_colour_and_brightness_agree(pad, ground):
+    """A 25-35 px pad through JPEG 50: the cue square is 3-4 px and its colour smears into the
+    ground (dry grass is yellowish), so colour alone named 1 of 12 such views in 20.  JPEG keeps luma
+    whole, and the yellow cue is 2.3x as bright as the border: where colour and brightness point at
+    the same corner, it is named.  No view is named wrongly."""
+    rng = np.random.default_rng(5)
+    named = found_n = 0
+    for h in (20.0, 23.0):
+        for yaw in np.linspace(0.1, 2 * np.pi, 6, endpoint=False):
+            G = tilted(rng.uniform(-1, 1), rng.uniform(-1, 1), h, yaw, 0.05, 0.1)
+            img = warp_pad_view(pad, CAM, G, ground)
+            img = _jpeg(np.clip(img + rng.normal(0, 3, img.shape), 0, 255).astype(np.uint8), 50)
+            found, why = find_outline(img, pad.geometry, CAM)
+            if found is None:
+                continue
+            found_n += 1
+            det, why = name_outline(found, pad.geometry)
+            if det is None:
+                assert "cue is unreadable" in why, why
+                continue
+            named += 1
+            err = np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1).max()
+            assert err < 0.2 * found.side_px, (h, yaw, err, det.info["yaw_from"], found.cue.round(2))  # not misnamed
+    assert found_n >= 8 and named >= 0.75 * found_n, (found_n, named)
+
+
+def test_brightness_alone_never_names_a_corner(pad):
+    """A shadow that leaves one border corner lit and its neighbours dark makes that corner stand out
+    in brightness as the cue does; with no cue colour anywhere (the cue painted over) no corner may
+    be named by it."""
+    geo = pad.geometry
+    H, W = CAM.height, CAM.width
+    for yaw in (0.3, 1.9, 3.5, 5.0):
+        G = tilted(0.2, -0.3, 6.0, yaw)
+        img = warp_pad_view(pad, CAM, G, GROUND)
+        cv2.fillConvexPoly(img, np.round(CAM.project_from(G, geo.cue.corners)).astype(np.int32),
+                           tuple(int(c) for c in geo.border.color_rgb))
+        o, b = geo.outer_corners[0], geo.border_m  # TL's border square (a marker corner, not the cue's)
+        square = np.array([o, o + [b, 0, 0], o + [b, -b, 0], o + [0, -b, 0]])
+        lit = np.zeros((H, W), np.uint8)
+        cv2.fillConvexPoly(lit, np.round(CAM.project_from(G, square)).astype(np.int32), 1)
+        lit = lit.astype(bool)
+        lin = (img.astype(np.float32) / 255.0) ** 2.2
+        lin = np.where(lit[..., None], lin, lin * 0.3)
+        img = np.clip(lin ** (1 / 2.2) * 255 + 0.5, 0, 255).astype(np.uint8)
+        found, why = find_outline(img, geo, CAM)
+        assert found is not None, why
+        assert found.cue[1].max() > 1.0, found.cue.round(2)  # the premise: brightness says "cue" there
+        det, why = name_outline(found, geo)
+        assert det is None and "cue is unreadable" in why, (yaw, why, found.cue.round(2))
