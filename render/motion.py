@@ -227,16 +227,19 @@ def velocity_blur(linear: np.ndarray, v_open: np.ndarray, v_close: np.ndarray, n
     if n <= 1 and row_s is None:
         return linear
     acc = np.zeros_like(linear)
+    m, vb = np.empty_like(v_open), np.empty_like(v_close)
     for tau in sample_times(exposure_s if row_s is not None else 2.0, max(n, 1)):
         if row_s is None:  # one time for every pixel
             a, b = _lagrange(float(tau))
-            m = cv2.addWeighted(v_open, -a, v_close, -b, 0.0)
-        else:  # each row at its own time
-            a, b = _lagrange(row_s + tau)
-            m = -(a[:, None, None] * v_open + b[:, None, None] * v_close).astype(np.float32)
+            cv2.addWeighted(v_open, -a, v_close, -b, 0.0, dst=m)
+        else:  # each row at its own time (float32 throughout: float64 temporaries cost 2x)
+            a, b = (np.asarray(w, np.float32)[:, None, None] for w in _lagrange(row_s + tau))
+            np.multiply(v_open, -a, out=m)
+            np.multiply(v_close, b, out=vb)
+            m -= vb
         m += base
         # bicubic: bilinear samples at fractional offsets smooth the image a little more each, which
         # widens edge ramps and, after the tone curve, moves edges by ~0.1 px (bicubic: ~0.04 px)
-        acc += cv2.remap(linear, m, None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        cv2.add(acc, cv2.remap(linear, m, None, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE), dst=acc)
     acc *= 1.0 / max(n, 1)
     return acc
