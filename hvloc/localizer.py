@@ -210,6 +210,19 @@ def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
     return None if R_W_B is None else (R_W_B @ T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
 
 
+def outline_rms_share(est: "Estimate") -> float:
+    """An outline pose's reprojection RMS over the pad's side (px), with hidden corners' larger
+    noise (``px_sigma_scale``) allowed for; 0 for any other pose.  Four corners fix the pose's six
+    degrees of freedom with two to spare, so a corner a tenth of the side off (a shadow or JPEG
+    smear swelling one corner) leaves a residual of only a few percent of the side, and the
+    height is off by about as much as the corner."""
+    side = est.extras.get("side_px") if est.method == "outline" else None
+    if not side or not np.isfinite(est.rms_px):
+        return 0.0
+    scale = np.asarray(est.extras.get("px_sigma_scale", [1.0]), np.float64)
+    return float(est.rms_px / side / math.sqrt(float(np.mean(scale**2))))
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -230,6 +243,10 @@ class FalsePoseGates:
             return ""
         if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
             return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
+        share = outline_rms_share(est)
+        if share > cfg.max_outline_rms_share:
+            return (f"the outline's corners are no square's: reprojection RMS {100 * share:.1f} % of its side "
+                    f"(> {100 * cfg.max_outline_rms_share:g} %)")
         why = motion_gate(est.cam2pad, est.t, last.cam2pad if last else None, last.t if last else 0.0, cfg)
         if why:
             return why

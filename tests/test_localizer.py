@@ -868,3 +868,30 @@ def test_brightness_alone_never_names_a_corner(pad):
         assert found.cue[1].max() > 1.0, found.cue.round(2)  # the premise: brightness says "cue" there
         det, why = name_outline(found, geo)
         assert det is None and "cue is unreadable" in why, (yaw, why, found.cue.round(2))
+
+
+def test_an_outline_pose_whose_corners_are_no_square_is_rejected(pad):
+    """Four corners fix a pose with two checks to spare: on a 29 px pad one corner 6.6 px out (JPEG
+    smear into a dark platform side) left a reprojection RMS of 1.7 px, under the 3 px gate, and a
+    pose 14 % of the height off was accepted.  The RMS over the side (here 6 %) says it; a right
+    outline, or one off by a pixel, stays far under 2.5 %."""
+    from hvloc.localizer import DEFAULT_T_B_C, Estimate, FalsePoseGates
+
+    geo = pad.geometry
+    gates = FalsePoseGates(LocalizerConfig(), DEFAULT_T_B_C)
+    for h, yaw in ((24.0, 0.4), (18.0, 2.2), (12.0, 4.0)):
+        G = tilted(0.5, -0.4, h, yaw, 0.03, -0.02)
+        det, why = detect_outline(warp_pad_view(pad, CAM, G, GROUND), geo, CAM)
+        assert det is not None, why
+        side = det.info["side_px"]
+        verdicts = {}
+        for push in (0.0, 0.04, 0.22):  # one corner moved out along the diagonal by this share of the side
+            px = det.px.copy()
+            px[1] += (px[1] - px.mean(axis=0)) / np.linalg.norm(px[1] - px.mean(axis=0)) * push * side
+            pose = solve_planar_pose(CAM, det.pts_P, px, up_in_camera(G))
+            est = Estimate(0.0, "approaching", "ok", pose.cam2pad, 4, pose.rms_px, pose.cov, method="outline",
+                           extras=dict(det.info))
+            verdicts[push] = (gates.check(est, None, None), pose_error(pose.cam2pad, G)[0] / h)
+            gates.reset()
+        assert verdicts[0.0][0] == "" and verdicts[0.04][0] == "", verdicts
+        assert "no square" in verdicts[0.22][0] and verdicts[0.22][1] > 0.03, verdicts
