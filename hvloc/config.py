@@ -21,6 +21,9 @@ class LocalizerConfig(BaseModel):
     use_outline: bool = True
     use_markers: bool = True
     use_flow: bool = True
+    use_texture: bool = Field(True, description="near the ground, when the flow tracker's chain has broken and "
+                              "no markers or outline are seen, find the pad by its own printed texture (ORB "
+                              "matches to pad.png) and anchor the tracker again; only with use_flow")
     anchor_once: bool = Field(False, description="the flow-only ablation: the pad detectors run only until "
                               "the flow tracker has its first keyframe (from a pad pose); from then on only "
                               "the flow tracker, at every height, never re-anchored")

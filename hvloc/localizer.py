@@ -22,16 +22,17 @@ from .pose import PIXEL_SIGMA, PoseResult, solve_planar_pose
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
-METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown"}
+METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown", "texture": "touchdown"}
 DEFAULT_T_B_C = make_transform(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]), (0.0, 0.0, -0.05))
 
 
 # which methods each phase tries, in order (the first that gives a pose wins)
-METHOD_ORDER = {"approaching": ("outline", "markers"),
-                "adjustment": ("markers", "outline", "flow"),
-                "touchdown": ("markers", "flow", "outline")}
+METHOD_ORDER = {"approaching": ("outline", "markers", "texture"),
+                "adjustment": ("markers", "outline", "flow", "texture"),
+                "touchdown": ("markers", "flow", "outline", "texture")}
 
 
+TEXTURE_COLD_EVERY = 4  # with no height known, in Approaching the texture is tried on every 4th frame without a pose
 HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines this long (the AHRS drifts)
 
 
@@ -287,6 +288,8 @@ class HierarchicalLocalizer:
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
                  work: ImageWork | None = None):
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
+        self.pad = pad if getattr(pad, "texture_rgb", None) is not None else None  # a bare geometry has no texture
+        self._texture = None  # its ORB features (hvloc.texture), made when first needed
         if self.geometry.border is None or self.geometry.cue is None:
             raise ValueError(f"the hierarchical localizer needs hvloc's pad (its coloured border and yaw cue); "
                              f"this pad is {self.geometry.variant!r}")
@@ -308,6 +311,7 @@ class HierarchicalLocalizer:
         self.gap = False                         # this frame follows a gap (dropped or missing frames)
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
+        self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
 
     # ------------------------------------------------------------------ public
@@ -359,10 +363,12 @@ class HierarchicalLocalizer:
         cfg = self.config
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
+        self.unposed += 1
         order = METHOD_ORDER[self.phase]
         if cfg.anchor_once and self.flow.kf is not None:  # flow-only ablation: anchored once, then flow alone
             order = ("flow",)
-        enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow}
+        enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow,
+                   "texture": cfg.use_texture and cfg.use_flow and self.pad is not None}
         reasons = []
         rejected = None
         # the methods in the phase's order: the first whose pose passes the gates wins; a pose the
@@ -375,6 +381,8 @@ class HierarchicalLocalizer:
                 continue
             if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")
+                continue
+            if method == "texture" and not self._texture_allowed(h):
                 continue
             res, why = self._try(method, rgb, gray, up_C, t, R_W_B)
             if res is None:
@@ -394,6 +402,7 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
+            self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
             self._after_accept(method, est, gray)
@@ -441,6 +450,9 @@ class HierarchicalLocalizer:
             if res is None:
                 return None, why
             return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"
+        if method == "texture":
+            det, why = self.work(lambda: ("texture", id(self._texture)), self._texture.locate, gray, self.camera)
+            return self._posed(det, why, prior, up_C, False)
         roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
         attempts = [roi, None] if roi is not None else [None]
         why = ""
@@ -463,16 +475,41 @@ class HierarchicalLocalizer:
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C)
             if det is not None:
-                sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
-                pose = self.work(lambda: ("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
-                                          array_key(prior) if up_C is None else None, array_key(sigma)),
-                                 solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior,
-                                 sigma_px=sigma)
-                if pose is not None:
-                    return (pose, len(det.pts_P), dict(det.info, roi=r is not None, tilt_err_deg=pose.tilt_err_deg,
-                                                       tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"
-                why = "pose failed"
+                res, why = self._posed(det, why, prior, up_C, r is not None)
+                if res is not None:
+                    return res, why
         return None, why
+
+    def _posed(self, det, why: str, prior, up_C, roi: bool):
+        """``((pose, n, extras) | None, reason)``: the pose of a detection's correspondences."""
+        if det is None:
+            return None, why
+        sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
+        pose = self.work(lambda: ("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
+                                  array_key(prior) if up_C is None else None, array_key(sigma)),
+                         solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior,
+                         sigma_px=sigma)
+        if pose is None:
+            return None, "pose failed"
+        return (pose, len(det.pts_P), dict(det.info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
+                                           tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"
+
+    def _texture_allowed(self, h: float | None) -> bool:
+        """The texture is tried near the ground: below the height where ORB's pyramids on the
+        image and on the texture still meet.  With no recent height: every frame past Approaching
+        (a chain broken near the ground), and in Approaching (a start or a reset near the ground,
+        where neither outline nor markers fit in the image) on the first frame without a pose and
+        every ``TEXTURE_COLD_EVERY``-th after, so that high up, where it finds nothing, it costs a
+        fraction of its ~50 ms."""
+        if self._texture is None:
+            from .texture import PadTexture
+
+            self._texture = PadTexture(self.pad)
+        if not self._texture.usable:
+            return False
+        if h is not None:
+            return h <= self._texture.max_height_m(self.camera)
+        return self.phase != "approaching" or self.unposed % TEXTURE_COLD_EVERY == 1
 
     def _gate(self, est: Estimate, R_W_B) -> str:
         return self.gates.check(est, R_W_B, self.last)
@@ -490,7 +527,7 @@ class HierarchicalLocalizer:
             return
         f = self.flow
         f.frames_since_kf += 1
-        if (f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
+        if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
             f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
 

@@ -16,7 +16,7 @@ from .errors import InputError, validate_model
 from .geometry import PadGeometry
 from .layout import build_geometry
 from .spec import PadSpec
-from .texture import pad_to_pixels, render_texture
+from .texture import pad_to_pixels, pixels_to_pad, render_texture
 
 DEFAULT_PPM = 2000.0
 
@@ -57,6 +57,11 @@ class Pad:
 
     def to_texture_px(self, points_P) -> np.ndarray:
         return pad_to_pixels(np.asarray(points_P, np.float64)[:, :2], self.side_m, self.ppm)
+
+    def from_texture_px(self, px) -> np.ndarray:
+        """Texture pixels ``(N, 2)`` -> ``(N, 3)`` pad-frame points on its surface (z = 0)."""
+        xy = pixels_to_pad(px, self.side_m, self.ppm)
+        return np.column_stack([xy, np.zeros(len(xy))])
 
     # -- io
     def document(self, texture_file: str = "pad.png") -> dict:

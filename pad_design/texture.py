@@ -31,6 +31,21 @@ def pad_to_pixels(xy, side_m: float, ppm: float) -> np.ndarray:
     return np.column_stack([(xy[:, 0] + h) * ppm - 0.5, (h - xy[:, 1]) * ppm - 0.5])
 
 
+def texture_to_pad(side_m: float, ppm: float) -> np.ndarray:
+    """3x3 affine: texture pixel (OpenCV centres) -> pad-frame (x, y) metres (:func:`pad_to_pixels`'
+    inverse as a matrix; ``ppm`` of a pyramid level maps that level's texels)."""
+    h = side_m / 2.0
+    return np.array([[1.0 / ppm, 0.0, 0.5 / ppm - h], [0.0, -1.0 / ppm, h - 0.5 / ppm], [0.0, 0.0, 1.0]])
+
+
+def pixels_to_pad(px, side_m: float, ppm: float) -> np.ndarray:
+    """Texture pixel coordinates ``(N, 2)`` (OpenCV convention) -> pad-frame metres; the inverse of
+    :func:`pad_to_pixels`."""
+    px = np.asarray(px, dtype=np.float64).reshape(-1, 2)
+    h = side_m / 2.0
+    return np.column_stack([(px[:, 0] + 0.5) / ppm - h, h - (px[:, 1] + 0.5) / ppm])
+
+
 class _Canvas:
     def __init__(self, side_m: float, ppm: float):
         self.n = int(round(side_m * ppm))

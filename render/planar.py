@@ -11,12 +11,7 @@ import cv2
 import numpy as np
 
 from hvloc.geometry import Camera, invert
-
-
-def texture_to_pad(side_m: float, ppm: float) -> np.ndarray:
-    """3x3 affine: texture pixel (OpenCV centres) -> pad-frame (x, y) metres."""
-    h = side_m / 2.0
-    return np.array([[1.0 / ppm, 0.0, 0.5 / ppm - h], [0.0, -1.0 / ppm, h - 0.5 / ppm], [0.0, 0.0, 1.0]])
+from pad_design.texture import texture_to_pad
 
 
 def pad_plane_homography(camera: Camera, cam2pad: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ from hvloc.geometry import Camera, compose, make_transform, rotation_angle, so3_
 from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer
 from hvloc.phases import FlowTracker, detect_markers, detect_outline, find_outline, name_outline
 from hvloc.pose import planar_pose_candidates, solve_planar_pose
+from pad_design import make_pad
 from render.planar import nadir_cam2pad, warp_pad_view
 
 CAM = Camera.from_hfov(800, 800, math.radians(60))
@@ -895,3 +896,50 @@ def test_an_outline_pose_whose_corners_are_no_square_is_rejected(pad):
             gates.reset()
         assert verdicts[0.0][0] == "" and verdicts[0.04][0] == "", verdicts
         assert "no square" in verdicts[0.22][0] and verdicts[0.22][1] > 0.03, verdicts
+
+
+@pytest.mark.parametrize("h", [0.25, 0.5, 0.9])
+def test_the_pad_is_found_by_its_own_texture_near_the_ground(pad, h):
+    """A few decimetres of the field fill the view: no marker or outline fits in it.  ORB matches to
+    the texture the pad was printed from, with a RANSAC homography, place the camera within a
+    millimetre or two; another pad's texture (same border and markers) is never taken for it."""
+    from hvloc.texture import PadTexture
+
+    tex = PadTexture(pad)
+    other = PadTexture(make_pad({"texture_seed": 99}))
+    rng = np.random.default_rng(int(h * 100))
+    for _ in range(3):
+        G = tilted(rng.uniform(-0.25, 0.25), rng.uniform(-0.25, 0.25), h, rng.uniform(0, 2 * np.pi),
+                   rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1))
+        gray = cv2.cvtColor(warp_pad_view(pad, CAM, G, GROUND), cv2.COLOR_RGB2GRAY)
+        det, why = tex.locate(gray, CAM)
+        assert det is not None, why
+        pose = solve_planar_pose(CAM, det.pts_P, det.px, up_in_camera(G))
+        dp, da = pose_error(pose.cam2pad, G)
+        assert dp < 0.001 + 0.005 * h and da < 0.5, (dp, da, det.info)
+        det, why = other.locate(gray, CAM)
+        assert det is None and "agree on a homography" in why, why
+
+
+def test_a_start_near_the_ground_is_posed_by_the_texture_and_tracked_on(pad):
+    """A localizer that starts (or is reset by a gap in time) at 0.35 m sees neither markers nor an
+    outline; it stayed lost in Approaching for good.  The texture poses the first frame, the phases
+    follow the height, and the flow tracker carries on from it.  With no pad in view and no height
+    known, the texture is tried on every 4th frame only."""
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    blank = np.full((CAM.height, CAM.width, 3), GROUND, np.uint8)
+    tried = []
+    for k in range(8):
+        e = loc.process(blank, 0.1 * k, None)
+        assert e.status == "lost"
+        tried.append("texture:" in e.reason)
+    assert tried == [True, False, False, False, True, False, False, False], tried
+    methods = []
+    for k in range(10):
+        G = tilted(0.05 + 0.004 * k, -0.1, 0.35 - 0.01 * k, 0.8 + 0.01 * k, 0.02, -0.01)
+        e = loc.process(warp_pad_view(pad, CAM, G, GROUND), 1.0 + 0.1 * k, _imu_from(G))
+        assert e.ok, (k, e.reason)
+        dp, da = pose_error(e.cam2pad, G)
+        assert dp < 0.004 and da < 0.5, (k, e.method, dp, da)
+        methods.append(e.method)
+    assert methods[0] == "texture" and "flow" in methods[1:], methods

@@ -1,0 +1,142 @@
+"""The pad found by its own printed texture: a pose near the ground when the chain of flow poses
+has broken and neither markers nor outline are in view.
+
+At touchdown the camera sees a few decimetres of the pad's field.  A gust (a 30 ms exposure
+smears 40 px near the ground) or the pad leaving the view breaks the flow tracker's tracks, and
+the flow tracker can only be anchored again by a pad pose; the markers and the outline are out
+of view or larger than the image.  The texture itself is known exactly (``pad.png``, the file
+the pad was printed from), and its shapes are random, so ORB features of the frame matched to
+ORB features of the texture, with a RANSAC homography, say where the camera is over the pad.
+
+ORB (OpenCV): binary, rotation invariant, an 8-level pyramid on both sides (the texture's
+scale and the image's differ by up to ~4x over the heights it serves), and deterministic (the
+work per frame is bounded by a feature count; OpenCV's RANSAC has a fixed seed).
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from pad_design.texture import texture_to_pad
+
+from .geometry import Camera
+from .phases import Detection
+
+MIN_INLIERS = 20        # homography inliers for a location: another pad's texture gives at most ~11
+MIN_SHARE = 0.1         # ... and this share of the matches (another pad's: ~4 %; this pad's, 20-70 %)
+RANSAC_PX = 3.0         # inlier threshold, undistorted pixels
+RATIO = 0.8             # Lowe's ratio test on Hamming distances
+FRAME_FEATURES = 1500   # ORB features per frame (bounds the work)
+TEXTURE_FEATURES = 6000
+REFINE_CORNERS = 300    # corners of the drawn texture tracked into the frame
+PYRAMID_REACH = 4.0     # the texture is found while the image's pixels per metre are within this factor of its own
+
+
+class PadTexture:
+    """ORB features of a pad's texture, in pad-frame metres; :meth:`locate` finds them in a frame."""
+
+    def __init__(self, pad):
+        self.pad = pad
+        gray = cv2.cvtColor(np.ascontiguousarray(pad.texture_rgb), cv2.COLOR_RGB2GRAY)
+        self.levels = [gray]  # box-filtered halvings, to draw the texture at the image's scale
+        while min(self.levels[-1].shape) > 64:
+            self.levels.append(cv2.pyrDown(self.levels[-1]))
+        self._grid = None  # (camera, (H, W, 2) undistorted pixel of every pixel)
+        self.orb = cv2.ORB_create(nfeatures=TEXTURE_FEATURES, scaleFactor=1.2, nlevels=8, fastThreshold=10)
+        kps, self.des = self.orb.detectAndCompute(gray, None)
+        self.pts_P = pad.from_texture_px(np.array([k.pt for k in kps], np.float64).reshape(-1, 2))
+        self.frame_orb = cv2.ORB_create(nfeatures=FRAME_FEATURES, scaleFactor=1.2, nlevels=8, fastThreshold=10)
+        self.matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+
+    @property
+    def usable(self) -> bool:
+        return self.des is not None and len(self.des) >= 4 * MIN_INLIERS
+
+    def max_height_m(self, camera: Camera) -> float:
+        """Above this height the image's pixels per metre on the pad (``f / h``) are fewer than
+        the texture's over :data:`PYRAMID_REACH`: ORB's pyramids no longer meet."""
+        return PYRAMID_REACH * min(camera.fx, camera.fy) / self.pad.ppm
+
+    def locate(self, gray: np.ndarray, camera: Camera) -> tuple:
+        """``(Detection | None, reason)``: the frame's features that are the texture's, as pad
+        points and their (distorted) pixels: the inliers of a RANSAC homography, at least
+        :data:`MIN_INLIERS` of them."""
+        if not self.usable:
+            return None, "the pad's texture has too few features"
+        kps, des = self.frame_orb.detectAndCompute(gray, None)
+        if des is None or len(kps) < MIN_INLIERS:
+            return None, f"{0 if des is None else len(kps)} features in the image"
+        pairs = self.matcher.knnMatch(des, self.des, k=2)
+        good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < RATIO * p[1].distance]
+        if len(good) < MIN_INLIERS:
+            return None, f"{len(good)} texture matches (< {MIN_INLIERS})"
+        px = np.array([kps[m.queryIdx].pt for m in good], np.float64)
+        P = self.pts_P[[m.trainIdx for m in good]]
+        und = camera.undistort_pixels(px) if camera.has_distortion else px
+        fin = np.isfinite(und).all(axis=1)
+        if fin.sum() < MIN_INLIERS:
+            return None, f"{int(fin.sum())} texture matches inside the lens's model (< {MIN_INLIERS})"
+        H, inl = cv2.findHomography(P[fin, :2], und[fin], cv2.RANSAC, RANSAC_PX, maxIters=2000, confidence=0.999)
+        n = 0 if inl is None else int(inl.sum())
+        if H is None or n < max(MIN_INLIERS, MIN_SHARE * len(good)):
+            return None, f"{n} of {len(good)} texture matches agree on a homography (< {MIN_INLIERS}, {MIN_SHARE:.0%})"
+        keep = np.nonzero(fin)[0][inl[:, 0] == 1]
+        info = {"matches": len(good), "inliers": n}
+        refined = self._refined(gray, camera, H)
+        if refined is not None:
+            return Detection(*refined, "texture", {**info, "refined": len(refined[0])}), "ok"
+        return Detection(P[keep], px[keep], "texture", info), "ok"
+
+    def _refined(self, gray: np.ndarray, camera: Camera, H: np.ndarray):
+        """``(pts_P, px)`` to a fraction of a pixel, or ``None``: ORB's keypoints sit on a pyramid's
+        grid (a millimetre or two and half a degree at 0.25 m).  The texture is drawn where the
+        homography puts it (through the lens, from the pyramid level of the image's scale), its
+        corners are tracked from that drawing into the frame by Lucas-Kanade (forward and back), and
+        each keeps the pad point it was drawn from."""
+        h, w = camera.height, camera.width
+        Hinv = np.linalg.inv(H)  # undistorted pixels -> pad metres
+        c = cv2.perspectiveTransform(np.array([[[w / 2 - 1, h / 2], [w / 2, h / 2]]], np.float64), Hinv)[0]
+        m_per_px = float(np.linalg.norm(c[1] - c[0]))
+        if not np.isfinite(m_per_px) or m_per_px <= 0:
+            return None
+        level = int(np.clip(np.floor(np.log2(max(self.pad.ppm * m_per_px, 1.0))), 0, len(self.levels) - 1))
+        tex = self.levels[level]
+        # level texels -> pad metres
+        A = texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level)
+        edge = np.ones_like(tex)
+        edge[:2], edge[-2:], edge[:, :2], edge[:, -2:] = 0, 0, 0, 0
+        if not camera.has_distortion:
+            M = H @ A  # level texels -> image pixels
+            drawn = cv2.warpPerspective(tex, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+            inside = cv2.warpPerspective(edge, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+        else:  # through the lens: every pixel's ideal pinhole place, then the inverse homography
+            grid = self._undistorted_grid(camera)
+            uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(H @ A)).reshape(h, w, 2).astype(np.float32)
+            drawn = cv2.remap(tex, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+            inside = cv2.remap(edge, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+        inside = cv2.erode(inside, np.ones((23, 23), np.uint8))  # LK's window stays on the pad
+        p0 = cv2.goodFeaturesToTrack(drawn, REFINE_CORNERS, 0.01, 8, mask=inside)
+        if p0 is None or len(p0) < MIN_INLIERS:
+            return None
+        params = dict(winSize=(21, 21), maxLevel=2, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(drawn, gray, p0, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **params)
+        if p1 is None:
+            return None
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, drawn, p1, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **params)
+        ok = ((st[:, 0] == 1) & (stb[:, 0] == 1) & (np.linalg.norm((pb - p0)[:, 0], axis=1) < 0.5)
+              & (np.linalg.norm((p1 - p0)[:, 0], axis=1) < 2.0 * RANSAC_PX))  # the homography was within RANSAC_PX
+        if ok.sum() < MIN_INLIERS:
+            return None
+        p0, p1 = p0[ok, 0].astype(np.float64), p1[ok, 0].astype(np.float64)
+        und = camera.undistort_pixels(p0) if camera.has_distortion else p0
+        P = cv2.perspectiveTransform(und.reshape(-1, 1, 2), Hinv).reshape(-1, 2)
+        return np.column_stack([P, np.zeros(len(P))]), p1
+
+    def _undistorted_grid(self, camera: Camera) -> np.ndarray:
+        """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (kept per camera)."""
+        if self._grid is None or self._grid[0] is not camera:
+            u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
+            px = np.column_stack([u.ravel(), v.ravel()])
+            und = camera.undistort_pixels(px) if camera.has_distortion else px
+            self._grid = (camera, und.reshape(camera.height, camera.width, 2))
+        return self._grid[1]
