@@ -36,7 +36,7 @@ class LocalizerConfig(BaseModel):
     imu_drift_rate: float = Field(0.05, gt=0.0, le=1.0, description="how fast the vision-IMU offset may drift "
                                   "(EMA weight per accepted frame)")
     max_reprojection_px: float = Field(3.0, gt=0.0)
-    max_outline_rms_share: float = Field(0.025, gt=0.0, description="reject an outline pose whose reprojection "
+    max_outline_rms_share: float = Field(0.02, gt=0.0, description="reject an outline pose whose reprojection "
                                          "RMS is more than this share of the pad's side in pixels (four corners "
                                          "leave two checks on the pose: a corner off by a tenth of the side shows "
                                          "only as a few percent of it, with the height as far off)")

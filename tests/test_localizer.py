@@ -875,7 +875,7 @@ def test_an_outline_pose_whose_corners_are_no_square_is_rejected(pad):
     """Four corners fix a pose with two checks to spare: on a 29 px pad one corner 6.6 px out (JPEG
     smear into a dark platform side) left a reprojection RMS of 1.7 px, under the 3 px gate, and a
     pose 14 % of the height off was accepted.  The RMS over the side (here 6 %) says it; a right
-    outline, or one off by a pixel, stays far under 2.5 %."""
+    outline, or one off by a pixel, stays under 2 %."""
     from hvloc.localizer import DEFAULT_T_B_C, Estimate, FalsePoseGates
 
     geo = pad.geometry
