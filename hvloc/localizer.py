@@ -206,6 +206,61 @@ def clock_event(last_t: float | None, last: "Estimate | None", t: float, prior_t
     return "", ""
 
 
+class AHRSTiltBias:
+    """The AHRS's slow roll and pitch error, learnt from the image, and taken out of its attitude.
+
+    An AHRS's gravity is off by a slowly drifting rotation in the body frame (accelerometer bias,
+    misalignment; a few tenths of a degree over tens of seconds).  The gravity prior pulls every
+    pose toward it, and at 6 m a 0.35 degree tilt is 35 mm sideways: on field1080 the Adjustment
+    error was that AHRS error, constant over the descent.  Each pose from many points (markers,
+    texture) also says, from the image alone, where the pad's normal is, noisily (0.1 to 0.7
+    degrees a frame) but without that bias.  Their disagreement, as a body-frame rotation, is
+    averaged with weights 1 / sigma^2, older frames fading with ``tau_s``, and shrunk toward zero by
+    the AHRS's own stated accuracy (``sigma0_deg``, the gravity prior's) as a prior: with few frames
+    the correction is small, with many it is the mean.  Heading is not touched (gravity says
+    nothing about it)."""
+
+    def __init__(self, tau_s: float, sigma0_deg: float = 0.5):
+        self.tau_s, self.w0 = float(tau_s), 1.0 / math.radians(sigma0_deg) ** 2
+        self.reset()
+
+    def reset(self) -> None:
+        self.S = np.zeros(3)
+        self.W = 0.0
+        self.t: float | None = None
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The AHRS's error rotation (body frame, rad): AHRS attitude = true attitude @ exp(this)."""
+        return self.S / (self.W + self.w0)
+
+    def corrected(self, R_W_B: np.ndarray | None) -> np.ndarray | None:
+        if R_W_B is None or self.tau_s <= 0 or self.W == 0.0:
+            return R_W_B
+        return R_W_B @ so3_exp(-self.estimate)
+
+    def update(self, R_W_B_raw: np.ndarray, R_B_C: np.ndarray, normal_img_C, sigma_deg: float, t: float) -> None:
+        """One image-only pad normal (C) with its tilt sigma, seen at ``t`` with the raw AHRS attitude."""
+        if self.tau_s <= 0 or normal_img_C is None or not (0.0 < sigma_deg < 2.0) or not math.isfinite(t):
+            return
+        u = R_W_B_raw.T @ np.array([0.0, 0.0, 1.0])  # the AHRS's up, body frame
+        n = R_B_C @ np.asarray(normal_img_C, np.float64)
+        n /= np.linalg.norm(n)
+        # AHRS = true @ exp(e): its up is exp(-e) applied to the true one, so up - true = u x e and
+        # e across u is (up - true) x u
+        e = np.cross(u - n, u)
+        if np.linalg.norm(e - self.estimate) > math.radians(3.0 * sigma_deg + 1.0):
+            return  # an image tilt this far off is a bad fit, not the AHRS
+        if self.t is not None and t > self.t:
+            fade = math.exp(-(t - self.t) / self.tau_s)
+            self.S *= fade
+            self.W *= fade
+        self.t = t if self.t is None else max(self.t, t)
+        w = 1.0 / math.radians(max(sigma_deg, 0.05)) ** 2
+        self.S += w * e
+        self.W += w
+
+
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
     """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
     return None if R_W_B is None else (R_W_B @ T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
@@ -312,6 +367,7 @@ class HierarchicalLocalizer:
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
+        self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
 
     # ------------------------------------------------------------------ public
@@ -345,7 +401,8 @@ class HierarchicalLocalizer:
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
         R_W_B, imu_why = imu_check(imu)
-        est = self._estimate(image, t, R_W_B)
+        self._raw_R_W_B = R_W_B
+        est = self._estimate(image, t, self.ahrs.corrected(R_W_B))
         if clock:
             est.extras["clock"] = clock
         if imu_why:
@@ -405,6 +462,9 @@ class HierarchicalLocalizer:
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
+                if method in ("markers", "texture") and est.n_corr >= 12:
+                    self.ahrs.update(self._raw_R_W_B, self.T_B_C[:3, :3], est.extras.get("normal_img_C"),
+                                     est.extras.get("tilt_sigma_deg", float("nan")), t)
             self._after_accept(method, est, gray)
             return est
         self.flow.skip()
@@ -492,7 +552,7 @@ class HierarchicalLocalizer:
         if pose is None:
             return None, "pose failed"
         return (pose, len(det.pts_P), dict(det.info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
-                                           tilt_sigma_deg=pose.tilt_sigma_deg)), "ok"
+                                           tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 
     def _texture_allowed(self, h: float | None) -> bool:
         """The texture is tried near the ground: below the height where ORB's pyramids on the

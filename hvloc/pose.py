@@ -27,6 +27,7 @@ class PoseResult:
     flip_choice: str           # how the flip was resolved: gravity, previous, rms, single
     tilt_err_deg: float = float("nan")    # image-only pose's pad normal vs the IMU's up (nan: no IMU)
     tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
+    normal_img_C: np.ndarray | None = None  # the image-only pose's pad normal in C (with an IMU)
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -280,11 +281,13 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             pass
     tilt = (float("nan"), float("nan"))
     sigma_up = None
+    normal_img = None
     if up_C is not None:
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
+        normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up)
-    return PoseResult(T, rms_best, n, cov, other, choice, *tilt)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img)
