@@ -211,14 +211,21 @@ class AHRSTiltBias:
 
     An AHRS's gravity is off by a slowly drifting rotation in the body frame (accelerometer bias,
     misalignment; a few tenths of a degree over tens of seconds).  The gravity prior pulls every
-    pose toward it, and at 6 m a 0.35 degree tilt is 35 mm sideways: on field1080 the Adjustment
-    error was that AHRS error, constant over the descent.  Each pose from many points (markers,
-    texture) also says, from the image alone, where the pad's normal is, noisily (0.1 to 0.7
-    degrees a frame) but without that bias.  Their disagreement, as a body-frame rotation, is
-    averaged with weights 1 / sigma^2, older frames fading with ``tau_s``, and shrunk toward zero by
-    the AHRS's own stated accuracy (``sigma0_deg``, the gravity prior's) as a prior: with few frames
-    the correction is small, with many it is the mean.  Heading is not touched (gravity says
-    nothing about it)."""
+    pose toward it, and a 0.3 degree tilt is 0.5 % of the height sideways: most of the far
+    outline poses' error, and on field1080 the Adjustment error at 6 m (35 mm, constant over the
+    descent).  Each pose also says, from the image alone, where the pad's normal is: noisily (the
+    outline's four corners about a degree a frame, markers 0.1 to 0.7) but without that bias.
+
+    Their disagreement, as a body-frame rotation, is averaged with weights 1 / sigma^2, older
+    frames fading with ``tau_s``, and shrunk toward zero by the AHRS's own stated accuracy
+    (``sigma0_deg``, the gravity prior's) as a prior: with few frames the correction is small,
+    with many it is the mean.  Sigma is each pose's fit's tilt sigma, scaled by what that kind
+    of pose actually shows: the running RMS of its disagreements about the estimate over their
+    fit sigmas (1 until 8 are in).
+    A disagreement past 3 sigma + 1 degree is a bad fit, not the AHRS, and is skipped.  Heading is
+    not touched (gravity says nothing about it)."""
+
+    MIN_SAMPLES = 8
 
     def __init__(self, tau_s: float, sigma0_deg: float = 0.5):
         self.tau_s, self.w0 = float(tau_s), 1.0 / math.radians(sigma0_deg) ** 2
@@ -228,6 +235,7 @@ class AHRSTiltBias:
         self.S = np.zeros(3)
         self.W = 0.0
         self.t: float | None = None
+        self.noise: dict = {}  # kind -> (faded sum of (disagreement / fit sigma)^2, faded count, count)
 
     @property
     def estimate(self) -> np.ndarray:
@@ -239,9 +247,19 @@ class AHRSTiltBias:
             return R_W_B
         return R_W_B @ so3_exp(-self.estimate)
 
-    def update(self, R_W_B_raw: np.ndarray, R_B_C: np.ndarray, normal_img_C, sigma_deg: float, t: float) -> None:
-        """One image-only pad normal (C) with its tilt sigma, seen at ``t`` with the raw AHRS attitude."""
-        if self.tau_s <= 0 or normal_img_C is None or not (0.0 < sigma_deg < 2.0) or not math.isfinite(t):
+    def sigma_rad(self, kind: str, fit_sigma_deg: float) -> float:
+        """How well a pose of ``kind`` shows the pad's normal: its fit's sigma, times the ratio that
+        kind's disagreements have shown to their fit sigmas."""
+        ss, c, n = self.noise.get(kind, (0.0, 0.0, 0))
+        k = float(np.clip(math.sqrt(ss / c), 0.1, 10.0)) if n >= self.MIN_SAMPLES and c > 0 else 1.0
+        return max(k * math.radians(fit_sigma_deg), math.radians(0.05))
+
+    def update(self, kind: str, R_W_B_raw: np.ndarray, R_B_C: np.ndarray, normal_img_C, fit_sigma_deg: float,
+               t: float) -> None:
+        """One image-only pad normal (C) of a pose of ``kind`` with its fit's tilt sigma, seen at
+        ``t`` with the raw AHRS attitude."""
+        if (self.tau_s <= 0 or normal_img_C is None or not math.isfinite(t) or not math.isfinite(fit_sigma_deg)
+                or fit_sigma_deg <= 0):
             return
         u = R_W_B_raw.T @ np.array([0.0, 0.0, 1.0])  # the AHRS's up, body frame
         n = R_B_C @ np.asarray(normal_img_C, np.float64)
@@ -249,14 +267,18 @@ class AHRSTiltBias:
         # AHRS = true @ exp(e): its up is exp(-e) applied to the true one, so up - true = u x e and
         # e across u is (up - true) x u
         e = np.cross(u - n, u)
-        if np.linalg.norm(e - self.estimate) > math.radians(3.0 * sigma_deg + 1.0):
-            return  # an image tilt this far off is a bad fit, not the AHRS
+        sigma = self.sigma_rad(kind, fit_sigma_deg)
+        d2 = float(np.sum((e - self.estimate) ** 2)) / 2.0  # per axis
+        if math.sqrt(d2) > 3.0 * sigma + math.radians(1.0):
+            return
+        ss, c, k = self.noise.get(kind, (0.0, 0.0, 0))
+        self.noise[kind] = (0.95 * ss + d2 / math.radians(fit_sigma_deg) ** 2, 0.95 * c + 1.0, k + 1)
         if self.t is not None and t > self.t:
             fade = math.exp(-(t - self.t) / self.tau_s)
             self.S *= fade
             self.W *= fade
         self.t = t if self.t is None else max(self.t, t)
-        w = 1.0 / math.radians(max(sigma_deg, 0.05)) ** 2
+        w = 1.0 / sigma**2
         self.S += w * e
         self.W += w
 
@@ -462,8 +484,11 @@ class HierarchicalLocalizer:
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
+                # the image's own view of the normal, from many points: not the outline's four corners,
+                # whose tilt moves 0.5 degrees for a 0.03 px bias of its corners far away (field1080's
+                # outline tilts were 0.6 degrees off on average: they taught the AHRS a wrong error)
                 if method in ("markers", "texture") and est.n_corr >= 12:
-                    self.ahrs.update(self._raw_R_W_B, self.T_B_C[:3, :3], est.extras.get("normal_img_C"),
+                    self.ahrs.update(method, self._raw_R_W_B, self.T_B_C[:3, :3], est.extras.get("normal_img_C"),
                                      est.extras.get("tilt_sigma_deg", float("nan")), t)
             self._after_accept(method, est, gray)
             return est
