@@ -44,9 +44,11 @@ class LocalizerConfig(BaseModel):
                                       "this from the IMU's up (the pad lies level; the AHRS knows roll and pitch "
                                       "to a fraction of a degree, a vision pose off by more is wrong)")
     max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
-    ahrs_bias_time_s: float = Field(5.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
-                                    "image-only tilts of marker and texture poses, over about this long, and "
-                                    "take it out of the attitude the gravity prior and the gates use (0: off)")
+    ahrs_bias_time_s: float = Field(0.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
+                                    "image-only tilts of marker and texture poses, over about this long (5 s "
+                                    "works), and take it out of the attitude the gravity prior and the gates use; "
+                                    "0 (the default): off, since a lens or codec that biases the markers' tilt "
+                                    "teaches it a wrong error (README)")
     # tracker
     flow_reanchor_scale: float = Field(1.15, gt=1.0, description="new keyframe when the scale changes by more")
     flow_min_tracks: int = Field(30, ge=8)
