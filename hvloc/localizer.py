@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
-from .pose import PIXEL_SIGMA, PoseResult, solve_planar_pose
+from .pose import PIXEL_SIGMA, PoseResult, outlying_points, solve_planar_pose
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -570,14 +570,36 @@ class HierarchicalLocalizer:
         if det is None:
             return None, why
         sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
-        pose = self.work(lambda: ("pose", array_key(det.pts_P), array_key(det.px), array_key(up_C),
-                                  array_key(prior) if up_C is None else None, array_key(sigma)),
-                         solve_planar_pose, self.camera, det.pts_P, det.px, up_C=up_C, prev_cam2pad=prior,
-                         sigma_px=sigma)
+
+        def pose_of(P, px, s):
+            return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
+                                      array_key(prior) if up_C is None else None, array_key(s)),
+                             solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s)
+
+        P, px = det.pts_P, det.px
+        pose = pose_of(P, px, sigma)
         if pose is None:
             return None, "pose failed"
-        return (pose, len(det.pts_P), dict(det.info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
-                                           tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
+        info = dict(det.info)
+        n0 = len(P)
+        # many points: a few mislocated ones (marker corners pulled 10 px, an outline corner
+        # extrapolated off the image) show against the rest; the fit they pulled hides some of them,
+        # so again on the rest, while at most a quarter of all are dropped
+        for _ in range(3):
+            if n0 < 12:
+                break
+            bad = outlying_points(self.camera, pose.cam2pad, P, px, max_share=0.25 * n0 / len(P))
+            if bad is None:
+                break
+            keep = np.setdiff1d(np.arange(len(P)), bad)
+            s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
+            refit = pose_of(P[keep], px[keep], s)
+            if refit is None:
+                break
+            pose, P, px, sigma = refit, P[keep], px[keep], s
+            info["outliers_dropped"] = n0 - len(P)
+        return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
+                                   tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 
     def _texture_allowed(self, h: float | None) -> bool:
         """The texture is tried near the ground: below the height where ORB's pyramids on the

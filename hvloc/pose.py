@@ -124,6 +124,20 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
 
 
+def outlying_points(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
+                    floor_px: float = 1.0, k: float = 4.0, max_share: float = 0.25) -> np.ndarray | None:
+    """Indices of correspondences that a pose from many points shows to be wrong: reprojected
+    more than ``k`` robust sigmas (from the median residual) and ``floor_px`` off, or ``None``
+    when there are none, or too many to call outliers (more than ``max_share``: then the pose
+    itself is in doubt)."""
+    r = np.linalg.norm(_residuals(camera, cam2pad, pts_P, px).reshape(-1, 2), axis=1)
+    if not np.isfinite(r).all():
+        return None
+    sigma = float(np.median(r)) / 1.1774  # the median of a 2-D Gaussian's radius is 1.1774 sigma
+    bad = np.nonzero(r > max(floor_px, k * sigma))[0]
+    return bad if 0 < len(bad) <= max_share * len(r) else None
+
+
 def _linearised(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, eps: float = 1e-6) -> tuple:
     """The reprojection and gravity-prior problems linearised at ``cam2pad`` by forward differences
     over (position, rotation vector of ``R_P_C @ exp(d)``): ``(pixel residuals (2n,), their
