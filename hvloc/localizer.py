@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
-from .pose import PIXEL_SIGMA, PoseResult, outlying_points, solve_planar_pose
+from .pose import PIXEL_SIGMA, PoseResult, outlying_points, point_residuals, solve_planar_pose
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -576,11 +576,36 @@ class HierarchicalLocalizer:
                                       array_key(prior) if up_C is None else None, array_key(s)),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s)
 
+        def refit(keep):  # the pose of the correspondences ``keep`` alone, with what they are
+            s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
+            p = pose_of(P[keep], px[keep], s)
+            return None if p is None else (p, P[keep], px[keep], s)
+
         P, px = det.pts_P, det.px
         pose = pose_of(P, px, sigma)
         if pose is None:
             return None, "pose failed"
         info = dict(det.info)
+        # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
+        # of its squares) is no scatter of points; with two others seen, its residuals stand out
+        # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
+        groups = self._marker_of(P)
+        seen = [g for g in np.unique(groups) if g >= 0 and np.sum(groups == g) >= 4]
+        r = point_residuals(self.camera, pose.cam2pad, P, px)
+        if len(seen) >= 3 and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
+            best = None
+            for g in seen:
+                others = refit(np.nonzero(groups != g)[0])
+                if others is None:
+                    continue
+                r = point_residuals(self.camera, others[0].cam2pad, P, px)
+                off = float(np.sqrt(np.mean(r[groups == g] ** 2)))
+                fits = float(np.sqrt(np.mean(r[groups != g] ** 2)))
+                if off > max(1.5, 5.0 * fits) and (best is None or off / fits > best[0]):
+                    best = (off / fits, g, others)
+            if best is not None:
+                pose, P, px, sigma = best[2]
+                info["marker_dropped"] = self.geometry.markers[best[1]].name
         n0 = len(P)
         # many points: a few mislocated ones (marker corners pulled 10 px, an outline corner
         # extrapolated off the image) show against the rest; the fit they pulled hides some of them,
@@ -591,15 +616,21 @@ class HierarchicalLocalizer:
             bad = outlying_points(self.camera, pose.cam2pad, P, px, max_share=0.25 * n0 / len(P))
             if bad is None:
                 break
-            keep = np.setdiff1d(np.arange(len(P)), bad)
-            s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
-            refit = pose_of(P[keep], px[keep], s)
-            if refit is None:
+            better = refit(np.setdiff1d(np.arange(len(P)), bad))
+            if better is None:
                 break
-            pose, P, px, sigma = refit, P[keep], px[keep], s
+            pose, P, px, sigma = better
             info["outliers_dropped"] = n0 - len(P)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
+
+    def _marker_of(self, pts_P: np.ndarray) -> np.ndarray:
+        """``(N,)`` index in the pad's markers of the marker each pad point lies on, -1 for none."""
+        out = np.full(len(pts_P), -1)
+        for i, m in enumerate(self.geometry.markers):
+            inside = np.all(np.abs(pts_P[:, :2] - m.center[:2]) <= m.size_m / 2 + 1e-9, axis=1)
+            out[inside & (out < 0)] = i
+        return out
 
     def _texture_allowed(self, h: float | None) -> bool:
         """The texture is tried near the ground: below the height where ORB's pyramids on the

@@ -124,13 +124,18 @@ def reprojection_rms(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("inf")
 
 
+def point_residuals(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """``(N,)`` reprojection error of each correspondence, pixels."""
+    return np.linalg.norm(_residuals(camera, cam2pad, pts_P, px).reshape(-1, 2), axis=1)
+
+
 def outlying_points(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     floor_px: float = 1.0, k: float = 4.0, max_share: float = 0.25) -> np.ndarray | None:
     """Indices of correspondences that a pose from many points shows to be wrong: reprojected
     more than ``k`` robust sigmas (from the median residual) and ``floor_px`` off, or ``None``
     when there are none, or too many to call outliers (more than ``max_share``: then the pose
     itself is in doubt)."""
-    r = np.linalg.norm(_residuals(camera, cam2pad, pts_P, px).reshape(-1, 2), axis=1)
+    r = point_residuals(camera, cam2pad, pts_P, px)
     if not np.isfinite(r).all():
         return None
     sigma = float(np.median(r)) / 1.1774  # the median of a 2-D Gaussian's radius is 1.1774 sigma
