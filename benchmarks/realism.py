@@ -62,6 +62,14 @@ def _medians(rows: list) -> dict:
     return {"patches": len(rows), **{k: float(np.median([r[k] for r in rows])) for k in rows[0]}}
 
 
+def ratio_text(value: float, real: float) -> str:
+    """``"0.49x"``, or ``"no real reference"`` where the real median is 0 or missing (the real
+    frames box-downsampled 15x leave 24 px patches with no strong corner at all: no ratio to it)."""
+    if not (math.isfinite(real) and real > 0 and math.isfinite(value)):
+        return "no real reference"
+    return f"{value / real:.2f}x"
+
+
 def real_statistics(folder, mask_path=None, scales=SCALES) -> dict:
     """Medians of the statistics over every ground patch of the real frames, per GSD multiple."""
     paths = sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
@@ -146,7 +154,7 @@ def main(argv=None) -> int:
                 gsd = a.real_gsd_mm * s / 1000.0
                 r = rendered_statistics(spec, kind, gsd)
                 res["rendered"][f"{spec}/{kind}/x{s}"] = r
-                cells = [f"{r.get(k, float('nan')):.1f} ({r.get(k, float('nan')) / max(real[s].get(k, float('nan')), 1e-9):.2f}x)"
+                cells = [f"{r.get(k, float('nan')):.1f} ({ratio_text(r.get(k, float('nan')), real[s].get(k, float('nan')))})"
                          for k in keys]
                 print(f"| {spec} | {kind} | {1000 * gsd:.1f} | " + " | ".join(cells) + " |", flush=True)
     out = Path(a.out)

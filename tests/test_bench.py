@@ -415,3 +415,13 @@ def test_diagnose_reports_the_signed_height_bias_of_right_poses():
     text = summarise(rows)
     assert "height error, right ok poses: median -1.00 % of height (p10 -1.02, p90 -0.98)" in text, text
     assert "false_accepts=1" in text
+
+
+def test_realism_ratios_never_divide_by_a_missing_real_median():
+    """Real frames downsampled 15x have no strong corner in a 24 px patch: the table said
+    "1000000000.00x" for a rendered 1; it now says there is no reference."""
+    from benchmarks.realism import ratio_text
+
+    assert ratio_text(415.4, 846.7) == "0.49x"
+    assert ratio_text(1.0, 0.0) == "no real reference"
+    assert ratio_text(3.0, float("nan")) == "no real reference"
