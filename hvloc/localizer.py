@@ -423,15 +423,16 @@ class HierarchicalLocalizer:
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
         R_W_B, imu_why = imu_check(imu)
-        self._raw_R_W_B = R_W_B
-        est = self._estimate(image, t, self.ahrs.corrected(R_W_B))
+        est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
         if clock:
             est.extras["clock"] = clock
         if imu_why:
             est.extras["imu"] = imu_why + ": vision alone"
         return est
 
-    def _estimate(self, image, t: float, R_W_B) -> Estimate:
+    def _estimate(self, image, t: float, R_W_B, R_W_B_raw=None) -> Estimate:
+        """``R_W_B``: the attitude the phases and gates use (the AHRS's, its learnt tilt error taken
+        out); ``R_W_B_raw``: the AHRS's own, which that error is learnt against."""
         rgb, gray, why = self.work(lambda: ("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
@@ -488,8 +489,8 @@ class HierarchicalLocalizer:
                 # whose tilt moves 0.5 degrees for a 0.03 px bias of its corners far away (field1080's
                 # outline tilts were 0.6 degrees off on average: they taught the AHRS a wrong error)
                 if method in ("markers", "texture") and est.n_corr >= 12:
-                    self.ahrs.update(method, self._raw_R_W_B, self.T_B_C[:3, :3], est.extras.get("normal_img_C"),
-                                     est.extras.get("tilt_sigma_deg", float("nan")), t)
+                    self.ahrs.update(method, R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
+                                     est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t)
             self._after_accept(method, est, gray)
             return est
         self.flow.skip()
@@ -589,10 +590,10 @@ class HierarchicalLocalizer:
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
-        groups = self._marker_of(P)
+        groups = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
         seen = [g for g in np.unique(groups) if g >= 0 and np.sum(groups == g) >= 4]
-        r = point_residuals(self.camera, pose.cam2pad, P, px)
-        if len(seen) >= 3 and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
+        r = point_residuals(self.camera, pose.cam2pad, P, px) if len(seen) >= 3 else None
+        if r is not None and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
             best = None
             for g in seen:
                 others = refit(np.nonzero(groups != g)[0])

@@ -81,6 +81,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     return name_outline(found, pad_geometry, yaw_hint_corner0)
 
 
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 / sRGB weights, on linear values
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
                  "its border band is missing beside a corner", "its sides and its colour hull disagree")
 
@@ -535,7 +536,7 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     lo = np.maximum(np.floor(quad_px.min(axis=0) - margin_px), 0).astype(int)
     hi = np.ceil(quad_px.max(axis=0) + margin_px + 1).astype(int)
     lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
-    luma = np.ascontiguousarray(lin @ np.array([0.2126, 0.7152, 0.0722], np.float32))
+    luma = np.ascontiguousarray(lin @ _LUMA)
     q = quad_px - lo
     smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo))
     return lin, lo, float(np.nanmax(np.append(smear, 0.0)))
@@ -1011,7 +1012,6 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
     return out
 
 
-_LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 / sRGB weights, on linear values
 _CUE_MIN_LOG_LUMA = 0.3  # a cue and border at most 1.35x apart in brightness: brightness tells nothing
 
 

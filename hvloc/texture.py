@@ -20,7 +20,7 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .geometry import Camera
-from .phases import Detection
+from .phases import LK_PARAMS, Detection
 
 MIN_INLIERS = 20        # homography inliers for a location: another pad's texture gives at most ~11
 MIN_SHARE = 0.1         # ... and this share of the matches (another pad's: ~4 %; this pad's, 20-70 %)
@@ -118,7 +118,7 @@ class PadTexture:
         p0 = cv2.goodFeaturesToTrack(drawn, REFINE_CORNERS, 0.01, 8, mask=inside)
         if p0 is None or len(p0) < MIN_INLIERS:
             return None
-        params = dict(winSize=(21, 21), maxLevel=2, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+        params = {**LK_PARAMS, "maxLevel": 2}  # the drawing is within a few pixels of the frame
         p1, st, _ = cv2.calcOpticalFlowPyrLK(drawn, gray, p0, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **params)
         if p1 is None:
             return None

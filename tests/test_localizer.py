@@ -603,6 +603,10 @@ def test_sides_fitted_beside_the_border_are_told_from_the_border(pad, h):
             for img in (clean, jpeg) if h < 10 else (clean,):
                 assert _band_missing(img, out, pad.geometry, CAM), (yaw, k)
 
+def _jpeg(img, quality):
+    ok, jpg = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
+    return cv2.cvtColor(cv2.imdecode(jpg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+
 
 @pytest.mark.parametrize("ground", [(128, 128, 130), (120, 95, 60), (70, 110, 50)])
 def test_jpeg_outline_is_fitted_on_luma_where_its_colour_edges_smear(pad, ground):
@@ -616,10 +620,7 @@ def test_jpeg_outline_is_fitted_on_luma_where_its_colour_edges_smear(pad, ground
         errs, field = [], 0
         for yaw in np.linspace(0.1, 2 * np.pi, 8, endpoint=False):
             G = tilted(0.3, -0.2, h, yaw, 0.05, 0.1)
-            ok, jpg = cv2.imencode(".jpg", cv2.cvtColor(warp_pad_view(pad, CAM, G, ground), cv2.COLOR_RGB2BGR),
-                                   [cv2.IMWRITE_JPEG_QUALITY, 50])
-            det, why = detect_outline(cv2.cvtColor(cv2.imdecode(jpg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB),
-                                      pad.geometry, CAM)
+            det, why = detect_outline(_jpeg(warp_pad_view(pad, CAM, G, ground), 50), pad.geometry, CAM)
             if det is None:
                 continue
             field += det.info.get("corners") == "field"
@@ -812,10 +813,6 @@ def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad):
                 assert err @ np.linalg.solve(pose.cov[:3, :3], err) < 16.3, (h, yaw, k, err)  # chi2(3), 99.9 %
     assert found >= 0.6 * tried, (found, tried)
 
-
-def _jpeg(img, quality):
-    ok, jpg = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
-    return cv2.cvtColor(cv2.imdecode(jpg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
 
 
 @pytest.mark.parametrize("ground", [(150, 130, 80), (90, 110, 60)])
