@@ -62,9 +62,15 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
     return last_height
 
 
-def method_allowed(method: str, h: float | None, cfg: LocalizerConfig) -> bool:
-    """Markers are not tried far above the adjustment height."""
-    return not (method == "markers" and h is not None and h > cfg.adjust_height_m + cfg.hysteresis_m)
+MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
+
+
+def method_allowed(method: str, h: float | None, cfg: LocalizerConfig, markers_seen_below_m: float = 0.0) -> bool:
+    """Markers are not tried far above the adjustment height, nor above ``markers_seen_below_m``
+    (where this pad's markers still resolve in this camera: a 1.5 m pad's markers at 1080p do at
+    16 m, far above the 8 m the default pad and camera switch at)."""
+    top = max(cfg.adjust_height_m + cfg.hysteresis_m, markers_seen_below_m)
+    return not (method == "markers" and h is not None and h > top)
 
 
 def motion_gate(cam2pad: np.ndarray, t: float, last_cam2pad: np.ndarray | None, last_t: float,
@@ -377,6 +383,10 @@ class HierarchicalLocalizer:
         # (hvloc.work): their estimates are exactly what each would make alone
         self.work = work if work is not None else ImageWork()
         self.outer_P = self.geometry.outer_corners
+        modules = [m.module_m for m in self.geometry.markers_in("corner")]
+        # the height at which the corner markers' modules, seen straight on, span MARKER_MIN_MODULE_PX
+        self.markers_seen_below_m = (min(camera.fx, camera.fy) * min(modules) / MARKER_MIN_MODULE_PX
+                                     if modules else 0.0)
         self.reset()
 
     def reset(self) -> None:
@@ -457,7 +467,7 @@ class HierarchicalLocalizer:
         for method in order:
             if not enabled[method]:
                 continue
-            if not method_allowed(method, h, cfg):
+            if not method_allowed(method, h, cfg, self.markers_seen_below_m):
                 continue
             if method == "flow" and not self.flow.ready:
                 reasons.append("flow: no keyframe")

@@ -1034,3 +1034,22 @@ def test_jpeg_field_corners_are_placed_in_linear_light():
             radial.append(float(np.mean(np.sum((q - truth) * out, axis=1))))
     assert len(radial) >= 5, radial
     assert np.median(radial) < 0.3, np.round(radial, 3)
+
+
+def test_markers_are_tried_as_high_as_this_pad_and_camera_resolve_them():
+    """Markers were never tried above the adjustment height (8.3 m), whatever the pad and camera: a
+    1.5 m pad's 0.2 m markers at 1080p resolve to 16 m, and on an oblique dusk descent (unseen8)
+    frames at 9-10 m with all three markers seen and the outline lost were lost.  The limit is now
+    also where this pad's marker modules span 2 px; the default pad and 800 px camera keep 8.3 m."""
+    from pad_design import make_pad
+
+    big = make_pad({"side_m": 1.5, "border_m": 0.15, "marker_size_m": 0.2}, ppm=1000)
+    cam = Camera.from_hfov(1920, 1080, math.radians(80))
+    loc = HierarchicalLocalizer(big, cam, LocalizerConfig(use_outline=False, use_flow=False))
+    G = tilted(0.2, -0.1, 9.5, 0.6, 0.02, -0.03)
+    loc.last = type("E", (), {"height": 9.5, "t": 0.0, "cam2pad": G, "method": "outline"})()  # a recent far pose
+    e = loc.process(warp_pad_view(big, cam, G, GROUND), 0.1, _imu_from(G))
+    assert e.ok and e.method == "markers", e.reason
+    assert pose_error(e.cam2pad, G)[0] < 0.01 * 9.5
+    default = HierarchicalLocalizer(make_pad(), CAM, LocalizerConfig())
+    assert default.markers_seen_below_m < LocalizerConfig().adjust_height_m  # unchanged there
