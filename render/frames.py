@@ -162,10 +162,7 @@ class SequenceRenderer:
             linear = self.imaging.linear(rgb_r)
             if self.ground is not None:
                 self.ground.apply(linear, depth, cam2world, T_W_P)
-            if self.material.get("relief") is not None:
-                self._relief_shading(linear, depth, cam2pad)
-            if self.material["gloss"] > 0:
-                self._glare(linear, depth, cam2pad)
+            self._pad_light(linear, depth, cam2pad)
             t3 = time.perf_counter()
             if self.line_s > 0:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base, self.row_dt / half,
@@ -193,17 +190,20 @@ class SequenceRenderer:
         T_C_B = invert(self.T_B_C)
         legs = [(T_C_B[:3, :3] @ np.array(b) + T_C_B[:3, 3], T_C_B[:3, :3] @ np.array(t) + T_C_B[:3, 3], d / 2 + 0.01)
                 for b, t, d, _ in self.legs]
+        legs_reach = max((max(a[2], b[2]) + r for a, b, r in legs), default=0.0)
 
         def classify(points_C):
             cls = np.zeros(len(points_C), np.int8)
             if self.platform_moves:
                 P = points_C @ R.T + tr
                 cls[(np.abs(P[:, 0]) <= half) & (np.abs(P[:, 1]) <= half) & (P[:, 2] > floor)] = mo.MOVING
-            for a, b, r in legs:  # within a leg's radius of its axis
-                ab = b - a
-                s = np.clip((points_C - a) @ ab / (ab @ ab), 0.0, 1.0)
-                near = np.linalg.norm(points_C - (a + s[:, None] * ab), axis=1) <= r
-                cls[near] = mo.ATTACHED
+            if legs:  # within a leg's radius of its axis (only points as near as the legs reach can be)
+                idx = np.flatnonzero(points_C[:, 2] <= legs_reach)
+                Q = points_C[idx]
+                for a, b, r in legs:
+                    ab = b - a
+                    s = np.clip((Q - a) @ ab / (ab @ ab), 0.0, 1.0)
+                    cls[idx[np.linalg.norm(Q - (a + s[:, None] * ab), axis=1) <= r]] = mo.ATTACHED
             return cls
 
         return classify
@@ -270,48 +270,46 @@ class SequenceRenderer:
         on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (P[..., 2] > -0.003) & (P[..., 2] < top + 0.003) & (zc > 0)
         return (slice(r0, r1), slice(c0, c1), P, on) if on.any() else None
 
-    def _relief_shading(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
-        """A wrinkled pad's facets lit by the sun as they face it (the renders are flat-shaded for a
-        horizontal surface), where the sun reaches them; in linear light."""
+    def _pad_light(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
+        """The light a flat-shaded render leaves out on the pad, in linear light, in one pass over its
+        pixels: a wrinkled pad's facets lit as they face the sun, and the sun's specular glare on a
+        glossy pad (Blinn-Phong); both only where the sun reaches the pad (not in the drone's shadow
+        or a box's)."""
+        relief, gloss = self.material.get("relief"), self.material["gloss"]
+        if relief is None and not gloss > 0:
+            return
         got = self._pad_pixels(depth, cam2pad)
         if got is None:
             return
         rows, cols, P, on = got
-        # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
-        coarse = P[::4, ::4, :2].reshape(-1, 2).astype(np.float64)
-        f = self.scene.relative_light(self.material["relief"].normal(coarse)).reshape(P[::4, ::4].shape[:2])
-        f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
-        f = f[:P.shape[0], :P.shape[1]][on]
-        if self.scene.shadows:  # pixel by pixel: a shadow's edge is sharp
-            vis = self.scene.pad_sun_visibility(P[on][:, :2].astype(np.float64) + self._pad2world_now[:2, 3])
-            f = vis * f + (1.0 - vis)
+        h, w = P.shape[:2]
+        # sun visibility pixel by pixel (a shadow's edge is sharp), once for both
+        vis = self.scene.pad_sun_visibility(P[on][:, :2].astype(np.float64) + self._pad2world_now[:2, 3]) \
+            if self.scene.shadows else None
         roi = linear[rows, cols]
-        roi[on] *= f.astype(np.float32)[:, None]
-
-    def _glare(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
-        """The sun's specular glare on a glossy pad (Blinn-Phong), added in linear light."""
-        got = self._pad_pixels(depth, cam2pad)
-        if got is None:
-            return
-        rows, cols, P, on = got
-        r0, r1, c0, c1 = rows.start, rows.stop, cols.start, cols.stop
-        # the lobe varies slowly over the pad: evaluated on every 8th pixel, interpolated between
-        Q = P[::8, ::8].reshape(-1, 3).astype(np.float64)
-        view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
-        view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
-        half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
-        half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
-        r = max(self.material["gloss_roughness"], 0.02)
-        lobe = (np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::8, ::8].shape[:2]).astype(np.float32)
-        lobe = cv2.resize(lobe, (lobe.shape[1] * 8, lobe.shape[0] * 8), interpolation=cv2.INTER_LINEAR)
-        lobe = lobe[:r1 - r0, :c1 - c0] * (on * np.float32(self.material["gloss"]))
-        # no glare where the sun does not reach the pad (the drone's shadow, a box's): pixel by pixel
-        if self.scene.shadows and on.any():
-            T_W_P = self._pad2world_now
-            vis = self.scene.pad_sun_visibility(P[on][:, :2].astype(np.float64) + T_W_P[:2, 3])
-            lobe[on] *= vis.astype(np.float32)
-        roi = linear[r0:r1, c0:c1]
-        roi += lobe[..., None]
+        if relief is not None:
+            # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
+            coarse = P[::4, ::4, :2].reshape(-1, 2).astype(np.float64)
+            f = self.scene.relative_light(relief.normal(coarse)).reshape(P[::4, ::4].shape[:2])
+            f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
+            f = f[:h, :w][on]
+            if vis is not None:
+                f = vis * f + (1.0 - vis)
+            roi[on] *= f.astype(np.float32)[:, None]
+        if gloss > 0:
+            # the lobe varies slowly over the pad: evaluated on every 8th pixel, interpolated between
+            Q = P[::8, ::8].reshape(-1, 3).astype(np.float64)
+            view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
+            view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
+            half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
+            half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
+            r = max(self.material["gloss_roughness"], 0.02)
+            lobe = (np.clip(half_v[:, 2], 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::8, ::8].shape[:2]).astype(np.float32)
+            lobe = cv2.resize(lobe, (lobe.shape[1] * 8, lobe.shape[0] * 8), interpolation=cv2.INTER_LINEAR)
+            lobe = lobe[:h, :w] * (on * np.float32(gloss))
+            if vis is not None:
+                lobe[on] *= vis.astype(np.float32)
+            roi += lobe[..., None]
 
     def _flows(self, depth, cam2world, cam2pad, T_W_P, t, half: float) -> tuple:
         """``((2, H, W, 2), longest path px)``: every pixel's image motion to ``t - half`` and

@@ -175,6 +175,7 @@ class GroundDetail:
         self.f = float(min(camera.fx, camera.fy))
         self.xn, self.yn = xn, yn
         self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
+        self.min_dot = (0.05 * np.sqrt(self.r2)).astype(np.float32)
         self.flat_objects = list(flat_objects)
 
     def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
@@ -182,13 +183,10 @@ class GroundDetail:
         finite = np.isfinite(z)
         if not finite.any():
             return None
-        up = cam2world[2, :3]  # world up in the camera frame
         zc = np.where(finite, z, np.float32(0.0)).astype(np.float32)
-        # the pixel's footprint on a horizontal surface (m): z |r|^2 / (f |up . r|), r = (xn, yn, 1)
-        dot = cv2.addWeighted(self.xn, float(up[0]), self.yn, float(up[1]), float(up[2]))
-        cv2.max(np.abs(dot), 0.05 * np.sqrt(self.r2), dst=dot)
-        footprint = cv2.divide(cv2.multiply(zc, self.r2), dot, scale=1.0 / self.f)
-        fp_all = float(np.median(footprint[::8, ::8][finite[::8, ::8]]))
+        sub = np.s_[::4, ::4]
+        footprint4 = self._footprint(zc[sub], cam2world, sub)
+        fp_all = float(np.median(footprint4[::2, ::2][finite[::8, ::8]]))
         if not any(self._level(fp_all, o[1], o[-1]) is not None for o in self.octaves):
             return None  # every octave averages out within a pixel
         W = cv2.transform(cv2.merge([self.xn * zc, self.yn * zc, zc]), cam2world[:3, :].astype(np.float32))
@@ -205,12 +203,13 @@ class GroundDetail:
             X, Y = wx[r0:r1, c0:c1] - np.float32(ox), wy[r0:r1, c0:c1] - np.float32(oy)
             u = np.abs(c * X + s * Y) - sx / 2
             v = np.abs(-s * X + c * Y) - sy / 2
-            ground[r0:r1, c0:c1] *= np.clip(np.maximum(u, v) / np.maximum(footprint[r0:r1, c0:c1], 1e-9) - 1.0, 0.0, 1.0)
+            fp = self._footprint(zc[r0:r1, c0:c1], cam2world, np.s_[r0:r1, c0:c1])
+            ground[r0:r1, c0:c1] *= np.clip(np.maximum(u, v) / np.maximum(fp, 1e-9) - 1.0, 0.0, 1.0)
         if not ground.any():
             return None
         logf = np.zeros_like(zc)
         cx, cy = cam2world[0, 3], cam2world[1, 3]
-        fp = float(np.median(footprint[::4, ::4][ground[::4, ::4] > 0])) if (ground[::4, ::4] > 0).any() else fp_all
+        fp = float(np.median(footprint4[ground[sub] > 0])) if (ground[sub] > 0).any() else fp_all
         for (period, texel, c, s, ox, oy, mip) in self.octaves:
             level = self._level(fp, texel, mip)
             if level is None:
@@ -230,6 +229,15 @@ class GroundDetail:
             logf += cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
         cv2.multiply(logf, ground, dst=logf)
         return cv2.exp(logf)
+
+    def _footprint(self, zc: np.ndarray, cam2world: np.ndarray, where) -> np.ndarray:
+        """The footprint (m) on a horizontal surface of the pixels ``where`` (a slice) at depths
+        ``zc`` (there): ``z |r|^2 / (f |up . r|)``, ``r = (xn, yn, 1)``, ``up`` the world's up in
+        the camera frame; grazing rays are held at 20 x the pixel's length."""
+        up = cam2world[2, :3]
+        dot = cv2.addWeighted(self.xn[where], float(up[0]), self.yn[where], float(up[1]), float(up[2]))
+        cv2.max(np.abs(dot), self.min_dot[where], dst=dot)
+        return cv2.divide(cv2.multiply(zc, self.r2[where]), dot, scale=1.0 / self.f)
 
     def _image_box(self, cam2world, ox, oy, yaw, sx, sy, H, W):
         """Rows and columns ``(r0, r1, c0, c1)`` around where a flat rectangle on the ground shows
