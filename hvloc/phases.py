@@ -192,12 +192,24 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             refined = smeared if again is None else again
         else:
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
-            if _band_missing(rgb, refined, pad_geometry, camera):
-                return None, "its border band is missing along a side"
-            if _corner_missing(rgb, refined, pad_geometry, camera):
-                return None, "its border band is missing beside a corner"
-        if smeared is None:  # (under blur the field's luma edge is smeared as much as the colour's)
-            field = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
+            why = "its border band is missing along a side" if _band_missing(rgb, refined, pad_geometry, camera) \
+                else "its border band is missing beside a corner" if _corner_missing(rgb, refined, pad_geometry, camera) \
+                else None
+            if why is not None:
+                rescued = None if cut else _field_rescue(rgb, refined, pad_geometry, camera)
+                if rescued is None:
+                    return None, why
+                refined, field = rescued[0], rescued[1] - [bx0, by0]  # (the field is kept in the fit's window)
+        if smeared is None and field is None:  # (under blur the field's luma edge is smeared as much as the colour's)
+            field, far, fitted = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
+            if (far or fitted is None) and not cut:
+                # the colour swelled further than a corner's move may mend, or so far that the field
+                # was out of the fit's reach: the field, found further in, says where the pad is
+                rescued = _field_rescue(rgb, refined, pad_geometry, camera)
+                if rescued is not None:
+                    refined, field = rescued[0], rescued[1] - [bx0, by0]
+                elif far:
+                    return None, "its colour swells past its white field"
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
@@ -549,14 +561,17 @@ def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera:
     return _smear_near(rgb, quad_px, geo, camera, 12.0)[2] > limit_px
 
 
-def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray):
+def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray,
+                  square: np.ndarray | None = None):
     """``(N, 2)`` pixels of pad-plane points ``pts_xy`` (metres, pad frame) where the homography that
-    takes the pad's outer corners (in order) onto ``quad_px`` puts them, the lens included; ``None``
-    when the quad has a corner the lens cannot undistort."""
+    takes the pad's outer corners (or the corners ``square``, (4, 2) pad frame), in order, onto
+    ``quad_px`` puts them, the lens included; ``None`` when the quad has a corner the lens cannot
+    undistort."""
     und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
     if not np.isfinite(und).all():
         return None
-    H = cv2.getPerspectiveTransform(geo.outer_corners[:, :2].astype(np.float32), np.asarray(und, np.float32))
+    src = geo.outer_corners[:, :2] if square is None else np.asarray(square)[:, :2]
+    H = cv2.getPerspectiveTransform(src.astype(np.float32), np.asarray(und, np.float32))
     px = cv2.perspectiveTransform(np.asarray(pts_xy, np.float64).reshape(1, -1, 2), H)[0]
     if camera is not None and camera.has_distortion:
         from .features import _distort_px
@@ -671,7 +686,27 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     predicted, as when smeared colour swells the outline (a hard shadow across the pad moves it
     the other way).  On throw-away measurements over 1,080 found outlines (the conditions suite and
     a pitched JPEG-70 scene): the largest corner error's median 1.68 -> 0.62 px, p90 3.71 -> 2.92 px
-    on the JPEG frames; never used on the others."""
+    on the JPEG frames; never used on the others.
+
+    Returns ``(corners or None, swollen past, the field's fit or None)``: the second says the field
+    fitted well but lies further inside than a corner's move may mend (the outline is then suspect:
+    :func:`_field_rescue`), the third is the field fitted, used or not."""
+    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px)
+    if got is None:
+        return None, False, None
+    field, move, swollen = got
+    limit = max(3.0, 0.1 * side_px)
+    return (field if swollen and move_px < move <= limit else None), bool(swollen and move > limit), field
+
+
+def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
+               max_rms_px: float = 0.35, rounds: int = 1):
+    """``(field corners, largest move from the prediction px, swollen)`` or ``None``: the white
+    field's square fitted on luma from where the outline ``quad_px`` predicts it, each side first
+    moved to the nearest strong rise into the white within ``reach_px`` inward, then fitted up to
+    ``rounds`` times, each from the last; ``swollen`` when the field came out smaller than predicted
+    (:func:`_field_quad`)."""
     guess = _through_quad(quad_px, geo, camera, geo.field_corners[:, :2])
     if guess is None:
         return None
@@ -681,22 +716,52 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     gray = gray8.astype(np.float32)
     # the swollen outline puts the guess pixels outside the field, beyond the fit's narrow window
     # (it must stay inside the checker): each side starts at the nearest strong rise into the white
-    start = _moved_sides(guess, rise_offsets(gray, guess, camera))
+    start = _moved_sides(guess, rise_offsets(gray, guess, camera, hi=reach_px))
     half = float(np.clip(0.45 * checker_px, 1.0, 2.5))
     fitted, rms = refine_quad(gray, start, half_width=half, camera=camera)
+    for _ in range(rounds - 1):  # from where the last fit ended: a start far off biases the narrow window
+        again, rms_again = (None, rms) if fitted is None else refine_quad(gray, fitted, half_width=half, camera=camera)
+        if again is None:
+            break
+        start, fitted, rms, shift = fitted, again, rms_again, float(np.abs(again - fitted).max())
+        if shift < 0.05:
+            break
     if fitted is None or rms > max_rms_px:
         return None
     move = float(np.max(np.linalg.norm(fitted - guess, axis=1)))
     centre = guess.mean(axis=0)
     out = (guess - centre) / np.maximum(np.linalg.norm(guess - centre, axis=1), 1e-9)[:, None]
     swollen = float(np.mean(np.sum((fitted - guess) * out, axis=1))) < 0.1  # the field smaller than the outline says
-    if not (swollen and move_px < move <= max(3.0, 0.1 * side_px)):
-        return None
     # placed in linear light: blur mixes light, and the white field's 50 % crossing in sRGB lies on
     # the dark side of the edge (the field came out 0.3 px too large on JPEG 55 behind a 100 degree
     # lens, 0.8 % of the side, and the height 1.2 % low)
     linear, rms_l = refine_quad(srgb_to_linear(gray8), start, half_width=half, camera=camera)
-    return linear if linear is not None and rms_l <= max_rms_px else fitted
+    return (linear if linear is not None and rms_l <= max_rms_px else fitted), move, swollen
+
+
+def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:
+    """``(outer quad, field quad)`` or ``None``: the outline read from the white field's luma edges
+    where its colour swelled past the pad so far that the border's band check failed.
+
+    JPEG's half-resolution chroma smears the magenta border onto a light platform or pavement
+    beside it; on a 25-60 px pad the colour hull and the sides fitted to it then lie 5-10 px out on
+    one or two sides (a corner 10-30 % of the side off), and the band check refuses the pad (most
+    of the refusals of pad-visible, unblurred JPEG frames).  Luma keeps the field's edge (white
+    against the checker) sharp: it is fitted from the swollen prediction with a reach of a quarter
+    of the side (refitted from where each fit ended: the worst field corner's median error on such pads
+    of the conditions suite 2.4 % of the side with one fit, 1.5 % with three, as the field's
+    usual fit does at those sizes), and the
+    outer square put where the field's homography puts it.  That quad must
+    then pass the band checks the colour's did not."""
+    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), rounds=3)
+    if got is None or not got[2]:
+        return None
+    field = got[0]
+    outer = _through_quad(field, geo, camera, geo.outer_corners[:, :2], square=geo.field_corners)
+    if outer is None or _band_missing(rgb, outer, geo, camera) or _corner_missing(rgb, outer, geo, camera):
+        return None
+    return outer, field
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None,
