@@ -373,6 +373,26 @@ class LandingScene:
             shade = np.maximum(shade, inside.astype(np.float64))
         return 1.0 - shade
 
+    def pad_may_be_shaded(self, centre_xy_W, radius_m: float) -> bool:
+        """Whether any shadow that :meth:`pad_sun_visibility` counts can reach within ``radius_m``
+        of ``centre_xy_W`` (world): ``False`` means it is 1 at every point there."""
+        c = np.asarray(centre_xy_W, np.float64)[:2]
+        if self._drone_shadow_at is not None:
+            if np.hypot(*(self._drone_shadow_at[0] - c)) <= radius_m + self.drone_size / math.sqrt(2.0):
+                return True
+        if self.has_platform_box:
+            return False
+        for alpha, lo, hi, m_per_px, on_platform in self._ground_shadow_maps:
+            q = c - (self.platform_xy if on_platform else 0.0)
+            # the map's texels around the disc's box, a texel more each way (samples are bilinear)
+            c0, c1 = (np.array([q[0] - radius_m, q[0] + radius_m]) - lo[0]) / m_per_px + [-1, 2]
+            r0, r1 = (hi[1] - np.array([q[1] + radius_m, q[1] - radius_m])) / m_per_px + [-1, 2]
+            r0, r1 = max(int(r0), 0), min(int(r1), alpha.shape[0])
+            c0, c1 = max(int(c0), 0), min(int(c1), alpha.shape[1])
+            if r1 > r0 and c1 > c0 and alpha[r0:r1, c0:c1].max() > 0:
+                return True
+        return False
+
     def _ground_shadow_cover(self, xy_W: np.ndarray) -> np.ndarray:
         """``(N,)`` how much of the sun the boxes' and the platform's shadows already take at ground
         points (0 lit, 1 in full shadow; anti-aliased edges between)."""
