@@ -274,7 +274,7 @@ class SequenceRenderer:
     def _pad_light(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
         """The light a flat-shaded render leaves out on the pad, in linear light, in one pass over its
         pixels: a wrinkled pad's facets lit as they face the sun, and the sun's specular glare on a
-        glossy pad (Blinn-Phong); both
+        glossy pad (Blinn-Phong, about each facet's normal: glints run along the wrinkles); both
         only where the sun reaches the pad (not in the drone's shadow or a box's)."""
         relief, gloss = self.material.get("relief"), self.material["gloss"]
         if relief is None and not gloss > 0:
@@ -291,24 +291,26 @@ class SequenceRenderer:
             vis = self.scene.pad_sun_visibility(P[..., :2].reshape(-1, 2).astype(np.float64) + T_W_P[:2, 3])
             vis = vis.reshape(on.shape)
         roi = linear[rows, cols]
+        normals = None
         if relief is not None:
             # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
-            coarse = P[::4, ::4, :2].reshape(-1, 2).astype(np.float64)
-            f = self.scene.relative_light(relief.normal(coarse)).reshape(P[::4, ::4].shape[:2])
+            normals = relief.normal(P[::4, ::4, :2].reshape(-1, 2).astype(np.float64))
+            f = self.scene.relative_light(normals).reshape(P[::4, ::4].shape[:2])
             f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
             f = f[:on.shape[0], :on.shape[1]]
             if vis is not None:
                 f = (vis * f + (1.0 - vis)).astype(np.float32)
             roi *= np.where(on, f, np.float32(1.0))[..., None]
         if gloss > 0:
-            # the lobe varies slowly over the pad: evaluated on every 8th pixel, interpolated between
-            step = 8
+            # the lobe varies slowly over a flat pad: evaluated on every 8th pixel, interpolated between;
+            # on a wrinkled one it follows the facets' normals, on the relief's grid
+            step = 8 if normals is None else 4
             Q = P[::step, ::step].reshape(-1, 3).astype(np.float64)
             view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
             view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
             half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
             half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
-            cos_nh = half_v[:, 2]
+            cos_nh = half_v[:, 2] if normals is None else np.sum(half_v * normals, axis=1)
             r = max(self.material["gloss_roughness"], 0.02)
             lobe = (np.clip(cos_nh, 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::step, ::step].shape[:2]).astype(np.float32)
             lobe = cv2.resize(lobe, (lobe.shape[1] * step, lobe.shape[0] * step), interpolation=cv2.INTER_LINEAR)

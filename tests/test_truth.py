@@ -627,6 +627,40 @@ def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
     assert checked >= 2
 
 
+def test_glare_on_a_wrinkled_pad_follows_its_facets():
+    """The sun's glare was computed for the ideal plane's normal, so a wrinkled glossy pad shone as
+    a flat one.  It now follows each facet's normal: the glare a glossy finish adds on a wrinkled
+    pad tracks the Blinn-Phong lobe of the facets' normals, not the plane's."""
+    base = _pad_close_up("glint", [70.0, 70.0], 3.0)
+    mat = {"relief_m": [0.02, 0.02], "relief_wavelength_m": [0.2, 0.2]}
+    shiny = {**mat, "gloss": [0.6, 0.6], "gloss_roughness": [0.2, 0.2]}
+    lead = []
+    with SequenceRenderer(_spec({**base, "pad_material": mat}), 0) as matte_r, \
+            SequenceRenderer(_spec({**base, "pad_material": shiny}), 0) as gloss_r:
+        relief = gloss_r.material["relief"]
+        sun = gloss_r.plan.scene_draw.sun_dir_W
+        g = np.linspace(-0.3, 0.3, 31)
+        P = np.column_stack([np.repeat(g, len(g)), np.tile(g, len(g)), np.zeros(len(g) ** 2)])
+        for k in (2, 6, 10):
+            T = gloss_r.cam2pad(k)
+            lin = [((r.render(k).rgb.astype(float) / 255.0) ** 2.2).mean(axis=2) for r in (matte_r, gloss_r)]
+            px = np.round(gloss_r.camera.project_from(T, relief.on_surface(P))).astype(int)
+            ok = np.all((px >= 3) & (px < 237), axis=1)
+            added = (lin[1] - lin[0])[px[ok, 1], px[ok, 0]]
+            view = T[:3, 3] - P[ok]
+            half = view / np.linalg.norm(view, axis=1, keepdims=True) + sun
+            half /= np.linalg.norm(half, axis=1, keepdims=True)
+            lobe = {name: np.clip(np.sum(half * n, axis=1), 0, 1) ** (2 / 0.2**2 - 2)
+                    for name, n in (("facets", relief.normal(P[ok, :2])), ("plane", np.array([0.0, 0.0, 1.0])))}
+            if lobe["facets"].std() < 0.05:
+                continue  # no glint in view
+            r_facets = np.corrcoef(added, lobe["facets"])[0, 1]
+            r_plane = np.corrcoef(added, lobe["plane"])[0, 1]
+            assert r_facets > 0.5 and r_facets > r_plane, (k, r_facets, r_plane)
+            lead.append(r_facets - r_plane)
+    assert len(lead) >= 2 and np.mean(lead) > 0.15, lead  # (near the pad both lobes vary with the view)
+
+
 def test_a_wrinkled_pad_is_drawn_on_its_surface_and_labelled_on_its_plane():
     """``pad_material.relief_m``: the printed pad's wrinkles and sag.  The depth the renderer draws
     lies on the relief (not on the plane), the sun shades its facets, the labels stay those of the
