@@ -23,7 +23,15 @@ from pad_design.spec import PadSpec
 #   2: distractors keep their whole footprint, not only their centre, keep_clear_m from the pad; the
 #      drone's shadow no longer darkens a box's or the platform's shadow a second time; no glare on
 #      a glossy pad where a shadow lies on it.
-RENDER_REVISION = 2
+#   3: a wrinkled glossy pad's glare follows its facets' normals.  Only specs that can draw such a
+#      pad render differently: every other spec keeps revision 2 in its identity (render_revision()).
+RENDER_REVISION = 3
+
+
+def render_revision(spec: "DatasetSpec") -> int:
+    """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
+    m = spec.pad_material
+    return 3 if m.relief_m[1] > 0 and m.gloss[1] > 0 else 2
 
 
 def _range_ok(v):
@@ -363,8 +371,7 @@ class DatasetSpec(_Model):
             del cam["dist"]
             if not cam:
                 del d["camera"]
-        if RENDER_REVISION > 1:
-            d["render_revision"] = RENDER_REVISION
+        d["render_revision"] = render_revision(self)
         if self.pad.variant == "artwork":  # the image's pixels, not only its path, are the pad
             from pad_design.texture import artwork_sha256
 

@@ -287,9 +287,14 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     # whose identity is the renderer's revision alone (RENDER_REVISION: what an old cache was made by)
     plain = validate_model(DatasetSpec, {}).sha256()
     assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
-    from render.spec import RENDER_REVISION
+    assert plain == hashlib.sha256(json.dumps({"render_revision": 2}, separators=(",", ":")).encode()).hexdigest()
+    # revision 3 (glare on a wrinkled pad's facets) moved only the specs that can draw one
+    wrinkled = {"pad_material": {"relief_m": [0.01, 0.01]}}
+    glossy = {"pad_material": {"gloss": [0.3, 0.3]}}
+    both = {"pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
+    from render.spec import render_revision
 
-    assert plain == hashlib.sha256(json.dumps({"render_revision": RENDER_REVISION}, separators=(",", ":")).encode()).hexdigest()
+    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both)] == [2, 2, 3]
     assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 
