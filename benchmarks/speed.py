@@ -5,7 +5,8 @@ the same run (this machine is shared and noisy: read the ratios).
 
 Render: sim800 and field1080 cameras, motion blur off and on, full image formation (no disk),
 beside one ``cv2.warpPerspective`` of the pad texture at the same output resolution (the floor
-for a planar scene; no lens remap, no supersampling).  Localizer: ms per frame per phase at 800x800 and 1920x1080 on one core (OpenCV and
+for a planar scene; no lens remap, no supersampling).  Realism: the ``realism`` suite's tiers, every
+realism feature on against off, the same descents.  Localizer: ms per frame per phase at 800x800 and 1920x1080 on one core (OpenCV and
 torch limited to one thread), on views warped from the pad texture, beside a plain
 ``cv2.cvtColor`` + ``cv2.GaussianBlur`` of the same frame.
 """
@@ -29,10 +30,11 @@ def _timeit(fn, n: int, warmup: int = 2) -> float:
     return (time.perf_counter() - t) / n
 
 
-def render_speed(spec_path: str, blur: bool, n: int, blur_method: str = "velocity", subframes=5) -> dict:
+def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", subframes=5) -> dict:
     """Frames/s of the real per-frame pipeline (raster with depth, visibility, flow, lens, blur, noise,
     tone curve, labels; no disk), its breakdown by stage, and the PNG encoding that a writer thread
-    does beside it; against one ``cv2.warpPerspective`` of the pad texture at the output size."""
+    does beside it; against one ``cv2.warpPerspective`` of the pad texture at the output size.
+    ``spec_path``: a spec YAML, or a ``DatasetSpec``."""
     import cv2
     import yaml
 
@@ -42,7 +44,7 @@ def render_speed(spec_path: str, blur: bool, n: int, blur_method: str = "velocit
     from render.planar import warp_pad_view
     from render.spec import DatasetSpec
 
-    d = yaml.safe_load(Path(spec_path).read_text())
+    d = spec_path.model_dump(mode="json") if isinstance(spec_path, DatasetSpec) else yaml.safe_load(Path(spec_path).read_text())
     deg = d.setdefault("degradations", {})
     deg.update(motion_blur=blur, blur_method=blur_method, blur_subframes=subframes)
     spec = DatasetSpec.model_validate(d)
@@ -67,6 +69,25 @@ def render_speed(spec_path: str, blur: bool, n: int, blur_method: str = "velocit
             "fps": 1.0 / t_frame, "ms_per_frame": 1000 * t_frame, "stages_ms": stages,
             "non_raster_share": 1.0 - raster / (1000 * t_frame), "png_ms_writer_thread": 1000 * t_png,
             "ref_warp_ms": 1000 * t_warp, "ratio_to_warp": t_frame / t_warp}
+
+
+def realism_speed(n: int) -> dict:
+    """The cost of every realism feature: the ``realism`` suite's two tiers (the same descents, once
+    plain and once with ground detail, a rolling shutter, vignetting, chromatic aberration, auto
+    exposure, sharpening, a glossy dirty wrinkled pad and landing legs), motion blur on in both,
+    timed alternately (twice each, the faster run kept: the machine is shared)."""
+    from .suite import load_suite
+
+    _, specs, _, _ = load_suite("realism")
+    tiers = {s.name: s for s in specs if s.name in ("r_plain", "r_real")}
+    runs = {"r_plain": [], "r_real": []}
+    for _ in range(2):
+        for name in runs:
+            runs[name].append(render_speed(tiers[name], True, n))
+    best = {k: min(v, key=lambda r: r["ms_per_frame"]) for k, v in runs.items()}
+    p, r = best["r_plain"], best["r_real"]
+    return {"plain": p, "real": r, "ratio": r["ms_per_frame"] / p["ms_per_frame"],
+            "ratio_with_png": (r["ms_per_frame"] + r["png_ms_writer_thread"]) / (p["ms_per_frame"] + p["png_ms_writer_thread"])}
 
 
 def localizer_speed(width: int, height: int, hfov_deg: float, n: int) -> list:
@@ -164,6 +185,13 @@ def main(argv=None) -> int:
                       f"({r['ms_per_frame']:6.1f} ms; not raster {100 * r['non_raster_share']:.0f} %; png "
                       f"{r['png_ms_writer_thread']:.0f} ms on the writer thread)  warpPerspective {r['ref_warp_ms']:5.2f} ms "
                       f"ratio {r['ratio_to_warp']:6.1f}x\n    ms: {st}", flush=True)
+        rs = realism_speed(max(3, n // 2))
+        res["realism"] = rs
+        print(f"realism: every feature on {rs['real']['ms_per_frame']:.1f} ms/frame, off {rs['plain']['ms_per_frame']:.1f} "
+              f"ms/frame ({rs['real']['resolution']}, motion blur on): ratio {rs['ratio']:.2f}x (target <= 1.5x); "
+              f"with the PNG encoding {rs['ratio_with_png']:.2f}x\n    on: "
+              + "  ".join(f"{k} {v:.1f}" for k, v in rs["real"]["stages_ms"].items())
+              + "\n    off: " + "  ".join(f"{k} {v:.1f}" for k, v in rs["plain"]["stages_ms"].items()), flush=True)
     for w, h, fov in ((800, 800, 60.0), (1920, 1080, 94.0)):
         for r in localizer_speed(w, h, fov, n):
             res["localizer"].append(r)
