@@ -38,7 +38,7 @@ POSE = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
 LOCK_NAME = ".hvloc.lock"
 SEQUENCE_FILES = ("frames.csv", "groundtruth.tum", "imu.csv", "camera.json", "pad.json", "meta.json")
 PAD_TEXTURE = "pad.png"  # at the dataset's root: one copy per dataset, named by every pad.json
-AIRFRAME_MASK = "airframe_mask.png"  # per sequence, when the camera sees the drone's legs: 255 where it does
+AIRFRAME_MASK = "airframe_mask.png"  # per sequence, when the camera sees its airframe (legs, arms, propeller discs): 255 there
 
 # frames.csv: every column and what it holds (the README's table is made from this)
 COLUMN_DOCS = {

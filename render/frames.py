@@ -8,7 +8,7 @@
 * ``motion_px`` ``(H, W, 2)`` float32: each pixel's image motion from the shutter's opening to
   its closing (``None`` when the frame has no motion blur).
 * ``labels``    ``{column: value}``: the frame's row of ``frames.csv`` (:data:`render.dataset.FRAME_COLUMNS`).
-* ``airframe_mask`` ``(H, W)`` bool: where the camera sees the drone's own legs (``None``: none).
+* ``airframe_mask`` ``(H, W)`` bool: where the camera sees the drone's own legs, arms or propeller discs (``None``: none).
 
 Each frame is rasterised once with its depth at the frame time; the depth gives the labels'
 occlusion (what the camera really sees) and each pixel's image motion, from which the motion
@@ -75,6 +75,15 @@ class SequenceRenderer:
             az = np.radians(a.leg_azimuth_deg + 360.0 * i / a.legs)
             xy = a.leg_spread_m * np.array([np.cos(az), np.sin(az)])
             self.legs.append(((xy[0], xy[1], -a.leg_length_m), (xy[0], xy[1], 0.0), a.leg_diameter_m, a.leg_color))
+        self.props = []  # (centre xyz in the body frame, radius m) of each propeller's disc
+        for i in range(a.arms):  # the arms join the legs: tubes rigid with the body
+            az = np.radians(a.arm_azimuth_deg + 360.0 * i / a.arms)
+            u = np.array([np.cos(az), np.sin(az)])
+            tip = a.arm_length_m * u
+            self.legs.append(((0.3 * tip[0], 0.3 * tip[1], a.arm_z_m), (tip[0], tip[1], a.arm_z_m), a.arm_diameter_m,
+                              a.arm_color))
+            if a.prop_diameter_m > 0 and a.prop_alpha > 0:
+                self.props.append((np.array([tip[0], tip[1], a.arm_z_m + a.prop_z_m]), a.prop_diameter_m / 2))
         self.material = plan.material
         self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
                                   self.imaging.render_camera, pad.spec.border_color,
@@ -114,7 +123,17 @@ class SequenceRenderer:
         self._quats = continuous_quaternions([tum_from_transform(self.cam2pad(k))[3:] for k in range(len(self.times))])
         self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])
         self.exposure_gain = self._auto_exposure(spec.camera.auto_exposure_lag_s)
+        self.prop_alpha = self._prop_alpha(a.prop_alpha) if self.props else None
+        self.prop_linear = None
+        if self.prop_alpha is not None:  # the blades' underside: lit by the sky alone (the sun is above them)
+            lin = (np.asarray(a.prop_color, np.float64) / 255.0) ** 2.2
+            self.prop_linear = (lin * float(self.scene.relative_light(np.array([[0.0, 0.0, -1.0]]))[0])).astype(np.float32)
         self.airframe_mask = self._airframe_mask() if self.legs else None
+        if self.prop_alpha is not None:
+            seen = self.prop_alpha > 0.02
+            self.airframe_mask = seen if self.airframe_mask is None else self.airframe_mask | seen
+            if not self.airframe_mask.any():
+                self.airframe_mask = None
 
     # ------------------------------------------------------------------ poses
     def __len__(self) -> int:
@@ -171,6 +190,9 @@ class SequenceRenderer:
             elif n > 1:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base)
             t4 = time.perf_counter()
+        if self.prop_alpha is not None:  # the propellers spin with the camera: over the exposure's blur, not in it
+            a = np.where(depth > self.prop_depth, self.prop_alpha, np.float32(0.0))[..., None]  # (not over an arm)
+            linear = linear * (1.0 - a) + a * self.prop_linear
         rgb = self.imaging.finish(linear, k, float(self.exposure_gain[k]) if k < len(self.exposure_gain) else 1.0)
         t5 = time.perf_counter()
         labels = self._labels(k, t, cam2pad, facts, n, T_W_B, T_W_P)
@@ -208,6 +230,33 @@ class SequenceRenderer:
             return cls
 
         return classify
+
+    def _prop_alpha(self, alpha: float) -> np.ndarray | None:
+        """``(H, W)`` float32: how much of each pixel's light the spinning propellers take (their
+        discs are rigid with the camera: one image per sequence), anti-aliased over a pixel at the
+        discs' rims; ``None`` when no disc is in view."""
+        T_C_B = invert(self.T_B_C)
+        xn, yn = self.rays
+        out = np.zeros(xn.shape, np.float32)
+        self.prop_depth = np.full(xn.shape, np.inf, np.float32)  # the nearest disc's depth where one is seen
+        up_C = T_C_B[:3, 2]  # the discs' normal (body z) in the camera frame
+        for centre_B, radius in self.props:
+            c = T_C_B[:3, :3] @ centre_B + T_C_B[:3, 3]
+            # the ray (xn, yn, 1) * s meets the disc's plane where (ray * s - c) . up = 0
+            denom = xn * up_C[0] + yn * up_C[1] + up_C[2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = (c @ up_C) / denom
+            ok = np.isfinite(s) & (s > 1e-3)
+            if not ok.any():
+                continue
+            d = np.sqrt((xn * s - c[0]) ** 2 + (yn * s - c[1]) ** 2 + (s - c[2]) ** 2)
+            # a pixel's footprint on the disc's plane, to soften the rim over one pixel
+            f = float(min(self.camera.fx, self.camera.fy))
+            foot = s * np.sqrt(xn * xn + yn * yn + 1.0) / (f * np.maximum(np.abs(denom) / np.sqrt(xn * xn + yn * yn + 1.0), 0.05))
+            cover = np.where(ok, np.clip((radius - d) / np.maximum(foot, 1e-9) + 0.5, 0.0, 1.0), 0.0).astype(np.float32)
+            self.prop_depth = np.where(cover > 0, np.minimum(self.prop_depth, s), self.prop_depth).astype(np.float32)
+            out = np.maximum(out, cover)
+        return (out * np.float32(alpha)) if out.any() else None
 
     def _airframe_mask(self) -> np.ndarray:
         """``(H, W)`` bool: where the camera sees its own airframe (rigid with it: one per sequence)."""

@@ -169,7 +169,10 @@ class PlatformSpec(_Model):
 
 
 class AirframeSpec(_Model):
-    """What of the drone itself the camera can see: landing legs under the body (FLU body frame)."""
+    """What of the drone itself the camera can see: landing legs under the body, motor arms and
+    spinning propellers (FLU body frame).  A camera under the body looking down sees the legs; the
+    arms and propellers, at or above the body's plane, come into view of a camera mounted lower
+    than them at the front and pitched forward, or of a very wide lens."""
 
     legs: int = Field(0, ge=0, le=8, description="landing legs: vertical tubes spread evenly around the body centre")
     leg_length_m: float = Field(0.18, gt=0.0, le=1.0, description="from the body origin down")
@@ -177,6 +180,18 @@ class AirframeSpec(_Model):
     leg_spread_m: float = Field(0.16, gt=0.0, le=1.0, description="horizontal distance of each leg from the body centre")
     leg_azimuth_deg: float = Field(45.0, description="azimuth of the first leg from the body's x axis (forward)")
     leg_color: tuple[int, int, int] = Field((34, 34, 38), description="sRGB colour of the legs")
+    arms: int = Field(0, ge=0, le=8, description="motor arms: horizontal tubes from the body to a motor each, "
+                      "spread evenly around the body centre, a spinning propeller over each motor")
+    arm_length_m: float = Field(0.25, gt=0.0, le=2.0, description="from the body centre to a motor")
+    arm_diameter_m: float = Field(0.02, gt=0.0, le=0.2)
+    arm_azimuth_deg: float = Field(45.0, description="azimuth of the first arm from the body's x axis (forward)")
+    arm_z_m: float = Field(0.0, ge=-0.5, le=0.5, description="height of the arms above the body origin")
+    arm_color: tuple[int, int, int] = Field((34, 34, 38), description="sRGB colour of the arms")
+    prop_diameter_m: float = Field(0.25, ge=0.0, le=2.0, description="disc a spinning propeller sweeps (0: none)")
+    prop_z_m: float = Field(0.03, ge=-0.5, le=0.5, description="height of the propeller discs above the arms")
+    prop_alpha: float = Field(0.3, ge=0.0, le=1.0, description="share of the light behind a propeller disc that "
+                              "its blades take (a spinning propeller is a translucent disc)")
+    prop_color: tuple[int, int, int] = Field((20, 20, 22), description="sRGB colour of the blades")
 
 
 class PadMaterialSpec(_Model):

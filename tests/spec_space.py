@@ -58,6 +58,9 @@ ARTWORK = _artwork_files()
 ART = {"pad.variant": "artwork", "pad.artwork_image": ARTWORK[0]}
 TILTED = {"camera.mount.rpy_deg": [200.0, 0.0, -90.0]}
 WIDE = {"camera.hfov_deg": 110.0}  # the legs are in view of a wide lens
+# arms and propellers come into view of a camera pitched forward, mounted above them
+ARMS = {"camera.mount.rpy_deg": [180.0, 60.0, -90.0], "airframe.arms": 4, "airframe.arm_azimuth_deg": 0.0,
+        "airframe.arm_z_m": -0.1, "airframe.prop_z_m": -0.06}
 BLUR = {"camera.exposure_s": 0.02, "trajectory.gust_accel_mps2": [0.8, 0.8]}
 DISTRACTORS = {"environment.distractors.boxes": [2, 2], "environment.distractors.decoy_patches": [1, 1],
                "environment.distractors.decoy_markers": [1, 1]}
@@ -123,6 +126,16 @@ FIELDS = {
     "airframe.leg_spread_m": (_uniform(0.12, 0.2), 0.12, {**WIDE, "airframe.legs": 4}),
     "airframe.leg_azimuth_deg": (_uniform(0.0, 90.0), 10.0, {**WIDE, "airframe.legs": 4}),
     "airframe.leg_color": (_choice([[34, 34, 38], [200, 40, 40]]), [220, 220, 60], {**WIDE, "airframe.legs": 4}),
+    "airframe.arms": (_choice([0, 0, 4]), 4, {k: v for k, v in ARMS.items() if k != "airframe.arms"}),
+    "airframe.arm_length_m": (_uniform(0.2, 0.3), 0.35, ARMS),
+    "airframe.arm_diameter_m": (_uniform(0.015, 0.03), 0.04, ARMS),
+    "airframe.arm_azimuth_deg": (_uniform(0.0, 90.0), 20.0, ARMS),
+    "airframe.arm_z_m": (_uniform(-0.05, 0.05), -0.14, ARMS),
+    "airframe.arm_color": (_choice([[34, 34, 38], [200, 40, 40]]), [220, 220, 60], ARMS),
+    "airframe.prop_diameter_m": (_uniform(0.15, 0.3), 0.0, ARMS),
+    "airframe.prop_z_m": (_uniform(0.0, 0.05), -0.03, ARMS),
+    "airframe.prop_alpha": (_uniform(0.2, 0.4), 0.6, ARMS),
+    "airframe.prop_color": (_choice([[20, 20, 22], [90, 90, 90]]), [200, 40, 40], ARMS),
     "pad_ppm": (_choice([500.0, 700.0]), 600.0, {}),
     "platform.height_m": (_choice([0.0, 0.5]), 0.3, {}),
     "platform.size_m": (_uniform(1.0, 1.6), 1.5, {}),

@@ -627,6 +627,42 @@ def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
     assert checked >= 2
 
 
+def test_arms_and_spinning_propellers_are_drawn_where_the_camera_sees_them():
+    """``airframe.arms``: motor arms and a spinning propeller over each.  Rigid with the camera, a
+    propeller is a translucent disc over whatever lies behind it (not smeared by the exposure):
+    there the light is (1 - prop_alpha) of the scene's plus the blades' own; an arm in front of a
+    disc is not darkened by it; the airframe mask covers both; the labels do not change.  A
+    camera under the body looking down does not see arms and propellers above it."""
+    base = {"name": "arms", "seed": 3, "sequences": 1,
+            "camera": {"width": 160, "height": 120, "fps": 4, "hfov_deg": 90,
+                       "mount": {"rpy_deg": [180.0, 60.0, -90.0], "xyz_m": [0.0, 0.0, -0.06]}},
+            "airframe": {"arms": 4, "arm_azimuth_deg": 0.0, "arm_z_m": -0.1, "prop_z_m": -0.06, "prop_alpha": 0.35},
+            "trajectory": {"families": ["straight"], "start_height_m": 4.0, "duration_s": [3.0, 3.0]},
+            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "motion_blur": False}}
+    bare = _merge(base, {"airframe.prop_alpha": 0.0})
+    with SequenceRenderer(_spec(base), 0) as r, SequenceRenderer(_spec(bare), 0) as b:
+        assert r.prop_alpha is not None and b.prop_alpha is None
+        disc = r.prop_alpha > 0.3  # inside a disc, off its anti-aliased rim
+        for k in (1, 4, 8):
+            a, c = r.render(k), b.render(k)
+            assert a.labels == c.labels
+            behind = disc & (c.depth_m > r.prop_depth)  # the disc in front of what the pixel sees
+            arm = disc & (c.depth_m < r.prop_depth)  # an arm in front of the disc
+            assert behind.sum() > 50 and arm.sum() > 5, (behind.sum(), arm.sum())
+            # back through the camera's own tone curve to its linear light (exposure gain included)
+            la, lc = ((x.rgb.astype(np.float64) / 255.0) ** (1.0 / r.imaging.tone_exponent) for x in (a, c))
+            expect = (1 - r.prop_alpha[..., None]) * lc + r.prop_alpha[..., None] * r.imaging.gain * r.prop_linear
+            assert np.median(np.abs(la - expect)[behind]) < 0.01, np.median(np.abs(la - expect)[behind])
+            assert np.median(np.abs(la - lc)[arm]) < 0.01
+            bright = behind[..., None] & (lc > 0.1)
+            assert bright.sum() > 50 and (la[bright] < lc[bright]).mean() > 0.95  # the blades take light
+        assert a.airframe_mask[behind | arm].all() and not c.airframe_mask[behind].any()
+    nadir = _merge(base, {"camera.mount.rpy_deg": [180.0, 0.0, -90.0], "airframe.arm_z_m": 0.0, "airframe.prop_z_m": 0.03,
+                          "trajectory.lateral_offset_m": [0.0, 1.0]})
+    with SequenceRenderer(_spec(nadir), 0) as r:
+        assert r.prop_alpha is None and not r.airframe_mask.any()
+
+
 def test_glare_on_a_wrinkled_pad_follows_its_facets():
     """The sun's glare was computed for the ideal plane's normal, so a wrinkled glossy pad shone as
     a flat one.  It now follows each facet's normal: the glare a glossy finish adds on a wrinkled
