@@ -201,10 +201,20 @@ class GroundDetail:
             r0, r1, c0, c1 = roi
             c, s = math.cos(yaw), math.sin(yaw)
             X, Y = wx[r0:r1, c0:c1] - np.float32(ox), wy[r0:r1, c0:c1] - np.float32(oy)
-            u = np.abs(c * X + s * Y) - sx / 2
-            v = np.abs(-s * X + c * Y) - sy / 2
+            # max(|c X + s Y| - sx / 2, |-s X + c Y| - sy / 2) / footprint - 1, clipped to [0, 1] (in place)
+            u = c * X
+            u += s * Y
+            np.abs(u, out=u)
+            u -= sx / 2
+            v = -s * X
+            v += c * Y
+            np.abs(v, out=v)
+            v -= sy / 2
+            np.maximum(u, v, out=u)
             fp = self._footprint(zc[r0:r1, c0:c1], cam2world, np.s_[r0:r1, c0:c1])
-            ground[r0:r1, c0:c1] *= np.clip(np.maximum(u, v) / np.maximum(fp, 1e-9) - 1.0, 0.0, 1.0)
+            u /= np.maximum(fp, 1e-9, out=fp)
+            u -= 1.0
+            ground[r0:r1, c0:c1] *= np.clip(u, 0.0, 1.0, out=u)
         if not ground.any():
             return None
         logf = np.zeros_like(zc)
