@@ -382,6 +382,7 @@ class HierarchicalLocalizer:
         # the image work; localizers of one pad and camera that see the same frames may share one
         # (hvloc.work): their estimates are exactly what each would make alone
         self.work = work if work is not None else ImageWork()
+        self._pair_by_prior = False  # (set while the last-resort marker attempt runs)
         self.outer_P = self.geometry.outer_corners
         modules = [m.module_m for m in self.geometry.markers_in("corner")]
         # the height at which the corner markers' modules, seen straight on, span MARKER_MIN_MODULE_PX
@@ -464,7 +465,11 @@ class HierarchicalLocalizer:
         # the methods in the phase's order: the first whose pose passes the gates wins; a pose the
         # gates reject does not stop the next method (a pad cut by the image edge must not keep
         # the flow tracker from its turn)
-        for method in order:
+        # last of all, two markers named by the recent pose (:func:`phases._pair_by_prior`): only
+        # where nothing else posed the frame (the flow tracker and a cut outline, where they hold,
+        # are the better pose near the ground)
+        tries = [(m, False) for m in order] + ([("markers", True)] if "markers" in order and self.last is not None else [])
+        for method, by_prior in tries:
             if not enabled[method]:
                 continue
             if not method_allowed(method, h, cfg, self.markers_seen_below_m):
@@ -474,8 +479,14 @@ class HierarchicalLocalizer:
                 continue
             if method == "texture" and not self._texture_allowed(h):
                 continue
-            res, why = self._try(method, rgb, gray, up_C, t, R_W_B)
+            self._pair_by_prior = by_prior
+            try:
+                res, why = self._try(method, rgb, gray, up_C, t, R_W_B)
+            finally:
+                self._pair_by_prior = False
             if res is None:
+                if by_prior:
+                    why = why.replace("no marker layout", "none named by the recent pose either")
                 reasons.append(f"{method}: {why}")
                 continue
             pose, n, extras = res
@@ -567,9 +578,11 @@ class HierarchicalLocalizer:
                             det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading")
             else:
                 use_rgb = rgb if cfg.use_outline else None
-                det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C)),
+                named_by = prior if self._pair_by_prior else None
+                det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C),
+                                              array_key(named_by)),
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
-                                     method=cfg.binarization, rgb=use_rgb, up_C=up_C)
+                                     method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by)
             if det is not None:
                 res, why = self._posed(det, why, prior, up_C, r is not None)
                 if res is not None:

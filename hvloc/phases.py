@@ -3,6 +3,7 @@ markers (Adjustment) and the flow tracker (Touchdown).  Each detector returns co
 (pad points in metres, image pixels) or ``None`` with a reason; pose comes from :mod:`.pose`."""
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -865,70 +866,148 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 # ----------------------------------------------------------------------------- Adjustment
 
 def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None) -> tuple:
+                   method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None,
+                   prior: np.ndarray | None = None) -> tuple:
     """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
+    With ``prior`` (a recent ``T_P_C``), two markers of a set, the third out of view or unreadable,
+    are named by where the prior puts the set's markers (:func:`_pair_by_prior`).
     Returns ``(Detection | None, reason)``."""
     img, x0, y0 = _crop(gray, roi)
     if img.shape[0] < 16 or img.shape[1] < 16:
         return None, "image too small"
-    triples, nests = [], []
+    triples, nests, all_nests = [], [], []
     # the configured binarization first; the other one when it fails (shadows across a marker
     # defeat a global Otsu threshold, a local one copes)
     for m in (method, "adaptive" if method == "otsu" else "otsu"):
         nests = mk.find_finder_nests(mk.binarize_dark(img, m))
+        all_nests.append(nests)
         triples = mk.find_marker_triples(nests, rectify=_head_on(camera, up_C, x0, y0)) if len(nests) >= 3 else []
         if triples:
             break
-    if not triples:
-        return None, f"{len(nests)} finder nests, no marker layout"
     sets = {}
     for m in pad_geometry.markers_in(kind="finder"):
         sets.setdefault(m.set, {})[m.name] = m
+    g = img.astype(np.float32)
+    if not triples:
+        for cand in all_nests if prior is not None and camera is not None else []:
+            named = _pair_by_prior(cand, sets, camera, prior, x0, y0)
+            if named is not None:
+                set_name, quads, module_px = named
+                got = _marker_corners(g, sets[set_name], quads, module_px, camera, x0, y0)
+                if got is not None and len(got[0]) >= 2 * len(quads):
+                    pts_P, px, _ = got
+                    return Detection(np.concatenate(pts_P), np.concatenate(px), "markers",
+                                     {"sets": [set_name], "named_by": "prior", "markers_seen": sorted(quads)}), "ok"
+        return None, f"{len(nests)} finder nests, no marker layout"
     expect = {s: ms["Top"].size_m / (2 * abs(ms["Top"].center[0])) for s, ms in sets.items() if "Top" in ms}
     pts_P, px = [], []
     used = []
-    g = img.astype(np.float32)
     for t in triples:
         ratio = t.spacing_ratio
         set_name = min(expect, key=lambda s: abs(math.log(ratio / expect[s])))
         if abs(math.log(ratio / expect[set_name])) > 0.5 or set_name in used:
             continue
         ms = sets[set_name]
-        # homography from the pad's marker centres + outline corners to the image: predicts all corners
-        src, dst = [], []
+        quads = {}
         for name, nest in t.by_name.items():
             quad = _contour_quad(nest.outline)
             if quad is None:
                 break
-            corners = ms[name].outer_corners[:, :2]
-            quad = _order_like(quad, corners, t)
-            src.append(corners)
-            dst.append(quad)
-        if len(src) != 3:
-            continue
-        H, _ = cv2.findHomography(np.concatenate(src), np.concatenate(dst), 0)
-        if H is None:
+            quads[name] = _order_like(quad, ms[name].outer_corners[:, :2], t)
+        if len(quads) != 3:
             continue
         module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
-        hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
-        squares = [sq.corners for name in ("Top", "Right", "Bottom") for sq in ms[name].squares]
-        guesses = np.stack([cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :] for P in squares])
-        refined, _ = refine_quads(g, guesses, hw, camera=_shifted(camera, x0, y0))
-        for P, guess, ref in zip(squares, guesses, refined):
-            if not np.isfinite(ref).all() or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
-                continue
-            pts_P.append(P)
-            px.append(ref + [x0, y0])
+        got = _marker_corners(g, ms, quads, module_px, camera, x0, y0)
+        if got is None:
+            continue
+        pts_P += got[0]
+        px += got[1]
         used.append(set_name)
         if rgb is not None and set_name == "corner":
-            outer = _refine_outline_from(rgb, pad_geometry, H, x0, y0, camera)
+            outer = _refine_outline_from(rgb, pad_geometry, got[2], x0, y0, camera)
             if outer is not None:
                 pts_P.append(pad_geometry.outer_corners)
                 px.append(outer)
     if not pts_P:
         return None, "markers found but no corner refined"
     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers", {"sets": used}), "ok"
+
+
+def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, camera: Camera | None, x0: int, y0: int):
+    """``(pad points, pixels, H)`` or ``None``: the nested squares' corners of the markers ``quads``
+    names (their outer corners in the image (crop), ordered as the marker's), predicted by the
+    homography of those outer corners and refined on ``g`` (the crop, float32); a corner whose
+    refinement moved it further than half a module is left out."""
+    src = [ms[name].outer_corners[:, :2] for name in quads]
+    H, _ = cv2.findHomography(np.concatenate(src), np.concatenate(list(quads.values())), 0)
+    if H is None:
+        return None
+    hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
+    squares = [sq.corners for name in ("Top", "Right", "Bottom") if name in quads for sq in ms[name].squares]
+    guesses = np.stack([cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :] for P in squares])
+    refined, _ = refine_quads(g, guesses, hw, camera=_shifted(camera, x0, y0))
+    pts_P, px = [], []
+    for P, guess, ref in zip(squares, guesses, refined):
+        if not np.isfinite(ref).all() or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
+            continue
+        pts_P.append(P)
+        px.append(ref + [x0, y0])
+    return pts_P, px, H
+
+
+def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x0: int, y0: int):
+    """``(set name, {marker name: outer corners in the crop, ordered as the marker's}, module px)`` of
+    two markers of one set that two of ``nests`` are, as a recent pose ``prior`` names them; or
+    ``None``.
+
+    Three markers name themselves by their right-angle triangle; two do not (any two of Top, Right,
+    Bottom, either way round).  The prior says where the set's markers should lie; since it, the
+    drone has moved (the image shifts) and turned a little.  Two nests are two markers when the
+    similarity that takes the prior's two centres onto them turns by under 25 degrees, scales by
+    0.7-1.4 and shifts by under the markers' spacing, and their sizes agree with the prior's within
+    2x: a diagonal pair is 1.41x an adjacent one, another adjacent pair is turned 90 degrees, a
+    reversed one 180.  Exactly one such reading must exist.  Each nest's corners are ordered as the
+    prior's corners of its marker, carried by that similarity.  The pose it gives is judged as
+    every marker pose is (gates against the IMU and the prior)."""
+    cands = sorted(nests, key=lambda n: -n.area_px)[:4]
+    found = []
+    for set_name, ms in sets.items():
+        names = [n for n in ("Top", "Right", "Bottom") if n in ms]
+        if len(names) < 3:
+            continue
+        centres = camera.project_from(prior, np.array([ms[n].center for n in names])) - [x0, y0]
+        corners = {n: camera.project_from(prior, ms[n].outer_corners) - [x0, y0] for n in names}
+        if not np.isfinite(centres).all() or not all(np.isfinite(c).all() for c in corners.values()):
+            continue
+        spacing = min(np.linalg.norm(centres[i] - centres[j]) for i in range(3) for j in range(i + 1, 3))
+        for i, j in itertools.combinations(range(len(cands)), 2):
+            na, nb = cands[i], cands[j]
+            for a, b in itertools.permutations(range(3), 2):
+                vp, vo = centres[b] - centres[a], nb.center_px - na.center_px
+                scale = np.linalg.norm(vo) / max(np.linalg.norm(vp), 1e-9)
+                turn = math.atan2(vp[0] * vo[1] - vp[1] * vo[0], vp @ vo)
+                if not (abs(turn) < math.radians(25) and 0.7 < scale < 1.4
+                        and np.linalg.norm(na.center_px - centres[a]) < spacing):
+                    continue
+                areas = [abs(_signed_area(corners[names[k]])) * scale**2 for k in (a, b)]
+                if not all(0.5 < n.area_px / max(ar, 1e-9) < 2.0 for n, ar in zip((na, nb), areas)):
+                    continue
+                c, sn = scale * math.cos(turn), scale * math.sin(turn)
+                S = np.array([[c, -sn], [sn, c]])
+                quads = {}
+                for k, nest in ((a, na), (b, nb)):
+                    quad = _contour_quad(nest.outline)
+                    if quad is None:
+                        break
+                    want = (corners[names[k]] - centres[a]) @ S.T + na.center_px
+                    orders = [np.roll(q, r, axis=0) for q in (quad, quad[::-1]) for r in range(4)]
+                    quads[names[k]] = min(orders, key=lambda q: float(np.sum(np.linalg.norm(q - want, axis=1))))
+                if len(quads) == 2:
+                    found.append((set_name, quads, math.sqrt(np.mean([n.area_px for n in (na, nb)])) / 7.0))
+    if len(found) != 1:
+        return None
+    return found[0]
 
 
 def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):

@@ -1075,6 +1075,41 @@ def test_border_colour_spilled_past_a_side_is_not_taken_for_the_pad(pad, h):
     assert found >= 6, found
 
 
+def test_two_markers_are_named_by_a_recent_pose(pad):
+    """With one finder marker out of view (and the outline cut), two nests are no right-angle
+    triangle: any two of Top, Right, Bottom, either way round, and every such frame was "no marker
+    layout".  A recent pose says where each marker should be, give or take the drone's motion since
+    (here ~10 cm and 6 degrees): the two are named by it and posed from their own squares' corners,
+    as exact as three.  Without a prior they are still refused."""
+    geo = pad.geometry
+    ms = {m.name: m for m in geo.markers_in(kind="finder") if m.set == "corner"}
+    rng = np.random.default_rng(1)
+    views = posed = 0
+    while views < 8:
+        h = rng.uniform(1.5, 3.5)
+        G = tilted(rng.uniform(-1.2, 1.2), rng.uniform(-1.2, 1.2), h, rng.uniform(0, 2 * np.pi), 0.05, -0.04)
+        seen = [n for n, m in ms.items() if CAM.in_image(CAM.project_from(G, m.outer_corners)).all()]
+        near = [n for n, m in ms.items() if CAM.in_image(CAM.project_from(G, m.center[None])).all()]
+        if len(seen) != 2 or len(near) != 2:  # the third wholly out of view
+            continue
+        views += 1
+        gray = cv2.cvtColor(warp_pad_view(pad, CAM, G, GROUND), cv2.COLOR_RGB2GRAY)
+        det, why = detect_markers(gray, geo, CAM, up_C=up_in_camera(G))
+        assert det is None and "no marker layout" in why, why
+        prior = G.copy()  # the last accepted pose: the drone has since moved ~10 cm and turned ~6 degrees
+        prior[:3, 3] += rng.normal(0, 0.07, 3)
+        prior[:3, :3] = prior[:3, :3] @ so3_exp([*rng.normal(0, 0.01, 2), rng.choice([-1, 1]) * 0.1])
+        det, why = detect_markers(gray, geo, CAM, up_C=up_in_camera(G), prior=prior)
+        if det is None:
+            continue
+        assert det.info["named_by"] == "prior" and sorted(det.info["markers_seen"]) == sorted(seen)
+        pose = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up_in_camera(G))
+        e, r = pose_error(pose.cam2pad, G)
+        assert e < 0.005 * h and r < 0.3, (h, seen, e, r)
+        posed += 1
+    assert posed >= 6, posed
+
+
 def test_markers_are_tried_as_high_as_this_pad_and_camera_resolve_them():
     """Markers were never tried above the adjustment height (8.3 m), whatever the pad and camera: a
     1.5 m pad's 0.2 m markers at 1080p resolve to 16 m, and on an oblique dusk descent (unseen8)
