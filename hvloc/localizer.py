@@ -382,7 +382,6 @@ class HierarchicalLocalizer:
         # the image work; localizers of one pad and camera that see the same frames may share one
         # (hvloc.work): their estimates are exactly what each would make alone
         self.work = work if work is not None else ImageWork()
-        self._pair_by_prior = False  # (set while the last-resort marker attempt runs)
         self.outer_P = self.geometry.outer_corners
         modules = [m.module_m for m in self.geometry.markers_in("corner")]
         # the height at which the corner markers' modules, seen straight on, span MARKER_MIN_MODULE_PX
@@ -479,11 +478,7 @@ class HierarchicalLocalizer:
                 continue
             if method == "texture" and not self._texture_allowed(h):
                 continue
-            self._pair_by_prior = by_prior
-            try:
-                res, why = self._try(method, rgb, gray, up_C, t, R_W_B)
-            finally:
-                self._pair_by_prior = False
+            res, why = self._try(method, rgb, gray, up_C, t, R_W_B, by_prior)
             if res is None:
                 if by_prior:
                     why = why.replace("no marker layout", "none named by the recent pose either")
@@ -549,7 +544,8 @@ class HierarchicalLocalizer:
             return None
         return found.quad_px[k]
 
-    def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None):
+    def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None, by_prior: bool = False):
+        """``by_prior``: markers only, two of them may be named by the last pose (the last resort)."""
         prior = self._prior()
         cfg = self.config
         if method == "flow":
@@ -578,7 +574,7 @@ class HierarchicalLocalizer:
                             det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading")
             else:
                 use_rgb = rgb if cfg.use_outline else None
-                named_by = prior if self._pair_by_prior else None
+                named_by = prior if by_prior else None
                 det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C),
                                               array_key(named_by)),
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,

@@ -197,18 +197,18 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                 else "its border band is missing beside a corner" if _corner_missing(rgb, refined, pad_geometry, camera) \
                 else None
             if why is not None:
-                rescued = None if cut else _field_rescue(rgb, refined, pad_geometry, camera)
+                rescued = None if cut else _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is None:
                     return None, why
-                refined, field = rescued[0], rescued[1] - [bx0, by0]  # (the field is kept in the fit's window)
+                refined, field = rescued[0] + [bx0, by0], rescued[1]  # (the field is kept in the fit's window)
         if smeared is None and field is None:  # (under blur the field's luma edge is smeared as much as the colour's)
             field, far, fitted = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
             if (far or fitted is None) and not cut:
                 # the colour swelled further than a corner's move may mend, or so far that the field
                 # was out of the fit's reach: the field, found further in, says where the pad is
-                rescued = _field_rescue(rgb, refined, pad_geometry, camera)
+                rescued = _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is not None:
-                    refined, field = rescued[0], rescued[1] - [bx0, by0]
+                    refined, field = rescued[0] + [bx0, by0], rescued[1]
                 elif far:
                     return None, "its colour swells past its white field"
     cue = _cue_scores(rgb, refined, pad_geometry, camera)
@@ -742,7 +742,8 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
 
 def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:
     """``(outer quad, field quad)`` or ``None``: the outline read from the white field's luma edges
-    where its colour swelled past the pad so far that the border's band check failed.
+    where its colour swelled past the pad so far that the border's band check failed (``rgb`` the
+    outline's fit window, ``camera`` shifted to it: a whole 1080p frame costs milliseconds).
 
     JPEG's half-resolution chroma smears the magenta border onto a light platform or pavement
     beside it; on a 25-60 px pad the colour hull and the sides fitted to it then lie 5-10 px out on

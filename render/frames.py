@@ -250,9 +250,10 @@ class SequenceRenderer:
             if not ok.any():
                 continue
             d = np.sqrt((xn * s - c[0]) ** 2 + (yn * s - c[1]) ** 2 + (s - c[2]) ** 2)
-            # a pixel's footprint on the disc's plane, to soften the rim over one pixel
-            f = float(min(self.camera.fx, self.camera.fy))
-            foot = s * np.sqrt(xn * xn + yn * yn + 1.0) / (f * np.maximum(np.abs(denom) / np.sqrt(xn * xn + yn * yn + 1.0), 0.05))
+            # a pixel's footprint on the disc's plane (the ray's length over f, over the incidence's
+            # cosine), to soften the rim over one pixel
+            ray = np.sqrt(xn * xn + yn * yn + 1.0)
+            foot = s * ray / (float(min(self.camera.fx, self.camera.fy)) * np.maximum(np.abs(denom) / ray, 0.05))
             cover = np.where(ok, np.clip((radius - d) / np.maximum(foot, 1e-9) + 0.5, 0.0, 1.0), 0.0).astype(np.float32)
             self.prop_depth = np.where(cover > 0, np.minimum(self.prop_depth, s), self.prop_depth).astype(np.float32)
             out = np.maximum(out, cover)
