@@ -373,6 +373,7 @@ class HierarchicalLocalizer:
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
         self.pad = pad if getattr(pad, "texture_rgb", None) is not None else None  # a bare geometry has no texture
         self._texture = None  # its ORB features (hvloc.texture), made when first needed
+        self._design_cache = None  # its printed design in grey (phases.PadDesign), made when first needed
         if self.geometry.border is None or self.geometry.cue is None:
             raise ValueError(f"the hierarchical localizer needs hvloc's pad (its coloured border and yaw cue); "
                              f"this pad is {self.geometry.variant!r}")
@@ -521,6 +522,11 @@ class HierarchicalLocalizer:
     def _prior(self):
         return self.last.cam2pad if self.last is not None else None
 
+    def _design(self) -> ph.PadDesign:
+        if self._design_cache is None:
+            self._design_cache = ph.PadDesign(self.pad.texture_rgb)
+        return self._design_cache
+
     def _heading_hint(self, found, R_W_B, up_C, t: float):
         """The pixel of the outline's TL corner as the IMU's heading names it, or ``None``.
 
@@ -572,6 +578,12 @@ class HierarchicalLocalizer:
                         hint = self._heading_hint(found, R_W_B, up_C, t)
                         if hint is not None:
                             det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading")
+                    if det is None and hint is None and self.pad is not None:  # a cold start: the whole design
+                        k, scores = ph.name_by_design(gray, found.quad_px, self.geometry, self.camera, self._design())
+                        if k is not None:
+                            det, why = ph.name_outline(found, self.geometry, found.quad_px[k], hint_from="pad design")
+                        else:
+                            why += f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
             else:
                 use_rgb = rgb if cfg.use_outline else None
                 named_by = prior if by_prior else None

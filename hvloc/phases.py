@@ -795,6 +795,69 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     return Detection(pts, refined, "outline", info), "ok"
 
 
+class PadDesign:
+    """The pad's printed design (``pad.png``) in grey, drawn at a given number of samples across
+    (:meth:`at`), for :func:`name_by_design`."""
+
+    def __init__(self, texture_rgb: np.ndarray):
+        self.gray = cv2.cvtColor(np.ascontiguousarray(texture_rgb), cv2.COLOR_RGB2GRAY)
+        self._at = {}
+
+    def at(self, n: int) -> np.ndarray:
+        """(n, n) float grey: each sample the mean of its cell (the image's pixel), a little blurred
+        as a lens and a codec blur it."""
+        d = self._at.get(n)
+        if d is None:
+            d = cv2.resize(self.gray, (n, n), interpolation=cv2.INTER_AREA).astype(np.float64)
+            d = self._at[n] = cv2.GaussianBlur(d, (0, 0), 0.6)
+        return d
+
+
+DESIGN_MIN_NCC = 0.6    # the naming's correlation with the design (over ground, quads reach 0.58 at most)
+DESIGN_MIN_LEAD = 0.04  # ... and its lead over the next naming's
+
+
+def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                   design: PadDesign) -> tuple:
+    """``(k | None, scores)``: image corner ``k`` of ``quad_px`` is the pad's TL corner, read from the
+    pad's whole printed design; ``scores`` (4,) the correlation of each naming.
+
+    Far away the yaw cue is a square of 3 or 4 pixels whose colour JPEG smears, and glare or a dark
+    platform beside it can hide its brightness too.  The design as a whole is not symmetric under
+    a quarter turn: three finder markers in three of the field's corners and none in the fourth,
+    the cue, the texture's blobs.  At 25 px across, the markers are dark blots that still show
+    which corner is empty.  The image is sampled through the quad's homography (the lens included)
+    at one point per pixel across the pad, for each of the four namings, and correlated with the
+    design drawn at that scale; the best naming wins when it correlates at least
+    :data:`DESIGN_MIN_NCC` and leads the next by :data:`DESIGN_MIN_LEAD`.  Over ~1,300 outlines
+    found in scenes of every condition the generator makes (1-2 m pads at 25-500 px, JPEG, glare,
+    fisheye), the best naming was the right one in every view; a wrong one correlates 0.6-0.85
+    where the right one reaches 0.8-0.99."""
+    side_px = float(np.mean(np.linalg.norm(quad_px - np.roll(quad_px, 1, axis=0), axis=1)))
+    n = int(np.clip(round(side_px), 12, 64))
+    s = geo.side_m
+    c = (np.arange(n) + 0.5) / n * s - s / 2  # cell centres; row i of the design is y = s/2 - (i + 0.5) s/n
+    X, Y = np.meshgrid(c, -c)
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    d = design.at(n).ravel()
+    scores = np.full(4, -1.0)
+    for k in range(4):
+        px = _through_quad(np.roll(quad_px, -k, axis=0), geo, camera, pts)
+        if px is None:
+            return None, scores
+        seen = _seen(px, gray.shape)
+        if seen.mean() < 0.6:  # mostly outside the image: too little of the design to tell
+            return None, scores
+        v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
+                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)[seen]
+        a, b = v - v.mean(), d[seen] - d[seen].mean()
+        scores[k] = float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
+    o = np.sort(scores)
+    if o[-1] < DESIGN_MIN_NCC or o[-1] - o[-2] < DESIGN_MIN_LEAD:
+        return None, scores
+    return int(np.argmax(scores)), scores
+
+
 def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chroma: float = 0.15) -> np.ndarray:
     """Pixels whose chromaticity relative to their own brightness says ``colour_rgb``, lit or not.
 
