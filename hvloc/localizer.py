@@ -572,7 +572,8 @@ class HierarchicalLocalizer:
                 found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
                 det = None
                 if found is not None:
-                    hint = self.camera.project_from(prior, self.outer_P[:1])[0] if prior is not None else None
+                    hint = self.camera.project_from(prior, self.outer_P) if prior is not None else None
+                    hint = hint if hint is not None and np.isfinite(hint).all() else None
                     det, why = ph.name_outline(found, self.geometry, hint)
                     if det is None and hint is None:  # no prior to name it by: the IMU's heading may
                         hint = self._heading_hint(found, R_W_B, up_C, t)

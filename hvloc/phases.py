@@ -769,8 +769,14 @@ def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None,
                  hint_from: str = "previous") -> tuple:
     """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
-    (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0`` (the
-    predicted TL pixel; ``hint_from`` says where the prediction came from)."""
+    (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0``: the
+    predicted TL pixel (2,), or the predicted pixels of all four corners (4, 2), TL first
+    (``hint_from`` says where the prediction came from).
+
+    Four predicted corners name the outline by its shape: the naming whose corners, taken about
+    their centre, lie nearest the prediction's about its own.  A prediction shifted by more than
+    half the pad's side (an old or slightly wrong pose over a 25 px pad far away, where 0.5 m is
+    20 px) then still names it; the nearest corner to a shifted TL pixel is another corner."""
     refined = found.quad_px
     info_yellow = "colour {}, brightness {}".format(*([round(float(y), 2) for y in row] for row in found.cue))
     order = None
@@ -779,7 +785,12 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
         c = _cue_corner(pad_geometry)  # image corner k is pad corner c
         order = [(k + j - c) % 4 for j in range(4)]
     elif yaw_hint_corner0 is not None:
-        k = int(np.argmin(np.linalg.norm(refined - yaw_hint_corner0, axis=1)))
+        hint = np.asarray(yaw_hint_corner0, np.float64)
+        if hint.shape == (4, 2):
+            k = int(np.argmin([np.linalg.norm((np.roll(refined, -j, axis=0) - refined.mean(axis=0))
+                                              - (hint - hint.mean(axis=0))) for j in range(4)]))
+        else:
+            k = int(np.argmin(np.linalg.norm(refined - hint, axis=1)))
         order = [k, (k + 1) % 4, (k + 2) % 4, (k + 3) % 4]
         how = hint_from
     if order is None:

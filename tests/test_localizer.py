@@ -807,6 +807,30 @@ def test_a_far_pad_whose_cue_cannot_be_read_is_named_by_its_whole_design(pad):
     assert named >= 0.8 * len(views), (named, len(views))
 
 
+def test_an_outline_is_named_by_the_last_pose_even_when_it_has_moved_half_a_side(pad):
+    """A far pad without a readable cue is named by the last pose.  Its predicted TL pixel alone named
+    the nearest corner, and a pose 0.5 m off at 12 m (20 px, on a 25 px pad) put that nearest
+    another corner: every following frame was named a quarter turn wrong (the fisheye scene:
+    rejected as a 90 degree vision-IMU jump).  The four predicted corners, taken about their
+    centre, name it whatever the shift."""
+    geo = pad.geometry
+    cfg = LocalizerConfig(use_markers=False)
+    h = CAM.fx * geo.side_m / 30.0
+    for yaw in (0.3, 1.4, 2.9, 4.4):
+        first = tilted(0.0, 0.0, h, yaw, 0.02, -0.03)
+        loc = HierarchicalLocalizer(pad, CAM, cfg)
+        e = loc.process(warp_pad_view(pad, CAM, first, GROUND), 0.0, _imu_from(first))
+        assert e.ok and e.extras.get("yaw_from") == "cue", (e.status, e.reason)
+        for k, (dx, dy) in enumerate(((0.6, 0.0), (0.0, -0.7), (-0.5, 0.45))):  # metres in 0.1 s, along a side or not
+            d = np.array([dx, dy]) * geo.side_m / 0.85
+            G = tilted(first[0, 3] + d[0], first[1, 3] + d[1], h, yaw + 0.05, 0.02, -0.03)
+            img = _no_cue(pad, G, warp_pad_view(pad, CAM, G, GROUND))
+            e = loc.process(img, 0.1 * (k + 1), _imu_from(G))
+            assert e.ok and e.extras.get("yaw_from") == "previous", (yaw, k, e.status, e.reason)
+            assert pose_error(e.cam2pad, G)[1] < 3.0, (yaw, k, pose_error(e.cam2pad, G))
+            first = G
+
+
 def test_a_design_with_no_quarter_turn_asymmetry_names_nothing(pad):
     """The design names a pad only where one naming clearly leads: a pad printed with a plain field
     and no cue looks the same at all four namings, and stays unnamed."""
