@@ -177,11 +177,16 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera)
     cam_s = _shifted(camera, bx0, by0)
     field = None
-    if refined is None and cut:
-        return None, "pad cut by the image's edge, and its sides there not found"
-    if cut and _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=10.0):
-        # (the border's centroid needs every side whole; the edge fit holds to twice its window)
-        return None, "pad cut by the image's edge and smeared by motion"
+    if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=10.0)):
+        # smeared past the edge fit's window (it holds to twice its window): the border's centroid
+        # over the stretches of each side that are in view, the hidden corner where two sides meet
+        start = quad if refined is None else refined + [bx0, by0]
+        smeared = _smeared_in_view(rgb, start, pad_geometry, camera)
+        if smeared is None or np.max(np.linalg.norm(smeared - quad, axis=1)) > max(3.0, 0.1 * side_px) \
+                or _seen(smeared, rgb.shape).sum() < 3:
+            return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
+                          else "pad cut by the image's edge and smeared by motion")
+        return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut)
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
@@ -193,6 +198,9 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
         smeared = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
+        if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
+            # the cross-profiles of some stretch run out of the image: the stretches in view
+            smeared = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
             again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
@@ -217,11 +225,17 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                     refined, field = rescued[0] + [bx0, by0], rescued[1]
                 elif far:
                     return None, "its colour swells past its white field"
-    cue = _cue_scores(rgb, refined, pad_geometry, camera)
+    return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
+                         None if field is None else field + [bx0, by0], cut)
+
+
+def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool) -> tuple:
+    """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled."""
+    cue = _cue_scores(rgb, refined, geo, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
-    return OutlineQuad(refined, cue, side_px, res, None if field is None else field + [bx0, by0], scale_sigma), "ok"
+    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma), "ok"
 
 
 def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -502,7 +516,8 @@ def _moved_sides(quad: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-               min_blur_px: float = 5.0, reach_px: float = 16.0) -> np.ndarray | None:
+               min_blur_px: float = 5.0, reach_px: float = 16.0, segments: int = 2,
+               partial: bool = False, trim: float = 0.25) -> np.ndarray | None:
     """``quad_px`` with its sides moved to where the border's centroid puts them
     (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px`` (beyond
     the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be read or
@@ -518,16 +533,21 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     if not smear > min_blur_px:
         return None
     q, cam, bands = quad_px - lo, _shifted(camera, *lo), _bands_px(quad_px, geo)
+    if partial:  # the profiles reach no further than the smear needs: a side near the image's edge stays read
+        reach_px = min(reach_px, max(6.0, 0.75 * smear + 3.0))
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
-                                        cam, reach_px=reach_px)
-    if not np.all(np.isfinite(e)) or np.any(np.abs(e) > blur / 2 + 2.0):
+                                        cam, reach_px=reach_px, trim=trim, segments=segments)
+    read = np.isfinite(e)
+    if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
         return None
-    # each side through its stretches' edge points (the side's angle is as uncertain as its place)
+    # each side through its stretches' edge points (the side's angle is as uncertain as its place);
+    # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view
     d = np.roll(q, -1, axis=0) - q
     n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
     n *= np.sign(np.sum((q.mean(axis=0) - q) * n, axis=1))[:, None]  # inward
-    p = q[:, None, :] + at[None, :, None] * d[:, None, :] + e[..., None] * n[:, None, :]  # (4, S, 2)
-    a, u = p[:, 0], p[:, -1] - p[:, 0]
+    p = q[:, None, :] + at[None, :, None] * d[:, None, :] + np.where(read, e, 0.0)[..., None] * n[:, None, :]
+    first, last = read.argmax(axis=1), segments - 1 - read[:, ::-1].argmax(axis=1)
+    a, u = p[np.arange(4), first], p[np.arange(4), last] - p[np.arange(4), first]
     out = q.copy()
     for j in range(4):  # corner j where sides j - 1 and j meet
         A = np.stack([u[j - 1], -u[j]], axis=1)
@@ -536,6 +556,20 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
     return out + lo
+
+
+def _smeared_in_view(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                     min_blur_px: float = 0.0) -> np.ndarray | None:
+    """:func:`_deblurred` for a pad at or across the image's edge: each side through the border's
+    centroid over those of five stretches (from a tenth of the side on) whose cross-profiles lie in
+    view, at least two per side, reaching no further than the smear needs."""
+    return _deblurred(rgb, quad_px, geo, camera, min_blur_px=min_blur_px, segments=5, partial=True, trim=0.1)
+
+
+def _near_edge(quad_px: np.ndarray, shape, margin_px: float) -> bool:
+    """Whether some corner of ``quad_px`` lies within ``margin_px`` of the image's edge (or outside)."""
+    return bool(np.any(quad_px < margin_px) or np.any(quad_px[:, 0] > shape[1] - 1 - margin_px)
+                or np.any(quad_px[:, 1] > shape[0] - 1 - margin_px))
 
 
 def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
@@ -557,7 +591,7 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
     luma = np.ascontiguousarray(lin @ _LUMA)
     q = quad_px - lo
-    smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo))
+    smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
     return lin, lo, float(np.nanmax(np.append(smear, 0.0)))
 
 
