@@ -83,8 +83,6 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
 
 
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 / sRGB weights, on linear values
-SWOLLEN_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side",
-                "its border band is missing beside a corner", "its colour swells past its white field")
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
                  "its border band is missing beside a corner", "its sides and its colour hull disagree")
 
@@ -96,10 +94,6 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     corner hidden by something in the scene is looked for when no whole one is found
     (:func:`_occluded_outline`)."""
     found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
-    if found is None and why in SWOLLEN_WHEN:
-        again, why_again = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False)
-        if again is not None:
-            return again, "ok"
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
         if hidden is not None:
@@ -109,7 +103,7 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     return found, why
 
 
-def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, shadow: bool = True) -> tuple:
+def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int) -> tuple:
     """``(img, x0, y0, scale, small, hsv, mask)``: the searched area, its copy reduced ``scale`` times
     (when large: the corners are refined at full resolution afterwards, so this costs no accuracy),
     and the border colour's mask there, in shadow too."""
@@ -122,7 +116,7 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, sh
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     border = pad_geometry.border.segmentation_hsv
     mask = _hsv_mask(hsv, border)
-    box = _around(mask) if shadow else None
+    box = _around(mask)
     if box is not None:  # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
         sl = np.s_[box[1]:box[3], box[0]:box[2]]
         mask[sl] = _shadowed_too(small[sl], hsv[sl], mask[sl], border, pad_geometry.border.color_rgb)
@@ -130,12 +124,12 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, sh
 
 
 def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   max_scale: int = 8, shadow: bool = True) -> tuple:
+                   max_scale: int = 8) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
     the others are in view (a corner may be out of the image)."""
     if min(_crop(rgb, roi)[0].shape[:2]) < 8:
         return None, "image too small"
-    img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale, shadow)
+    img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale)
     border = pad_geometry.border.segmentation_hsv
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
@@ -156,13 +150,13 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                           cut_edges, min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
         return None, "no pad-coloured quadrilateral"
     quad = best
     cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
