@@ -83,6 +83,8 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
 
 
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 / sRGB weights, on linear values
+SWOLLEN_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side",
+                "its border band is missing beside a corner", "its colour swells past its white field")
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
                  "its border band is missing beside a corner", "its sides and its colour hull disagree")
 
@@ -94,6 +96,10 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     corner hidden by something in the scene is looked for when no whole one is found
     (:func:`_occluded_outline`)."""
     found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
+    if found is None and why in SWOLLEN_WHEN:
+        again, why_again = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False)
+        if again is not None and _field_agrees(rgb, again.quad_px, pad_geometry, camera):
+            return again, "ok"
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
         if hidden is not None:
@@ -103,7 +109,7 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     return found, why
 
 
-def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int) -> tuple:
+def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, shadow: bool = True) -> tuple:
     """``(img, x0, y0, scale, small, hsv, mask)``: the searched area, its copy reduced ``scale`` times
     (when large: the corners are refined at full resolution afterwards, so this costs no accuracy),
     and the border colour's mask there, in shadow too."""
@@ -116,7 +122,7 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int) ->
     hsv = cv2.cvtColor(small, cv2.COLOR_RGB2HSV)
     border = pad_geometry.border.segmentation_hsv
     mask = _hsv_mask(hsv, border)
-    box = _around(mask)
+    box = _around(mask) if shadow else None
     if box is not None:  # in shadow, colour read relative to brightness (the shadowed part of a pad lies next to its lit part)
         sl = np.s_[box[1]:box[3], box[0]:box[2]]
         mask[sl] = _shadowed_too(small[sl], hsv[sl], mask[sl], border, pad_geometry.border.color_rgb)
@@ -124,12 +130,12 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int) ->
 
 
 def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   max_scale: int = 8) -> tuple:
+                   max_scale: int = 8, shadow: bool = True) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
     the others are in view (a corner may be out of the image)."""
     if min(_crop(rgb, roi)[0].shape[:2]) < 8:
         return None, "image too small"
-    img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale)
+    img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale, shadow)
     border = pad_geometry.border.segmentation_hsv
     # The cue square is left out of the mask: whatever of the ground has its colour (brown soil
     # lies in a yellow cue's range) would join it and swell the hull.  Its corner comes back where
@@ -150,13 +156,13 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                           cut_edges, min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
         return None, "no pad-coloured quadrilateral"
     quad = best
     cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1)
+        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
@@ -772,6 +778,18 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     # lens, 0.8 % of the side, and the height 1.2 % low)
     linear, rms_l = refine_quad(srgb_to_linear(gray8), start, half_width=half, camera=camera)
     return (linear if linear is not None and rms_l <= max_rms_px else fitted), move, swollen
+
+
+def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:
+    """Whether the white field, fitted on luma in the outline's window from where ``quad_px`` puts
+    it, is found there: its four sides fit (a hidden part of the field breaks a side) and no corner
+    lies further than a corner may move."""
+    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    m = int(np.ceil(0.3 * side_px + 8))
+    lo = np.maximum(np.floor(quad_px.min(axis=0)) - m, 0).astype(int)
+    hi = np.ceil(quad_px.max(axis=0) + m + 1).astype(int)
+    got = _field_fit(rgb[lo[1]:hi[1], lo[0]:hi[0]], quad_px - lo, geo, _shifted(camera, *lo), max(5.0, 0.25 * side_px))
+    return got is not None and got[1] <= max(3.0, 0.1 * side_px)
 
 
 def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:

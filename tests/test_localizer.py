@@ -897,6 +897,29 @@ def test_a_design_with_no_quarter_turn_asymmetry_names_nothing(pad):
         assert not e.ok and "nor does its design name it" in e.reason, (e.status, e.reason)
 
 
+def test_a_dark_patch_of_the_border_hue_beside_the_pad_does_not_swell_its_outline(pad):
+    """The colour mask is grown into shadow: pixels whose chroma relative to their brightness says
+    magenta, joined to the lit border.  A dark patch of that hue touching the pad (a shadowed
+    magenta tarp; on JPEG frames the border's chroma bled onto a dark platform's side, as on
+    pitched_jpeg_small's 25 px pads) joins it too, and the hull then has a side outside the pad:
+    refused ("sides and hull disagree", "band missing"), frame after frame.  The outline is then
+    read once more from the lit colour alone."""
+    geo = pad.geometry
+    o, s = geo.outer_corners, geo.side_m
+    strip = np.array([o[1], o[1] + [0.35 * s, 0, 0], o[2] + [0.35 * s, 0, 0], o[2]]) + [0.004, 0.0, 0.0]
+    for side_px in (30.0, 45.0, 70.0):
+        for yaw in np.linspace(0.2, 2 * np.pi, 4, endpoint=False):
+            h = CAM.fx * s / side_px
+            G = tilted(0.05 * h, -0.04 * h, h, yaw, 0.03, -0.02)
+            img = warp_pad_view(pad, CAM, G, (150, 140, 120))
+            cv2.fillConvexPoly(img, np.round(CAM.project_from(G, strip)).astype(np.int32), (40, 22, 38))
+            found, why = find_outline(img, geo, CAM)
+            assert found is not None, (side_px, yaw, why)
+            truth = CAM.project_from(G, o)
+            err = max(np.linalg.norm(found.quad_px - t, axis=1).min() for t in truth)
+            assert err < 0.03 * side_px, (side_px, yaw, err)
+
+
 def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad):
     """A box over a corner (a moving deck slid under it) cuts the ring: its hull then has a side
     along the box's edge, the outline was refused ("border band missing", "sides and hull
