@@ -96,16 +96,17 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     corner hidden by something in the scene is looked for when no whole one is found
     (:func:`_occluded_outline`)."""
     found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
-    if found is None and why in SWOLLEN_WHEN:
-        again, why_again = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False)
-        if again is not None and _field_agrees(rgb, again.quad_px, pad_geometry, camera):
-            return again, "ok"
+    swollen = found is None and why in SWOLLEN_WHEN
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
         if hidden is not None:
             return hidden, "ok"
         if why_hidden:
             why = f"{why} (and {why_hidden})"
+    if swollen:  # neither whole nor partly hidden: the colour grown into shadow may have swollen
+        again, _ = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False)
+        if again is not None and _field_agrees(rgb, again.quad_px, pad_geometry, camera):
+            return again, "ok"
     return found, why
 
 
