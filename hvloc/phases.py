@@ -897,14 +897,17 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     found in scenes of every condition the generator makes (1-2 m pads at 25-500 px, JPEG, glare,
     fisheye), the best naming was the right one in every view; a wrong one correlates 0.6-0.85
     where the right one reaches 0.8-0.99."""
+    scores = np.full(4, -1.0)
+    quad_px = np.asarray(quad_px, np.float64)
+    if not np.isfinite(quad_px).all():
+        return None, scores
     side_px = float(np.mean(np.linalg.norm(quad_px - np.roll(quad_px, 1, axis=0), axis=1)))
-    n = int(np.clip(round(side_px), 12, 64))
+    n = int(np.clip(round(side_px), 12, 64)) if math.isfinite(side_px) else 64
     s = geo.side_m
     c = (np.arange(n) + 0.5) / n * s - s / 2  # cell centres; row i of the design is y = s/2 - (i + 0.5) s/n
     X, Y = np.meshgrid(c, -c)
     pts = np.column_stack([X.ravel(), Y.ravel()])
     d = design.at(n).ravel()
-    scores = np.full(4, -1.0)
     for k in range(4):
         px = _through_quad(np.roll(quad_px, -k, axis=0), geo, camera, pts)
         if px is None:

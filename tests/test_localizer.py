@@ -852,6 +852,20 @@ def test_a_far_pad_whose_cue_cannot_be_read_is_named_by_its_whole_design(pad):
     assert named >= 0.8 * len(views), (named, len(views))
 
 
+def test_the_design_naming_never_raises_on_a_degenerate_quad(pad):
+    """The localizer never raises on an image: a quad with a corner at NaN or infinity, all corners
+    at one pixel, or far outside the image names nothing (it raised on NaN: round(nan))."""
+    from hvloc.phases import PadDesign, name_by_design
+
+    design = PadDesign(pad.texture_rgb)
+    gray = np.full((CAM.height, CAM.width), 90, np.uint8)
+    good = np.array([[300.0, 300.0], [340.0, 300.0], [340.0, 340.0], [300.0, 340.0]])
+    for q in (np.where(np.arange(8).reshape(4, 2) == 2, np.nan, good), np.where(np.arange(8).reshape(4, 2) == 5, np.inf, good),
+              np.repeat(good[:1], 4, axis=0), good * 1e9, good - 5000.0):
+        k, scores = name_by_design(gray, q, pad.geometry, CAM, design)
+        assert k is None and scores.shape == (4,), (q, k, scores)
+
+
 def test_an_outline_is_named_by_the_last_pose_even_when_it_has_moved_half_a_side(pad):
     """A far pad without a readable cue is named by the last pose.  Its predicted TL pixel alone named
     the nearest corner, and a pose 0.5 m off at 12 m (20 px, on a 25 px pad) put that nearest
