@@ -287,6 +287,14 @@ def _occluded_outline(rgb: np.ndarray, geo: PadGeometry, camera: Camera | None, 
     return found[0], "ok"
 
 
+def _window(img: np.ndarray, quad_px: np.ndarray, margin_px: float) -> tuple:
+    """``(crop, (x0, y0))``: the part of ``img`` around ``quad_px``, ``margin_px`` beyond it on every
+    side (clipped to the image), and the crop's origin."""
+    lo = np.maximum(np.floor(np.asarray(quad_px).min(axis=0) - margin_px), 0).astype(int)
+    hi = np.ceil(np.asarray(quad_px).max(axis=0) + margin_px + 1).astype(int)
+    return img[lo[1]:hi[1], lo[0]:hi[0]], lo
+
+
 def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeometry, camera: Camera | None,
                visible=None) -> tuple:
     """``(refined | None, rms, crop, border channel, (x0, y0))``: the sides of the coarse ``quad``
@@ -295,9 +303,7 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
     ``refined`` in the crop's pixels.  With ``visible`` (a test of image pixels), what it rejects
     reads NaN: nothing behind an occluder's edge is fitted."""
     hw = float(np.clip(side_px * geo.border.solid_band_m / geo.side_m * 0.9, 1.0, 3.0))
-    bx0, by0 = np.maximum(np.floor(quad.min(axis=0) - 6), 0).astype(int)
-    bx1, by1 = np.ceil(quad.max(axis=0) + 7).astype(int)
-    f = rgb[by0:by1, bx0:bx1]
+    f, (bx0, by0) = _window(rgb, quad, 6)
     chan = _border_channel(f)
     if f.shape[0] < 8 or f.shape[1] < 8:
         return None, float("inf"), f, chan, (bx0, by0)
@@ -587,9 +593,8 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     most over the sides (0 when none can be read).  Luma, not colour: JPEG's chroma is smeared
     linearly in the encoded values, not in light, while its luma stays sharp; only motion smears
     both."""
-    lo = np.maximum(np.floor(quad_px.min(axis=0) - margin_px), 0).astype(int)
-    hi = np.ceil(quad_px.max(axis=0) + margin_px + 1).astype(int)
-    lin = srgb_to_linear(rgb[lo[1]:hi[1], lo[0]:hi[0]])
+    crop, lo = _window(rgb, quad_px, margin_px)
+    lin = srgb_to_linear(crop)
     luma = np.ascontiguousarray(lin @ _LUMA)
     q = quad_px - lo
     smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
@@ -786,10 +791,8 @@ def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     it, is found there: its four sides fit (a hidden part of the field breaks a side) and no corner
     lies further than a corner may move."""
     side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
-    m = int(np.ceil(0.3 * side_px + 8))
-    lo = np.maximum(np.floor(quad_px.min(axis=0)) - m, 0).astype(int)
-    hi = np.ceil(quad_px.max(axis=0) + m + 1).astype(int)
-    got = _field_fit(rgb[lo[1]:hi[1], lo[0]:hi[0]], quad_px - lo, geo, _shifted(camera, *lo), max(5.0, 0.25 * side_px))
+    crop, lo = _window(rgb, quad_px, int(np.ceil(0.3 * side_px + 8)))
+    got = _field_fit(crop, quad_px - lo, geo, _shifted(camera, *lo), max(5.0, 0.25 * side_px))
     return got is not None and got[1] <= max(3.0, 0.1 * side_px)
 
 
@@ -1150,9 +1153,7 @@ def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
         return None
     side_px = float(np.mean(np.linalg.norm(np.roll(guess, -1, axis=0) - guess, axis=1)))
     hw = float(np.clip(side_px * pad_geometry.border.solid_band_m / pad_geometry.side_m * 0.9, 1.0, 3.0))
-    bx0, by0 = np.maximum(np.floor(guess.min(axis=0) - 6), 0).astype(int)
-    bx1, by1 = np.ceil(guess.max(axis=0) + 7).astype(int)
-    f = rgb[by0:by1, bx0:bx1]
+    f, (bx0, by0) = _window(rgb, guess, 6)
     chan = _border_channel(f)
     ref, _ = refine_quad(chan, guess - [bx0, by0], half_width=hw, camera=_shifted(camera, bx0, by0))
     if ref is None:
