@@ -882,6 +882,7 @@ class PadDesign:
 
 DESIGN_MIN_NCC = 0.6    # the naming's correlation with the design (over ground, quads reach 0.58 at most)
 DESIGN_MIN_LEAD = 0.04  # ... and its lead over the next naming's
+_DESIGN_TURN = -1       # np.rot90's direction that takes naming 0's samples to naming k's
 
 
 def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -910,17 +911,20 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     c = (np.arange(n) + 0.5) / n * s - s / 2  # cell centres; row i of the design is y = s/2 - (i + 0.5) s/n
     X, Y = np.meshgrid(c, -c)
     pts = np.column_stack([X.ravel(), Y.ravel()])
-    d = design.at(n).ravel()
+    # the image sampled once, at the design's cells as the quad's own order names them; the grid is
+    # the same under a quarter turn, so naming k compares it with the design turned k quarters
+    px = _through_quad(quad_px, geo, camera, pts)
+    if px is None:
+        return None, scores
+    seen = _seen(px, gray.shape)
+    if seen.mean() < 0.6:  # mostly outside the image: too little of the design to tell
+        return None, scores
+    v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
+                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)[seen]
+    a = v - v.mean()
     for k in range(4):
-        px = _through_quad(np.roll(quad_px, -k, axis=0), geo, camera, pts)
-        if px is None:
-            return None, scores
-        seen = _seen(px, gray.shape)
-        if seen.mean() < 0.6:  # mostly outside the image: too little of the design to tell
-            return None, scores
-        v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
-                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)[seen]
-        a, b = v - v.mean(), d[seen] - d[seen].mean()
+        d = np.rot90(design.at(n), _DESIGN_TURN * k).ravel()[seen]
+        b = d - d.mean()
         scores[k] = float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
     o = np.sort(scores)
     if o[-1] < DESIGN_MIN_NCC or o[-1] - o[-2] < DESIGN_MIN_LEAD:
