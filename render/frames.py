@@ -124,6 +124,9 @@ class SequenceRenderer:
         self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])
         self.exposure_gain = self._auto_exposure(spec.camera.auto_exposure_lag_s)
         self.prop_alpha = self._prop_alpha(a.prop_alpha) if self.props else None
+        if self.prop_alpha is not None:  # the discs' box: they are a sliver at the image's edge, composited there alone
+            rows, cols = np.nonzero(self.prop_alpha.any(axis=1))[0], np.nonzero(self.prop_alpha.any(axis=0))[0]
+            self.prop_box = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
         self.prop_linear = None
         if self.prop_alpha is not None:  # the blades' underside: lit by the sky alone (the sun is above them)
             lin = (np.asarray(a.prop_color, np.float64) / 255.0) ** 2.2
@@ -191,8 +194,9 @@ class SequenceRenderer:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base)
             t4 = time.perf_counter()
         if self.prop_alpha is not None:  # the propellers spin with the camera: over the exposure's blur, not in it
-            a = np.where(depth > self.prop_depth, self.prop_alpha, np.float32(0.0))[..., None]  # (not over an arm)
-            linear = linear * (1.0 - a) + a * self.prop_linear
+            box = self.prop_box
+            a = np.where(depth[box] > self.prop_depth[box], self.prop_alpha[box], np.float32(0.0))[..., None]
+            linear[box] = linear[box] * (1.0 - a) + a * self.prop_linear  # (not over an arm: the depth test)
         rgb = self.imaging.finish(linear, k, float(self.exposure_gain[k]) if k < len(self.exposure_gain) else 1.0)
         t5 = time.perf_counter()
         labels = self._labels(k, t, cam2pad, facts, n, T_W_B, T_W_P)
