@@ -325,6 +325,54 @@ class SequenceRenderer:
         on = (np.abs(P[..., 0]) <= h) & (np.abs(P[..., 1]) <= h) & (P[..., 2] > -0.003) & (P[..., 2] < top + 0.003) & (zc > 0)
         return (slice(r0, r1), slice(c0, c1), P, on) if on.any() else None
 
+    def _pad_cover(self, rows, cols, P: np.ndarray, on: np.ndarray, cam2pad: np.ndarray) -> np.ndarray:
+        """``(h, w)`` float32 over the pad's window (:meth:`_pad_pixels`): how much of each pixel the
+        pad covers, as the rasteriser's multisampling mixed its colour.
+
+        ``on`` comes from the depth at the pixel's centre, one sample: all or nothing.  Light added
+        by it stopped at pixel centres, so the pixels the pad's edge crosses (their colour part
+        pad, part what lies beyond) got all of the pad's glare or none of it: a glaring pad had a
+        saturated, unlit ring a pixel wide around it, and a sharper edge than its colour's.  There
+        the share is the edge's: its distance from where the pixel's ray meets the surface (at the
+        relief's height at the edge), over the distance a pixel spans across the edge.  Pixels
+        where something stands in front of the pad keep ``on`` (it is that thing's edge)."""
+        cover = on.astype(np.float32)
+        u8 = on.astype(np.uint8)
+        k = np.ones((3, 3), np.uint8)
+        r, c = np.nonzero(cv2.dilate(u8, k) != cv2.erode(u8, k))
+        top = self.scene.relief_top_m
+        keep = P[r, c, 2] < top + 0.003  # on the pad or beyond its edge, not over it
+        r, c = r[keep], c[keep]
+        if not len(r):
+            return cover
+        R, C = r + rows.start, c + cols.start
+        H, W = on.shape[0] + rows.start, on.shape[1] + cols.start
+        xn, yn = self.rays
+        relief = self.material.get("relief")
+        h = self.pad.side_m / 2
+        Rm, o = cam2pad[:3, :3], cam2pad[:3, 3]
+
+        def outside_m(rr, cc):  # how far outside the pad's edge each pixel's ray meets its surface
+            d = np.column_stack([xn[rr, cc], yn[rr, cc], np.ones(len(rr))]) @ Rm.T
+            z = np.zeros(len(rr))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                for _ in range(1 if relief is None else 2):
+                    s = (z - o[2]) / d[:, 2]
+                    X = o[:2] + s[:, None] * d[:, :2]
+                    if relief is not None:
+                        z = relief.height(np.nan_to_num(X))
+            return np.max(np.abs(X), axis=1) - h, s > 0
+
+        d0, ahead = outside_m(R, C)
+        cx = np.where(C + 1 < W, C + 1, C - 1)
+        ry = np.where(R + 1 < H, R + 1, R - 1)
+        per_px = np.hypot(outside_m(R, cx)[0] - d0, outside_m(ry, C)[0] - d0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            share = np.clip(0.5 - d0 / per_px, 0.0, 1.0)
+        ok = ahead & np.isfinite(share)
+        cover[r[ok], c[ok]] = share[ok]
+        return cover
+
     def _pad_light(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
         """The light a flat-shaded render leaves out on the pad, in linear light, in one pass over its
         pixels: a wrinkled pad's facets lit as they face the sun, and the sun's specular glare on a
@@ -337,6 +385,7 @@ class SequenceRenderer:
         if got is None:
             return
         rows, cols, P, on = got
+        cover = self._pad_cover(rows, cols, P, on, cam2pad)
         # whole-window arrays, multiplied by 1 and added 0 off the pad (boolean gathers and scatters
         # over a pad that fills the view cost more than the light itself)
         vis = None  # the sun's visibility pixel by pixel (a shadow's edge is sharp), once for both
@@ -354,7 +403,10 @@ class SequenceRenderer:
             f = f[:on.shape[0], :on.shape[1]]
             if vis is not None:
                 f = (vis * f + (1.0 - vis)).astype(np.float32)
-            roi *= np.where(on, f, np.float32(1.0))[..., None]
+            f -= np.float32(1.0)
+            f *= cover
+            f += np.float32(1.0)
+            roi *= f[..., None]
         if gloss > 0:
             # the lobe varies slowly over a flat pad: evaluated on every 8th pixel, interpolated between;
             # on a wrinkled one it follows the facets' normals, on the relief's grid
@@ -368,7 +420,7 @@ class SequenceRenderer:
             r = max(self.material["gloss_roughness"], 0.02)
             lobe = (np.clip(cos_nh, 0.0, 1.0) ** (2.0 / r**2 - 2.0)).reshape(P[::step, ::step].shape[:2]).astype(np.float32)
             lobe = cv2.resize(lobe, (lobe.shape[1] * step, lobe.shape[0] * step), interpolation=cv2.INTER_LINEAR)
-            lobe = lobe[:on.shape[0], :on.shape[1]] * (on * np.float32(gloss))
+            lobe = lobe[:on.shape[0], :on.shape[1]] * (cover * np.float32(gloss))
             if vis is not None:
                 lobe *= vis.astype(np.float32)
             roi += lobe[..., None]
@@ -421,14 +473,21 @@ class SequenceRenderer:
         tau = mo.sample_times(self.exposure, n)
         B, P = self._poses_at(t + tau)
         acc = None
-        for Bi, Pi in zip(B, P):
-            self.scene.set_platform(Pi)
-            self.scene.set_drone(Bi)
-            rgb, z = self.scene.render_with_depth(Bi @ self.T_B_C)
-            lin = self.imaging.linear(rgb)
-            if self.ground is not None:
-                self.ground.apply(lin, self.imaging.depth_to_pixels(z), Bi @ self.T_B_C, Pi)
-            acc = lin if acc is None else acc + lin
+        now = self._pad2world_now
+        try:
+            for Bi, Pi in zip(B, P):
+                self.scene.set_platform(Pi)
+                self.scene.set_drone(Bi)
+                rgb, z = self.scene.render_with_depth(Bi @ self.T_B_C)
+                lin = self.imaging.linear(rgb)
+                depth = self.imaging.depth_to_pixels(z)
+                if self.ground is not None:
+                    self.ground.apply(lin, depth, Bi @ self.T_B_C, Pi)
+                self._pad2world_now = Pi  # (the pad's glare and relief: each sample's own)
+                self._pad_light(lin, depth, invert(Pi) @ Bi @ self.T_B_C)
+                acc = lin if acc is None else acc + lin
+        finally:
+            self._pad2world_now = now
         return acc * np.float32(1.0 / len(B))
 
     def _labels(self, k: int, t: float, cam2pad, facts: dict, n: int, T_W_B, T_W_P) -> dict:

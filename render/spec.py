@@ -25,13 +25,16 @@ from pad_design.spec import PadSpec
 #      a glossy pad where a shadow lies on it.
 #   3: a wrinkled glossy pad's glare follows its facets' normals.  Only specs that can draw such a
 #      pad render differently: every other spec keeps revision 2 in its identity (render_revision()).
-RENDER_REVISION = 3
+#   4: a glossy or wrinkled pad's light reaches the pixels its edge crosses by their share (it was
+#      all or nothing at the pixel's centre: a saturated unlit ring around a glaring pad), and the
+#      subframe reference blur draws the pad's material too.  Only specs with such a pad move.
+RENDER_REVISION = 4
 
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
     m = spec.pad_material
-    return 3 if m.relief_m[1] > 0 and m.gloss[1] > 0 else 2
+    return 4 if m.relief_m[1] > 0 or m.gloss[1] > 0 else 2
 
 
 def _range_ok(v):

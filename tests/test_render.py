@@ -288,13 +288,15 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     plain = validate_model(DatasetSpec, {}).sha256()
     assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
     assert plain == hashlib.sha256(json.dumps({"render_revision": 2}, separators=(",", ":")).encode()).hexdigest()
-    # revision 3 (glare on a wrinkled pad's facets) moved only the specs that can draw one
+    # revisions 3 (glare on a wrinkled pad's facets) and 4 (a glossy or wrinkled pad's light at
+    # its edge's pixels by their share) moved only the specs that can draw such a pad
     wrinkled = {"pad_material": {"relief_m": [0.01, 0.01]}}
     glossy = {"pad_material": {"gloss": [0.3, 0.3]}}
     both = {"pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
+    dirty = {"pad_material": {"dirt": [0.2, 0.2]}}
     from render.spec import render_revision
 
-    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both)] == [2, 2, 3]
+    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [4, 4, 4, 2]
     assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 

@@ -627,6 +627,71 @@ def test_no_glare_where_the_drones_shadow_lies_on_a_glossy_pad():
     assert checked >= 2
 
 
+def test_glare_covers_the_pixels_the_pads_edge_crosses_by_their_share():
+    """The multisampled raster mixes the colour of a pixel the pad's edge crosses by how much of
+    it the pad covers, but the glare (and a wrinkle's light) was added by the depth at the pixel's
+    centre, all or nothing: a glaring pad had a saturated, unlit ring a pixel wide around it
+    (what the border's edge fit then read).  Same descent with and without gloss: at those pixels
+    the glare added is the share of the pixel inside the labelled outline times the glare just
+    inside it."""
+    base = _pad_close_up("edge", [70.0, 70.0], 3.0)
+    base["degradations"]["defocus_sigma_px"] = [0.0, 0.0]  # (the lens's blur would spread the ring too)
+    glossy = _spec({**base, "pad_material": {"gloss": [0.5, 0.5], "gloss_roughness": [0.5, 0.5]}})
+    errs = []
+    with SequenceRenderer(_spec(base), 0) as plain_r, SequenceRenderer(glossy, 0) as gloss_r:
+        for k in range(0, len(gloss_r), 2):
+            # green: the border's weakest channel (its red is already 255), the glare is white
+            g = [r.render(k).rgb[..., 1] for r in (plain_r, gloss_r)]
+            lin = [(x.astype(float) / 255.0) ** (1.0 / gloss_r.imaging.tone_exponent) for x in g]
+            added = np.where(g[1] < 250, lin[1] - lin[0], np.nan)  # (a clipped glare tells no share)
+            quad = gloss_r.camera.project_from(gloss_r.cam2pad(k), gloss_r.pad.outer_corners_P).astype(np.float32)
+            x0, y0 = np.floor(quad.min(axis=0)).astype(int) - 2
+            x1, y1 = np.ceil(quad.max(axis=0)).astype(int) + 3
+            if x0 < 5 or y0 < 5 or x1 > 235 or y1 > 235:
+                continue
+            inside = {(x, y): cv2.pointPolygonTest(quad, (float(x), float(y)), True)
+                      for y in range(y0, y1) for x in range(x0, x1)}
+            for (x, y), d in inside.items():
+                if abs(d) > 0.35:
+                    continue
+                near = [added[v, u] for u in range(x - 4, x + 5) for v in range(y - 4, y + 5)
+                        if inside.get((u, v), -1.0) >= 2.0]
+                ref = float(np.mean(near)) if near else 0.0
+                if ref > 0.02 and np.isfinite(added[y, x]):  # lit and glaring there (not in the drone's shadow)
+                    errs.append(abs(added[y, x] / ref - (0.5 + d)))
+    assert len(errs) > 200, len(errs)
+    assert np.median(errs) < 0.1, np.median(errs)  # (all or nothing: 0.32)
+
+
+def test_the_subframe_reference_blur_draws_the_pads_material_too():
+    """The reference blur (one render per sample time, ``blur_method: subframes``) left out the
+    pad's glare and wrinkles: a glossy, wrinkled pad came out matte and flat.  The same glossy
+    descent under both blurs: on the pad they agree, where the glare is tens of levels."""
+    base = _pad_close_up("sub", [70.0, 70.0], 3.0)
+    base["degradations"].update(motion_blur=True)
+    base["camera"]["exposure_s"] = 0.01
+    mat = {"gloss": [0.5, 0.5], "gloss_roughness": [0.3, 0.3], "relief_m": [0.01, 0.01]}
+    spec = {**base, "pad_material": mat}
+    checked = 0
+    with SequenceRenderer(_spec(_merge(spec, {"degradations.blur_method": "velocity"})), 0) as fast, \
+            SequenceRenderer(_spec(_merge(spec, {"degradations.blur_method": "subframes"})), 0) as ref, \
+            SequenceRenderer(_spec(base), 0) as matte:
+        for k in range(1, len(fast), 3):
+            a, b, m = (r.render(k) for r in (fast, ref, matte))
+            quad = fast.camera.project_from(fast.cam2pad(k), fast.pad.outer_corners_P).astype(np.float32)
+            pad = np.zeros(a.rgb.shape[:2], np.uint8)
+            cv2.fillConvexPoly(pad, np.round(quad).astype(np.int32), 1)
+            pad = cv2.erode(pad, np.ones((7, 7), np.uint8)) > 0
+            if pad.sum() < 500:
+                continue
+            glare = np.abs(a.rgb.astype(float) - m.rgb.astype(float))[pad].mean()
+            if glare < 10.0:
+                continue
+            assert np.abs(a.rgb.astype(float) - b.rgb.astype(float))[pad].mean() < 0.2 * glare
+            checked += 1
+    assert checked >= 2, checked
+
+
 def test_arms_and_spinning_propellers_are_drawn_where_the_camera_sees_them():
     """``airframe.arms``: motor arms and a spinning propeller over each.  Rigid with the camera, a
     propeller is a translucent disc over whatever lies behind it (not smeared by the exposure):
