@@ -346,7 +346,7 @@ class SequenceRenderer:
         if not len(r):
             return cover
         R, C = r + rows.start, c + cols.start
-        H, W = on.shape[0] + rows.start, on.shape[1] + cols.start
+        H, W = on.shape[0] + rows.start, on.shape[1] + cols.start  # (the window's far rows and columns)
         xn, yn = self.rays
         relief = self.material.get("relief")
         h = self.pad.side_m / 2
