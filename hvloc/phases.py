@@ -311,9 +311,11 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
         yy, xx = np.mgrid[by0:by0 + f.shape[0], bx0:bx0 + f.shape[1]]
         chan[~visible(np.column_stack([xx.ravel(), yy.ravel()])).reshape(f.shape[:2])] = np.nan
     cam_s = _shifted(camera, bx0, by0)
-    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s)  # coarse quad
+    # (the border channel is higher on the border than beyond it, in shadow and glare alike)
+    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s,
+                               inside_brighter=True)  # coarse quad
     if refined is not None:  # then narrow, around the refined sides
-        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
+        again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s, inside_brighter=True)
         if again is not None:
             refined, res = again, res2
     return refined, res, f, chan, (bx0, by0)
@@ -718,6 +720,9 @@ def _band_stretches(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     return raw[:, 0] - raw[:, 1], norm[:, 0] - norm[:, 1], seen
 
 
+FIELD_SAYS_SWOLLEN_RMS_PX = 0.6
+
+
 def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                 move_px: float = 0.7, max_rms_px: float = 0.35) -> np.ndarray | None:
     """The white field's corners fitted on luma, where the outline's colour edges cannot be trusted.
@@ -739,17 +744,22 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     fitted well but lies further inside than a corner's move may mend (the outline is then suspect:
     :func:`_field_rescue`), the third is the field fitted, used or not."""
     side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
-    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px)
+    # a field fitted less cleanly still says whether the outline swelled past it (a dark patch of
+    # the border's hue beside the pad: its lines fit to 0.42 px, and the swollen outline went on)
+    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max(max_rms_px, FIELD_SAYS_SWOLLEN_RMS_PX))
     if got is None:
         return None, False, None
-    field, move, swollen = got
+    field, move, swollen, rms = got
     limit = max(3.0, 0.1 * side_px)
-    return (field if swollen and move_px < move <= limit else None), bool(swollen and move > limit), field
+    far = bool(swollen and move > limit)
+    if rms > max_rms_px:
+        return None, far, None
+    return (field if swollen and move_px < move <= limit else None), far, field
 
 
 def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
                max_rms_px: float = 0.35, rounds: int = 1):
-    """``(field corners, largest move from the prediction px, swollen)`` or ``None``: the white
+    """``(field corners, largest move from the prediction px, swollen, line rms px)`` or ``None``: the white
     field's square fitted on luma from where the outline ``quad_px`` predicts it, each side first
     moved to the nearest strong rise into the white within ``reach_px`` inward, then fitted up to
     ``rounds`` times, each from the last; ``swollen`` when the field came out smaller than predicted
@@ -783,7 +793,9 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     # the dark side of the edge (the field came out 0.3 px too large on JPEG 55 behind a 100 degree
     # lens, 0.8 % of the side, and the height 1.2 % low)
     linear, rms_l = refine_quad(srgb_to_linear(gray8), start, half_width=half, camera=camera)
-    return (linear if linear is not None and rms_l <= max_rms_px else fitted), move, swollen
+    if linear is not None and rms_l <= max_rms_px:
+        return linear, move, swollen, rms_l
+    return fitted, move, swollen, rms
 
 
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:
