@@ -132,8 +132,9 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
         pol = 1.0 if inside_brighter else -1.0
         sign = inward * pol
         lo = np.where(inward > 0, lo, hi)
-        hi = np.nanmax(prof * pol, axis=1) * pol
-        contrast = np.where(seen, (hi - lo) * pol, 0.0)  # >= 0
+        hi = np.where(np.isfinite(prof), prof * pol, -np.inf).max(axis=1) * pol  # (masked-out profiles: not seen)
+        with np.errstate(invalid="ignore"):
+            contrast = np.where(seen, (hi - lo) * pol, 0.0)  # >= 0
     med = np.median(np.abs(contrast).reshape(S, m), axis=1).repeat(m)
     strong = seen & (np.abs(contrast) >= np.maximum(4.0, 0.25 * med))
     v = (prof - 0.5 * (lo + hi)[:, None]) * sign[:, None]
