@@ -85,6 +85,7 @@ def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
 _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 / sRGB weights, on linear values
 SWOLLEN_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side",
                 "its border band is missing beside a corner", "its colour swells past its white field")
+MISREAD_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side")
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
                  "its border band is missing beside a corner", "its sides and its colour hull disagree")
 
@@ -96,6 +97,16 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     corner hidden by something in the scene is looked for when no whole one is found
     (:func:`_occluded_outline`)."""
     found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
+    if found is None and why in MISREAD_WHEN:
+        # glare washes out the border's rim and the colour hull lies a pixel or two inside a far
+        # pad: the sides' coarse profiles then hold its whole 3-4 px border, and by their own ends
+        # half of a side's crossings were the border's inner edge (a side tilted 7 degrees).  Once
+        # more, the coarse fit told the border's polarity.  (Only then: on clean far outlines the
+        # plain fit's corners are a little more precise, which the four-corner tilt without an
+        # IMU needs.)
+        again, _ = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, polarity=True)
+        if again is not None:
+            return again, "ok"
     swollen = found is None and why in SWOLLEN_WHEN
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
@@ -131,7 +142,7 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, sh
 
 
 def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   max_scale: int = 8, shadow: bool = True) -> tuple:
+                   max_scale: int = 8, shadow: bool = True, polarity: bool = False) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
     the others are in view (a corner may be out of the image)."""
     if min(_crop(rgb, roi)[0].shape[:2]) < 8:
@@ -157,13 +168,13 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                           cut_edges, min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, polarity=polarity)
         return None, "no pad-coloured quadrilateral"
     quad = best
     cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, polarity=polarity)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
@@ -175,7 +186,7 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
-    refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera)
+    refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
     field = None
     if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=10.0)):
@@ -296,7 +307,7 @@ def _window(img: np.ndarray, quad_px: np.ndarray, margin_px: float) -> tuple:
 
 
 def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeometry, camera: Camera | None,
-               visible=None) -> tuple:
+               visible=None, polarity: bool = False) -> tuple:
     """``(refined | None, rms, crop, border channel, (x0, y0))``: the sides of the coarse ``quad``
     fitted on the border channel of the quad's neighbourhood (only that is converted: a full 1080p
     frame costs milliseconds), first over a wide window, then narrow around the fitted sides;
@@ -311,13 +322,12 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
         yy, xx = np.mgrid[by0:by0 + f.shape[0], bx0:bx0 + f.shape[1]]
         chan[~visible(np.column_stack([xx.ravel(), yy.ravel()])).reshape(f.shape[:2])] = np.nan
     cam_s = _shifted(camera, bx0, by0)
-    # coarse: the window may hold the whole border (a far pad's, from a hull a pixel or two off), so
-    # its polarity is used (the border channel is higher on the border than beyond it, in shadow and
-    # glare alike); narrow: around the fitted sides only the outer edge is in it, and each profile's
-    # own ends place it more precisely (far sim800 outlines: the worst corner's p90 0.18 px against
-    # 0.19 with the polarity; without the IMU's gravity that difference turned poses over)
+    # ``polarity``: the coarse window may hold the whole border (a far pad's, from a hull a pixel or
+    # two inside it), so the border's polarity says which crossing is its outer edge (the border
+    # channel is higher on the border than beyond it, in shadow and glare alike).  The narrow window
+    # around the fitted sides holds the outer edge alone, placed by each profile's own ends.
     refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s,
-                               inside_brighter=True)
+                               inside_brighter=True if polarity else None)
     if refined is not None:  # then narrow, around the refined sides
         again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
         if again is not None:
