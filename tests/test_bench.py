@@ -150,6 +150,31 @@ def test_metrics_on_a_hand_made_case():
     assert M.switch_heights(fe) == [("approaching", "adjustment", 6.0)]
 
 
+def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
+    """``benchmarks.tilt``: one row per accepted pose, its lateral error the horizontal part of the
+    position error the benchmark scored, its tilt errors angles (the AHRS's from imu.csv, through
+    the mount); the table has a row per dataset and height band, and an unknown localizer is named."""
+    import csv
+
+    from benchmarks.tilt import main, summary, tilt_rows
+
+    out, _ = smoke
+    rows = tilt_rows(out, "hierarchical")
+    scored = {(r["sequence"], int(r["frame"])): float(r["pos_err_m"])
+              for r in csv.DictReader(open(out / "results.csv"))
+              if r["localizer"] == "hierarchical" and r["status"] == "ok" and r["dataset"] == "tiny"}
+    mine = {(r[1], r[2]): r for r in rows if r[0].startswith("tiny-")}
+    assert len(mine) == len(scored) > 20
+    for key, err in scored.items():
+        lateral, tilt, ahrs = mine[key][4], mine[key][5], mine[key][6]
+        assert lateral <= err + 1e-9 and 0.0 <= tilt < 5.0 and 0.0 < ahrs < 5.0, (key, lateral, err, tilt, ahrs)
+    table = summary(rows, [0, 2, 30])
+    assert sum(r[3] for r in table) == len(rows) and {r[1] for r in table} <= {0, 2}
+    assert main([str(out)]) == 0 and "| lateral RMS mm |" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="no estimates of localizer 'nobody'"):
+        tilt_rows(out, "nobody")
+
+
 @pytest.mark.parametrize("suite", ["bench_v1"] + sorted(p.stem[len("leaderboard_"):] for p in
                                                       (REPO / "benchmarks").glob("leaderboard_*.json")))
 def test_committed_leaderboard_schema(suite):

@@ -1,0 +1,118 @@
+"""How much of a localizer's lateral error is the tilt it took from the AHRS: per dataset and height
+band, over the accepted poses of a results folder (``hvloc bench run``'s ``--out``).
+
+    python -m benchmarks.tilt RESULTS_DIR [--localizer hierarchical] [--bands 0 1 2 3 4 6 9 14 21]
+
+Columns: poses, lateral error RMS (mm, pad frame x and y), the pose's tilt error (the angle between
+its pad normal and the true one, both in the camera frame), the AHRS's (its up direction, through
+the camera mount, against the true one; the AHRS row a flight computer would have at the frame,
+``benchmarks.run.imu_at``), and the lateral RMS over the height as an angle.  Where the pose's tilt
+error tracks the AHRS's and the lateral angle tracks both, the gravity prior carries the AHRS's
+error into the position (a tilt of 0.3 degrees is 0.5 % of the height sideways).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from pad_design.errors import ArgumentParser
+
+from .run import imu_at, read_estimates
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _rot(q) -> np.ndarray:
+    x, y, z, w = (float(v) for v in q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(a @ b)))
+
+
+def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
+    """``(dataset, sequence, frame, height m, lateral error m, pose tilt error deg, AHRS tilt error
+    deg or nan)`` for every accepted pose of ``localizer`` in a results folder.  The pad lies level
+    (its normal is the world's up), as in every dataset hvloc renders."""
+    from render.dataset import Dataset
+
+    root = Path(results_dir)
+    est_root = root / "estimates" / localizer
+    if not est_root.is_dir():
+        raise SystemExit(f"{est_root}: no estimates of localizer {localizer!r} (see {root / 'estimates'})")
+    rows = []
+    for ds_dir in sorted(p for p in est_root.iterdir() if p.is_dir()):
+        ds = Dataset(root / "datasets" / ds_dir.name)
+        for seq in ds:
+            path = ds_dir / seq.id / "estimates.csv"
+            if not path.is_file():
+                continue
+            est = read_estimates(path)
+            ok = np.asarray(est["status"]) == "ok"
+            imu = seq.imu
+            R_B_C = seq.T_B_C[:3, :3]
+            truth = seq.cam2pad
+            for i in np.flatnonzero(ok):
+                k = int(est["frame"][i])
+                T = truth[k]
+                R_est = _rot([est[c][i] for c in ("qx", "qy", "qz", "qw")])
+                up_true, up_est = T[:3, :3].T @ UP, R_est.T @ UP
+                sample = imu_at(imu, float(seq.t[k]), seq.imu_time_offset_s)
+                ahrs = float("nan")
+                if sample is not None:
+                    up_ahrs = (_rot(sample[7:11]) @ R_B_C).T @ UP
+                    ahrs = _angle_deg(up_ahrs, up_true)
+                lateral = math.hypot(float(est["tx"][i]) - T[0, 3], float(est["ty"][i]) - T[1, 3])
+                rows.append((ds_dir.name, seq.id, k, float(T[2, 3]), lateral, _angle_deg(up_est, up_true), ahrs))
+    return rows
+
+
+def summary(rows: list, bands) -> list:
+    """Per dataset and height band: ``(dataset, lo, hi, n, lateral RMS mm, pose tilt median deg, AHRS
+    tilt median deg, lateral RMS over mean height deg)``."""
+    out = []
+    for name in sorted({r[0] for r in rows}):
+        a = np.array([r[3:] for r in rows if r[0] == name], np.float64)
+        for lo, hi in zip(bands[:-1], bands[1:]):
+            m = (a[:, 0] >= lo) & (a[:, 0] < hi)
+            if not m.any():
+                continue
+            lat = float(np.sqrt(np.mean(a[m, 1] ** 2)))
+            out.append((name, lo, hi, int(m.sum()), 1000 * lat, float(np.median(a[m, 2])),
+                        float(np.nanmedian(a[m, 3])) if np.isfinite(a[m, 3]).any() else float("nan"),
+                        math.degrees(lat / float(np.mean(a[m, 0])))))
+    return out
+
+
+def main(argv=None) -> int:
+    p = ArgumentParser(prog="python -m benchmarks.tilt", description=__doc__)
+    p.add_argument("results", help="a results folder of hvloc bench run")
+    p.add_argument("--localizer", default="hierarchical", help="whose estimates (a name in estimates/)")
+    p.add_argument("--bands", nargs="+", type=float, default=[0, 1, 2, 3, 4, 6, 9, 14, 21],
+                   help="height band edges (m)")
+    p.add_argument("--json", help="also write the summary rows here")
+    a = p.parse_args(argv)
+    bands = sorted(a.bands)
+    if len(bands) < 2:
+        p.error("--bands: give at least two edges")
+    rows = summary(tilt_rows(a.results, a.localizer), bands)
+    print("| dataset | height m | poses | lateral RMS mm | pose tilt error deg (median) | AHRS tilt error deg "
+          "(median) | lateral RMS / height deg |")
+    print("|---|---|---|---|---|---|---|")
+    for name, lo, hi, n, lat, tilt, ahrs, ang in rows:
+        print(f"| {name} | {lo:g}-{hi:g} | {n} | {lat:.1f} | {tilt:.3f} | {ahrs:.3f} | {ang:.3f} |")
+    if a.json:
+        Path(a.json).write_text(json.dumps([dict(zip(("dataset", "lo_m", "hi_m", "poses", "lateral_rms_mm",
+                                                       "pose_tilt_deg", "ahrs_tilt_deg", "lateral_deg"), r))
+                                            for r in rows], indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
