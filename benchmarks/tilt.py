@@ -20,17 +20,10 @@ import numpy as np
 
 from pad_design.errors import ArgumentParser
 
+from hvloc.geometry import matrix_from_quat_xyzw
+from hvloc.localizer import up_in_camera
+
 from .run import imu_at, read_estimates
-
-UP = np.array([0.0, 0.0, 1.0])
-
-
-def _rot(q) -> np.ndarray:
-    x, y, z, w = (float(v) for v in q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), float(a @ b)))
@@ -56,18 +49,16 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
             est = read_estimates(path)
             ok = np.asarray(est["status"]) == "ok"
             imu = seq.imu
-            R_B_C = seq.T_B_C[:3, :3]
             truth = seq.cam2pad
             for i in np.flatnonzero(ok):
                 k = int(est["frame"][i])
                 T = truth[k]
-                R_est = _rot([est[c][i] for c in ("qx", "qy", "qz", "qw")])
-                up_true, up_est = T[:3, :3].T @ UP, R_est.T @ UP
+                R_est = matrix_from_quat_xyzw([est[c][i] for c in ("qx", "qy", "qz", "qw")])
+                up_true, up_est = T[:3, :3][2], R_est[2]  # the pad's normal (the world's up) in the camera frame
                 sample = imu_at(imu, float(seq.t[k]), seq.imu_time_offset_s)
                 ahrs = float("nan")
                 if sample is not None:
-                    up_ahrs = (_rot(sample[7:11]) @ R_B_C).T @ UP
-                    ahrs = _angle_deg(up_ahrs, up_true)
+                    ahrs = _angle_deg(up_in_camera(matrix_from_quat_xyzw(sample[7:11]), seq.T_B_C), up_true)
                 lateral = math.hypot(float(est["tx"][i]) - T[0, 3], float(est["ty"][i]) - T[1, 3])
                 rows.append((ds_dir.name, seq.id, k, float(T[2, 3]), lateral, _angle_deg(up_est, up_true), ahrs))
     return rows

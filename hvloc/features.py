@@ -45,13 +45,13 @@ def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: floa
 
 
 def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Camera | None = None,
-                inside_brighter: bool | None = None):
+                inside_brighter: bool = False):
     """Refine 4 corners (in order around the quad) of a quadrilateral seen in ``gray``.
 
     Returns ``(corners (4, 2) float64, rms line residual px)`` or ``(None, inf)`` when a side
     has too few edge points.  With ``camera``, lines are fitted in undistorted pixels and the
     intersections mapped back, so corners stay exact under lens distortion.  ``inside_brighter``:
-    the edge's known polarity (None: each profile's own).  (One quad of :func:`refine_quads`.)
+    the quad is known to be brighter inside than beyond (else each profile's own polarity).  (One quad of :func:`refine_quads`.)
     """
     out, rms = refine_quads(gray, np.asarray(quad_px, np.float64).reshape(1, 4, 2), half_width, camera,
                             inside_brighter=inside_brighter)
@@ -83,7 +83,7 @@ def _side_points_batch(starts: np.ndarray, ends: np.ndarray, m: int, trim: float
 
 
 def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None = None, m: int | None = None,
-                 trim: float = 0.2, step: float = 0.25, inside_brighter: bool | None = None):
+                 trim: float = 0.2, step: float = 0.25, inside_brighter: bool = False):
     """Vectorised :func:`refine_quad` for many quadrilaterals at once (one remap, no Python loop
     over sides): ``(corners (Q, 4, 2) with NaN rows where a quad failed, rms (Q,))``.
 
@@ -91,8 +91,8 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     they differ.  A band only a few pixels wide (a far pad's border, 4 px with a 1 px solid band)
     lies wholly inside a profile where the start is a pixel or two off: both ends then read
     beyond the band, and half of a side's crossings were its inner edge (a 7 degree tilt, a corner
-    3 px out).  With ``inside_brighter`` the polarity is known: profiles whose ends differ the
-    other way are not this edge's, and are not used."""
+    3 px out).  With ``inside_brighter`` the polarity is known: the levels are the outside end's
+    and the profile's peak, and the crossing is the first from outside."""
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     q = np.asarray(quads_px, np.float64).reshape(-1, 4, 2)
     Q = len(q)
@@ -120,7 +120,7 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     # pad cut by the image's edge has sides that run out of it)
     seen = _inside(P, g.shape).reshape(S * m, nr).all(axis=1) & np.isfinite(prof).all(axis=1)  # (NaN: masked out)
     contrast = np.where(seen, contrast, 0.0)
-    if inside_brighter is None:
+    if not inside_brighter:
         sign = np.sign(contrast)
     else:
         # +normal points inward where the quad's signed area is positive; ``sign``: the way the
@@ -128,21 +128,19 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
         # extreme (the band's, wherever it lies in the window), and the crossing is the first
         # from outside: a band seen whole has two, and the inner one is not this edge
         x, y = q[..., 0], q[..., 1]
-        inward = np.sign(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)).repeat(4 * m)
-        pol = 1.0 if inside_brighter else -1.0
-        sign = inward * pol
-        lo = np.where(inward > 0, lo, hi)
-        hi = np.where(np.isfinite(prof), prof * pol, -np.inf).max(axis=1) * pol  # (masked-out profiles: not seen)
+        sign = np.sign(np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)).repeat(4 * m)
+        lo = np.where(sign > 0, lo, hi)
+        hi = np.where(np.isfinite(prof), prof, -np.inf).max(axis=1)  # (masked-out profiles: not seen)
         with np.errstate(invalid="ignore"):
-            contrast = np.where(seen, (hi - lo) * pol, 0.0)  # >= 0
+            contrast = np.where(seen, hi - lo, 0.0)  # >= 0
     med = np.median(np.abs(contrast).reshape(S, m), axis=1).repeat(m)
     strong = seen & (np.abs(contrast) >= np.maximum(4.0, 0.25 * med))
     v = (prof - 0.5 * (lo + hi)[:, None]) * sign[:, None]
     cross = (v[:, :-1] < 0) & (v[:, 1:] >= 0) & strong[:, None]
-    if inside_brighter is None:  # the crossing nearest the start
+    if not inside_brighter:  # the crossing nearest the start
         dist = np.where(cross, np.abs(u[:-1])[None, :], np.inf)
     else:  # the first from outside
-        dist = np.where(cross, (u[:-1] * inward[:, None]) + 2.0, np.inf)
+        dist = np.where(cross, (u[:-1] * sign[:, None]) + 2.0, np.inf)
     j = np.argmin(dist, axis=1)
     rows = np.arange(len(j))
     valid = np.isfinite(dist[rows, j])

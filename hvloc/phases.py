@@ -327,7 +327,7 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
     # channel is higher on the border than beyond it, in shadow and glare alike).  The narrow window
     # around the fitted sides holds the outer edge alone, placed by each profile's own ends.
     refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s,
-                               inside_brighter=True if polarity else None)
+                               inside_brighter=polarity)
     if refined is not None:  # then narrow, around the refined sides
         again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
         if again is not None:
@@ -760,7 +760,8 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
     # a field fitted less cleanly still says whether the outline swelled past it (a dark patch of
     # the border's hue beside the pad: its lines fit to 0.42 px, and the swollen outline went on)
-    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max(max_rms_px, FIELD_SAYS_SWOLLEN_RMS_PX))
+    got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px,
+                     loose_rms_px=FIELD_SAYS_SWOLLEN_RMS_PX)
     if got is None:
         return None, False, None
     field, move, swollen, rms = got
@@ -772,8 +773,10 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
 
 
 def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
-               max_rms_px: float = 0.35, rounds: int = 1):
-    """``(field corners, largest move from the prediction px, swollen, line rms px)`` or ``None``: the white
+               max_rms_px: float = 0.35, rounds: int = 1, loose_rms_px: float = 0.0):
+    """``(field corners, largest move from the prediction px, swollen, line rms px)`` or ``None`` (its
+    lines fit worse than ``max(max_rms_px, loose_rms_px)``; the linear-light fit is preferred where it
+    fits within ``max_rms_px``): the white
     field's square fitted on luma from where the outline ``quad_px`` predicts it, each side first
     moved to the nearest strong rise into the white within ``reach_px`` inward, then fitted up to
     ``rounds`` times, each from the last; ``swollen`` when the field came out smaller than predicted
@@ -797,7 +800,7 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         start, fitted, rms, shift = fitted, again, rms_again, float(np.abs(again - fitted).max())
         if shift < 0.05:
             break
-    if fitted is None or rms > max_rms_px:
+    if fitted is None or rms > max(max_rms_px, loose_rms_px):
         return None
     move = float(np.max(np.linalg.norm(fitted - guess, axis=1)))
     centre = guess.mean(axis=0)
