@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
-from .pose import PIXEL_SIGMA, PoseResult, outlying_points, point_residuals, solve_planar_pose
+from .pose import PIXEL_SIGMA, PoseResult, outlying_points, point_residuals, projection_sigma_px, solve_planar_pose
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -62,6 +62,9 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
     return last_height
 
 
+OUTER_AGREE_PX = 0.45  # the pad's outer corners join a markers pose when the markers' own fit puts them this close (RMS)
+MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
+MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
 
 
@@ -639,6 +642,27 @@ class HierarchicalLocalizer:
             if best is not None:
                 pose, P, px, sigma = best[2]
                 info["marker_dropped"] = self.geometry.markers[best[1]].name
+        # the pad's outer corners, fitted on the border's colour, double the markers' baseline; but
+        # where chroma is kept at half resolution (JPEG, H.264) the border's colour edge smears and
+        # they come out ~0.5 px outward (the markers, on luma, stay at ~0.1 px), and the joint fit
+        # tilts toward them: judged by the markers' own fit, they go when they disagree with it
+        def three_markers(P):
+            g = self._marker_of(P)
+            return det.kind == "markers" and sum(np.sum(g == m) >= 4 for m in np.unique(g[g >= 0])) >= 3
+
+        outer = (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
+        if up_C is not None and outer.any() and three_markers(P):
+            alone = refit(np.nonzero(~outer)[0])
+            if alone is not None:
+                r = point_residuals(self.camera, alone[0].cam2pad, P[outer], px[outer])
+                off = float(np.sqrt(np.mean(r**2)))
+                # only where the markers alone pin the pose: with the IMU's gravity, and where their
+                # pose's own uncertainty puts the outer corners well inside the disagreement
+                sure = float(np.sqrt(np.mean(projection_sigma_px(self.camera, alone[0].cam2pad, alone[0].cov,
+                                                                 P[outer]) ** 2)))
+                if off > max(OUTER_AGREE_PX, 3.0 * sure):
+                    pose, P, px, sigma = alone
+                    info["outer_dropped_px"] = round(off, 3)
         n0 = len(P)
         # many points: a few mislocated ones (marker corners pulled 10 px, an outline corner
         # extrapolated off the image) show against the rest; the fit they pulled hides some of them,
@@ -654,6 +678,19 @@ class HierarchicalLocalizer:
                 break
             pose, P, px, sigma = better
             info["outliers_dropped"] = n0 - len(P)
+        # the gravity prior (the AHRS's 0.5 degrees) is weighed against the noise the markers show,
+        # not the 0.3 px floor every found corner gets: three markers' corners fit to ~0.1 px on a
+        # clean image, whose tilt then counts (the AHRS's few tenths of a degree went into the
+        # position almost whole), and to 0.2-0.3 px under JPEG and a wide lens, where the prior
+        # should count more.  Three times the image-only fit's residual: JPEG's and the lens's
+        # errors are correlated within a marker, and the residual shows only part of them
+        s_img = max(MARKER_SIGMA_PER_RMS * pose.image_rms_px, MARKER_MIN_SIGMA_PX)
+        if up_C is not None and np.ndim(sigma) == 0 and np.isfinite(s_img) and abs(s_img - sigma) > 0.01 \
+                and three_markers(P):
+            weighed = pose_of(P, px, s_img)
+            if weighed is not None:
+                pose, sigma = weighed, s_img
+                info["px_sigma"] = round(s_img, 3)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 

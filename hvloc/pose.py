@@ -28,6 +28,7 @@ class PoseResult:
     tilt_err_deg: float = float("nan")    # image-only pose's pad normal vs the IMU's up (nan: no IMU)
     tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
     normal_img_C: np.ndarray | None = None  # the image-only pose's pad normal in C (with an IMU)
+    image_rms_px: float = float("nan")    # the image-only pose's reprojection RMS (with an IMU)
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -180,6 +181,15 @@ def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
         return np.full((6, 6), np.inf)
 
 
+def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pts_P: np.ndarray) -> np.ndarray:
+    """``(N,)`` how far (px, RMS over x and y) the images of pad points ``pts_P`` may lie from where
+    the pose ``cam2pad`` puts them, by its covariance ``cov`` (:func:`pose_covariance`'s)."""
+    pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
+    J = _linearised(camera, cam2pad, pts_P, np.zeros((len(pts_P), 2)))[1]
+    var = np.einsum("ij,jk,ik->i", J, cov, J).reshape(-1, 2)
+    return np.sqrt(np.maximum(var, 0.0).mean(axis=1))
+
+
 def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
                         sigma_px: float, sigma_up_rad: float, iterations: int = 4) -> np.ndarray:
     """Gauss-Newton on the reprojection error plus a prior that the pad's normal is the IMU's up.
@@ -301,12 +311,14 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     tilt = (float("nan"), float("nan"))
     sigma_up = None
     normal_img = None
+    image_rms = float("nan")
     if up_C is not None:
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        image_rms = reprojection_rms(camera, T, obj, px)
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up)
-    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms)

@@ -125,3 +125,32 @@ def test_camera_validation_and_scaling():
     np.testing.assert_allclose((cam.scaled(2).project(P) + 0.5), (cam.project(P) + 0.5) * 2, atol=1e-9)
     with pytest.raises(ValueError, match="shape"):
         cam.project(np.zeros((3, 2)))
+
+
+def test_projection_sigma_is_the_spread_of_the_pose_covariance_in_the_image():
+    """``projection_sigma_px``: how far a point's image may move under a pose's covariance, to first
+    order; checked against poses drawn from that covariance (position, then the rotation vector
+    about the camera's axes, as the covariance is parametrised)."""
+    import dataclasses
+
+    from hvloc.pose import projection_sigma_px
+    from render.planar import nadir_cam2pad
+
+    cam = dataclasses.replace(g.Camera.from_hfov(1280, 720, math.radians(100)), dist=(-0.2, 0.03, 0.0, 0.0, 0.0))
+    T = nadir_cam2pad(0.3, -0.2, 4.0, 0.7)
+    A = np.diag([0.02, 0.01, 0.03, 0.004, 0.006, 0.002]) + 0.002
+    cov = A @ A.T
+    pts = np.array([[0.5, 0.5, 0.0], [-0.5, 0.5, 0.0], [-0.5, -0.5, 0.0], [0.1, -0.3, 0.0]])
+    predicted = projection_sigma_px(cam, T, cov, pts)
+    rng = np.random.default_rng(3)
+    draws = rng.multivariate_normal(np.zeros(6), cov, 4000)
+    base = cam.project_from(T, pts)
+    moved = []
+    for d in draws:
+        Td = T.copy()
+        Td[:3, 3] += d[:3]
+        Td[:3, :3] = T[:3, :3] @ g.so3_exp(d[3:])
+        moved.append(cam.project_from(Td, pts) - base)
+    spread = np.sqrt(np.mean(np.square(moved), axis=(0, 2)))
+    assert np.all(predicted > 0.5)  # pixels, not a vanishing number
+    np.testing.assert_allclose(predicted, spread, rtol=0.06)
