@@ -15,6 +15,9 @@ from hvloc.geometry import rotation_angle, transform_from_tum
 PHASES = ("approaching", "adjustment", "touchdown")
 FALSE_ACCEPT_REL = 0.10   # an accepted pose off by more than 10 % of height ...
 FALSE_ACCEPT_DEG = 5.0    # ... or 5 degrees is a false accept
+# a pose's position error beyond what its covariance allows 99.73 % of the time (3 sigma in one
+# dimension): the squared Mahalanobis distance over 3 degrees of freedom
+NEES_3SIGMA = 14.156
 
 
 def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
@@ -25,21 +28,31 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
     pos_err = np.full(n, np.nan)
     rot_err = np.full(n, np.nan)
     yaw_err = np.full(n, np.nan)
+    nees = np.full(n, np.nan)
     keys = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+    cov_cols = [f"cov_{a}_{b}" for a, b in (("x", "x"), ("x", "y"), ("x", "z"), ("y", "y"), ("y", "z"), ("z", "z"))]
+    has_cov = all(c in est_cols for c in cov_cols)
     has = np.array([s in ("ok", "rejected") for s in est_cols["status"]])
     for k in np.nonzero(has)[0]:
         E = transform_from_tum([est_cols[c][k] for c in keys])
         G = transform_from_tum([gt_cols[c][k] for c in keys])
         if not np.all(np.isfinite(E)):
             continue
-        pos_err[k] = float(np.linalg.norm(E[:3, 3] - G[:3, 3]))
+        d = E[:3, 3] - G[:3, 3]
+        pos_err[k] = float(np.linalg.norm(d))
+        if has_cov:
+            xx, xy, xz, yy, yz, zz = (float(est_cols[c][k]) for c in cov_cols)
+            C = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+            if np.all(np.isfinite(C)) and np.all(np.linalg.eigvalsh(C) > 0):
+                nees[k] = float(d @ np.linalg.solve(C, d))
         rot_err[k] = math.degrees(rotation_angle(E[:3, :3], G[:3, :3]))
         ye = math.atan2(E[1, 0], E[0, 0]) - math.atan2(G[1, 0], G[0, 0])
         yaw_err[k] = abs(math.degrees((ye + math.pi) % (2 * math.pi) - math.pi))
     return {"pos_err_m": pos_err, "rot_err_deg": rot_err, "yaw_err_deg": yaw_err,
             "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
             "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),
-            "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float)}
+            "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float),
+            "pos_nees": nees}
 
 
 def _stats(x: np.ndarray, prefix: str) -> dict:
@@ -78,6 +91,12 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     out.update(_stats(re[ok], "rot_err_deg"))
     out.update(_stats(fe["yaw_err_deg"][ok], "yaw_err_deg"))
     out["false_accepts"] = int((ok & wrong).sum())
+    # is the stated covariance honest: the share of accepted poses (with one) whose position error
+    # lies beyond its 3 sigma (an honest one: 0.27 %), and the median NEES (an honest one: ~2.4)
+    nees = fe["pos_nees"][ok] if "pos_nees" in fe else np.array([])
+    nees = nees[np.isfinite(nees)]
+    out["beyond_cov_3sigma"] = float(np.mean(nees > NEES_3SIGMA)) if nees.size else None
+    out["pos_nees_median"] = float(np.median(nees)) if nees.size else None
     out["rejections_right"] = int((rej & wrong).sum())
     out["rejections_wrong"] = int((rej & ~wrong).sum())
     out["wrong_phase_frames"] = int((ok & (fe["phase_est"] != fe["phase_gt"])).sum())

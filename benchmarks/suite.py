@@ -293,6 +293,7 @@ TOLERANCES = {
     "rot_err_deg_rmse": ("lower", 0.05),
     "false_accepts": ("lower", 0),
     "longest_gap_s": ("lower", 0.2),
+    "beyond_cov_3sigma": ("lower", 0.01),
 }
 
 

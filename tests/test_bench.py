@@ -148,6 +148,21 @@ def test_metrics_on_a_hand_made_case():
     assert s["longest_gap_s"] == pytest.approx(1.0)  # frame 0 -> frame 2
     assert s["wrong_phase_frames"] == 1  # frame 2: adjustment while the truth says approaching
     assert M.switch_heights(fe) == [("approaching", "adjustment", 6.0)]
+    assert s["beyond_cov_3sigma"] is None and s["pos_nees_median"] is None  # no covariance given
+    # with one: frame 0 is 0.1 m off along x with sd 0.05 m (NEES 4, within 3 sigma), frame 4 is
+    # 0.5 m off with sd 0.1 (NEES 25: beyond), the others exact
+    for a, b in (("x", "x"), ("x", "y"), ("x", "z"), ("y", "y"), ("y", "z"), ("z", "z")):
+        est[f"cov_{a}_{b}"] = np.zeros(n)
+    for c in ("cov_x_x", "cov_y_y", "cov_z_z"):
+        est[c] = np.array([0.05**2, 1, 1, 1, 0.1**2, 1])
+    est["cov_x_y"][0] = 0.001  # correlated, still positive definite
+    s = M.score(M.frame_errors(gt, est))
+    C = np.array([[0.05**2, 0.001, 0], [0.001, 0.05**2, 0], [0, 0, 0.05**2]])
+    nees0 = float(np.array([0.1, 0, 0]) @ np.linalg.solve(C, [0.1, 0, 0]))
+    assert s["beyond_cov_3sigma"] == pytest.approx(1 / 4)  # of the 4 accepted poses
+    assert s["pos_nees_median"] == pytest.approx(nees0 / 2)  # median of (nees0, 0, 0, 25)
+    est["cov_z_z"][4] = -1.0  # not a covariance: that pose is not judged
+    assert M.score(M.frame_errors(gt, est))["beyond_cov_3sigma"] == 0.0
 
 
 def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
