@@ -1032,6 +1032,13 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 
 # ----------------------------------------------------------------------------- Adjustment
 
+# a markers pose needs this many of a set's nested squares refined per marker found (on average):
+# the squares that failed moved over half a module from where the markers' outer corners put them
+# (blur, JPEG, a marker cut by the image's edge), and the few left pose a pad at 0.4 m from one
+# 4-corner square 3.6 degrees off the IMU, 10 % of the height sideways
+MIN_SQUARES_PER_MARKER = 2
+
+
 def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None,
                    prior: np.ndarray | None = None) -> tuple:
@@ -1062,14 +1069,14 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
             if named is not None:
                 set_name, quads, module_px = named
                 got = _marker_corners(g, sets[set_name], quads, module_px, camera, x0, y0)
-                if got is not None and len(got[0]) >= 2 * len(quads):
+                if got is not None and len(got[0]) >= MIN_SQUARES_PER_MARKER * len(quads):
                     pts_P, px, _ = got
                     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers",
                                      {"sets": [set_name], "named_by": "prior", "markers_seen": sorted(quads)}), "ok"
         return None, f"{len(nests)} finder nests, no marker layout"
     expect = {s: ms["Top"].size_m / (2 * abs(ms["Top"].center[0])) for s, ms in sets.items() if "Top" in ms}
     pts_P, px = [], []
-    used = []
+    used, few = [], ""
     for t in triples:
         ratio = t.spacing_ratio
         set_name = min(expect, key=lambda s: abs(math.log(ratio / expect[s])))
@@ -1086,7 +1093,8 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
             continue
         module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
         got = _marker_corners(g, ms, quads, module_px, camera, x0, y0)
-        if got is None:
+        if got is None or len(got[0]) < MIN_SQUARES_PER_MARKER * len(quads):
+            few = f"{0 if got is None else len(got[0])} of {sum(len(ms[n].squares) for n in quads)} squares"
             continue
         pts_P += got[0]
         px += got[1]
@@ -1097,7 +1105,8 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
                 pts_P.append(pad_geometry.outer_corners)
                 px.append(outer)
     if not pts_P:
-        return None, "markers found but no corner refined"
+        return None, f"markers found but too few of their squares refined ({few})" if few else \
+            "markers found but no corner refined"
     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers", {"sets": used}), "ok"
 
 

@@ -1387,3 +1387,33 @@ def test_markers_are_tried_as_high_as_this_pad_and_camera_resolve_them():
     assert pose_error(e.cam2pad, G)[0] < 0.01 * 9.5
     default = HierarchicalLocalizer(make_pad(), CAM, LocalizerConfig())
     assert default.markers_seen_below_m < LocalizerConfig().adjust_height_m  # unchanged there
+
+
+def test_markers_with_too_few_squares_refined_give_no_pose(pad, monkeypatch):
+    """Three finder nests found, but most of their nested squares' corners refused (moved over half
+    a module: blur, JPEG, a marker cut by the image's edge): the one square left posed a pad at
+    0.4 m 3.6 degrees off the IMU and 10 % of the height sideways, and anchored the touchdown
+    tracker, which carried it to the ground.  Fewer than two squares a marker is no markers pose."""
+    import hvloc.phases as phases
+
+    G = tilted(0.05, -0.03, 1.6, 0.4)
+    img = warp_pad_view(pad, CAM, G, GROUND)
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    det, why = detect_markers(gray, pad.geometry, CAM)
+    assert det is not None and len(det.pts_P) == 36, why
+    real = phases._marker_corners
+    for keep in (5, 6):
+        def only(*args, keep=keep):
+            got = real(*args)
+            return None if got is None else (got[0][:keep], got[1][:keep], got[2])
+        monkeypatch.setattr(phases, "_marker_corners", only)
+        det, why = detect_markers(gray, pad.geometry, CAM)
+        if keep < 2 * 3:
+            assert det is None and f"{keep} of 9 squares" in why, why
+        else:
+            assert det is not None and len(det.pts_P) == 4 * keep, why
+    monkeypatch.setattr(phases, "_marker_corners", lambda *a: (lambda g: (g[0][:1], g[1][:1], g[2]))(real(*a)))
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    loc.phase = "adjustment"
+    e = loc.process(img, 0.0, _imu_from(G))
+    assert not (e.ok and e.method == "markers"), (e.method, e.n_corr)
