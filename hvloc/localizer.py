@@ -625,8 +625,11 @@ class HierarchicalLocalizer:
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
-        groups = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
-        seen = [g for g in np.unique(groups) if g >= 0 and np.sum(groups == g) >= 4]
+        def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
+            g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
+            return g, [m for m in np.unique(g) if m >= 0 and np.sum(g == m) >= 4]
+
+        groups, seen = markers_seen(P)
         r = point_residuals(self.camera, pose.cam2pad, P, px) if len(seen) >= 3 else None
         if r is not None and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
             best = None
@@ -646,12 +649,8 @@ class HierarchicalLocalizer:
         # where chroma is kept at half resolution (JPEG, H.264) the border's colour edge smears and
         # they come out ~0.5 px outward (the markers, on luma, stay at ~0.1 px), and the joint fit
         # tilts toward them: judged by the markers' own fit, they go when they disagree with it
-        def three_markers(P):
-            g = self._marker_of(P)
-            return det.kind == "markers" and sum(np.sum(g == m) >= 4 for m in np.unique(g[g >= 0])) >= 3
-
         outer = (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
-        if up_C is not None and outer.any() and three_markers(P):
+        if up_C is not None and outer.any() and len(markers_seen(P)[1]) >= 3:
             alone = refit(np.nonzero(~outer)[0])
             if alone is not None:
                 r = point_residuals(self.camera, alone[0].cam2pad, P[outer], px[outer])
@@ -686,7 +685,7 @@ class HierarchicalLocalizer:
         # errors are correlated within a marker, and the residual shows only part of them
         s_img = max(MARKER_SIGMA_PER_RMS * pose.image_rms_px, MARKER_MIN_SIGMA_PX)
         if up_C is not None and np.ndim(sigma) == 0 and np.isfinite(s_img) and abs(s_img - sigma) > 0.01 \
-                and three_markers(P):
+                and len(markers_seen(P)[1]) >= 3:
             weighed = pose_of(P, px, s_img)
             if weighed is not None:
                 pose, sigma = weighed, s_img
