@@ -97,16 +97,6 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
     corner hidden by something in the scene is looked for when no whole one is found
     (:func:`_occluded_outline`)."""
     found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
-    if found is None and why in MISREAD_WHEN:
-        # glare washes out the border's rim and the colour hull lies a pixel or two inside a far
-        # pad: the sides' coarse profiles then hold its whole 3-4 px border, and by their own ends
-        # half of a side's crossings were the border's inner edge (a side tilted 7 degrees).  Once
-        # more, the coarse fit told the border's polarity.  (Only then: on clean far outlines the
-        # plain fit's corners are a little more precise, which the four-corner tilt without an
-        # IMU needs.)
-        again, _ = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, polarity=True)
-        if again is not None:
-            return again, "ok"
     swollen = found is None and why in SWOLLEN_WHEN
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
@@ -142,7 +132,7 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, sh
 
 
 def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   max_scale: int = 8, shadow: bool = True, polarity: bool = False) -> tuple:
+                   max_scale: int = 8, shadow: bool = True) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
     the others are in view (a corner may be out of the image)."""
     if min(_crop(rgb, roi)[0].shape[:2]) < 8:
@@ -168,13 +158,13 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
                           cut_edges, min_share=0.5 * band)
     if best is None:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, polarity=polarity)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
         return None, "no pad-coloured quadrilateral"
     quad = best
     cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
     if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
         # small in the reduced copy: its corners would be too coarse to start from
-        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, polarity=polarity)
+        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
@@ -186,6 +176,25 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
     side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+    found, why = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera)
+    if found is None and why in MISREAD_WHEN:
+        # glare washes out the border's rim and the colour hull lies a pixel or two inside a far
+        # pad: the sides' coarse profiles then hold its whole 3-4 px border, and by their own ends
+        # half of a side's crossings were the border's inner edge (a side tilted 7 degrees).  Once
+        # more from the same hull, the coarse fit told the border's polarity.  (Only then: on clean
+        # far outlines the plain fit's corners are a little more precise, which the four-corner
+        # tilt without an IMU needs.)
+        again, _ = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera, polarity=True)
+        if again is not None:
+            return again, "ok"
+    return found, why
+
+
+def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: bool, pad_geometry: PadGeometry,
+                       camera: Camera | None, polarity: bool = False) -> tuple:
+    """``(OutlineQuad | None, reason)``: the sides fitted from the colour hull's ``quad`` (full-resolution
+    pixels; ``cut``: a corner out of view) and the checks a found outline must pass; ``polarity``:
+    the coarse side fit knows the border is brighter than what lies beyond it (:func:`_fit_sides`)."""
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
     field = None
