@@ -45,7 +45,7 @@ COLUMN_DOCS = {
     "frame": "frame index k (0, 1, ...; gaps where the camera dropped frames)",
     "t": "time of the frame, s from the start of the sequence (k / fps, plus the camera's jitter if any)",
     "image": "image path relative to the sequence folder",
-    **{c: f"camera pose in the pad frame T_P_C: {'translation (m)' if c[1] != 'q' else 'quaternion'} {c}"
+    **{c: f"camera pose in the pad frame T_P_C: {'translation (m)' if c[0] == 't' else 'rotation, Hamilton quaternion'} {c}"
        for c in POSE},
     "height_above_pad": "camera height above the pad plane (m): tz",
     "phase_gt": "ground-truth phase (approaching, adjustment, touchdown) by the rule of render/phase.py",

@@ -331,6 +331,11 @@ def test_readme_documents_every_frames_csv_column():
     readme = (REPO / "README.md").read_text()
     for k, v in COLUMN_DOCS.items():
         assert f"| `{k}` | {v.replace('|', '/')} |" in readme, f"README.md: column {k} is not documented as in COLUMN_DOCS"
+    # the pose columns say what they hold (the quaternion's were once documented as a translation)
+    for c in ("tx", "ty", "tz"):
+        assert "translation (m)" in COLUMN_DOCS[c] and "quaternion" not in COLUMN_DOCS[c], c
+    for c in ("qx", "qy", "qz", "qw"):
+        assert "quaternion" in COLUMN_DOCS[c] and "translation" not in COLUMN_DOCS[c], c
 
 
 def _halve(item):
