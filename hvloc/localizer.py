@@ -607,28 +607,41 @@ class HierarchicalLocalizer:
             return None, why
         sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
 
-        def pose_of(P, px, s):
-            return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
-                                      array_key(prior) if up_C is None else None, array_key(s)),
-                             solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s)
+        def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
+            g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
+            return g, [m for m in np.unique(g) if m >= 0 and np.sum(g == m) >= 4]
 
-        def refit(keep):  # the pose of the correspondences ``keep`` alone, with what they are
+        # the gravity prior (the AHRS's 0.5 degrees) is weighed against the noise the markers show,
+        # not the 0.3 px floor every found corner gets: three markers' corners fit to ~0.1 px on a
+        # clean image, whose tilt then counts (the AHRS's few tenths of a degree went into the
+        # position almost whole), and to 0.2-0.3 px under JPEG and a wide lens, where the prior
+        # should count more.  Three times the image-only fit's residual: JPEG's and the lens's
+        # errors are correlated within a marker, and the residual shows only part of them
+        def weighable(P):
+            return up_C is not None and np.ndim(sigma) == 0 and len(markers_seen(P)[1]) >= 3
+
+        def pose_of(P, px, s, weigh=False):
+            w = (MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if weigh else None
+            return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
+                                      array_key(prior) if up_C is None else None, array_key(s), w),
+                             solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
+                             sigma_from_fit=w)
+
+        def refit(keep, weigh=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
-            p = pose_of(P[keep], px[keep], s)
-            return None if p is None else (p, P[keep], px[keep], s)
+            w = weigh and weighable(P[keep])
+            p = pose_of(P[keep], px[keep], s, w)
+            return None if p is None else (p, P[keep], px[keep], s, w)
 
         P, px = det.pts_P, det.px
-        pose = pose_of(P, px, sigma)
+        weighed = weighable(P)
+        pose = pose_of(P, px, sigma, weighed)
         if pose is None:
             return None, "pose failed"
         info = dict(det.info)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
-        def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
-            g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
-            return g, [m for m in np.unique(g) if m >= 0 and np.sum(g == m) >= 4]
-
         groups, seen = markers_seen(P)
         r = point_residuals(self.camera, pose.cam2pad, P, px) if len(seen) >= 3 else None
         if r is not None and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
@@ -643,7 +656,7 @@ class HierarchicalLocalizer:
                 if off > max(1.5, 5.0 * fits) and (best is None or off / fits > best[0]):
                     best = (off / fits, g, others)
             if best is not None:
-                pose, P, px, sigma = best[2]
+                pose, P, px, sigma, weighed = best[2]
                 info["marker_dropped"] = self.geometry.markers[best[1]].name
         # the pad's outer corners, fitted on the border's colour, double the markers' baseline; but
         # where chroma is kept at half resolution (JPEG, H.264) the border's colour edge smears and
@@ -651,7 +664,7 @@ class HierarchicalLocalizer:
         # tilts toward them: judged by the markers' own fit, they go when they disagree with it
         outer = (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
         if up_C is not None and outer.any() and len(markers_seen(P)[1]) >= 3:
-            alone = refit(np.nonzero(~outer)[0])
+            alone = refit(np.nonzero(~outer)[0], weigh=False)  # judged at the corners' floor noise
             if alone is not None:
                 r = point_residuals(self.camera, alone[0].cam2pad, P[outer], px[outer])
                 off = float(np.sqrt(np.mean(r**2)))
@@ -660,7 +673,7 @@ class HierarchicalLocalizer:
                 sure = float(np.sqrt(np.mean(projection_sigma_px(self.camera, alone[0].cam2pad, alone[0].cov,
                                                                  P[outer]) ** 2)))
                 if off > max(OUTER_AGREE_PX, 3.0 * sure):
-                    pose, P, px, sigma = alone
+                    pose, P, px, sigma, weighed = alone
                     info["outer_dropped_px"] = round(off, 3)
         n0 = len(P)
         # many points: a few mislocated ones (marker corners pulled 10 px, an outline corner
@@ -675,21 +688,14 @@ class HierarchicalLocalizer:
             better = refit(np.setdiff1d(np.arange(len(P)), bad))
             if better is None:
                 break
-            pose, P, px, sigma = better
+            pose, P, px, sigma, weighed = better
             info["outliers_dropped"] = n0 - len(P)
-        # the gravity prior (the AHRS's 0.5 degrees) is weighed against the noise the markers show,
-        # not the 0.3 px floor every found corner gets: three markers' corners fit to ~0.1 px on a
-        # clean image, whose tilt then counts (the AHRS's few tenths of a degree went into the
-        # position almost whole), and to 0.2-0.3 px under JPEG and a wide lens, where the prior
-        # should count more.  Three times the image-only fit's residual: JPEG's and the lens's
-        # errors are correlated within a marker, and the residual shows only part of them
-        s_img = max(MARKER_SIGMA_PER_RMS * pose.image_rms_px, MARKER_MIN_SIGMA_PX)
-        if up_C is not None and np.ndim(sigma) == 0 and np.isfinite(s_img) and abs(s_img - sigma) > 0.01 \
-                and len(markers_seen(P)[1]) >= 3:
-            weighed = pose_of(P, px, s_img)
-            if weighed is not None:
-                pose, sigma = weighed, s_img
-                info["px_sigma"] = round(s_img, 3)
+        if not weighed and weighable(P):  # the outer corners dropped: the markers' pose weighed in turn
+            again = pose_of(P, px, sigma, True)
+            if again is not None:
+                pose, weighed = again, True
+        if weighed and np.ndim(pose.sigma_px) == 0:
+            info["px_sigma"] = round(float(pose.sigma_px), 3)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 

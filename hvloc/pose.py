@@ -29,6 +29,7 @@ class PoseResult:
     tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
     normal_img_C: np.ndarray | None = None  # the image-only pose's pad normal in C (with an IMU)
     image_rms_px: float = float("nan")    # the image-only pose's reprojection RMS (with an IMU)
+    sigma_px: object = None               # the pixel noise the refinement and covariance used (scalar or per point)
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -219,6 +220,8 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
             step = -np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), J.T @ r0)
         except np.linalg.LinAlgError:
             break
+        if np.abs(step).max() < 1e-10:  # converged: a step this small is below what the cost can show
+            break
         Tn = T.copy()
         Tn[:3, 3] += step[:3]
         Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:])
@@ -263,9 +266,13 @@ def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy
 
 def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
-                      gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA) -> PoseResult | None:
+                      gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
+                      sigma_from_fit: tuple | None = None) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
-    ``sigma_px`` (a scalar, or one per point).
+    ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
+    scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
+    at least ``floor``, so that the gravity prior is weighed against the noise the image shows (in
+    the same solve: the image-only fit is made anyway).
 
     ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
     the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
@@ -313,12 +320,14 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     normal_img = None
     image_rms = float("nan")
     if up_C is not None:
+        image_rms = reprojection_rms(camera, T, obj, px)
+        if sigma_from_fit is not None and np.ndim(sigma_px) == 0 and np.isfinite(image_rms):
+            sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-        image_rms = reprojection_rms(camera, T, obj, px)
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up)
-    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px)

@@ -1195,6 +1195,36 @@ def test_clean_markers_outweigh_an_ahrs_a_few_tenths_off(pad):
     assert np.median(pulled) < 0.65, np.round(pulled, 2)
 
 
+def test_markers_noise_is_weighed_within_one_solve(pad, monkeypatch):
+    """The gravity prior of a markers pose is weighed against k x the image-only fit's residual.
+    That fit is made inside every solve anyway, so the weighing is done there (``sigma_from_fit``),
+    and gives exactly what solving again with that noise gives; a clean three-marker frame then
+    costs two pose solves (the joint one and the markers alone, which judges the outer corners),
+    not three."""
+    import hvloc.localizer as L
+
+    G = tilted(0.2, -0.1, 3.0, 0.7, 0.03, -0.02)
+    img = warp_pad_view(pad, CAM, G, GROUND)
+    up = up_in_camera(G) + np.array([0.004, -0.003, 0.0])  # an AHRS ~0.3 degrees off
+    det, why = detect_markers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), pad.geometry, CAM, rgb=img)
+    assert det is not None, why
+    one = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up, sigma_from_fit=(3.0, 0.1))
+    s = max(3.0 * one.image_rms_px, 0.1)
+    two = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up, sigma_px=s)
+    assert one.sigma_px == s and abs(s - 0.3) > 0.05, (s, one.sigma_px)
+    assert np.allclose(one.cam2pad, two.cam2pad, atol=1e-12) and np.allclose(one.cov, two.cov, rtol=1e-9)
+    assert one.tilt_sigma_deg == two.tilt_sigma_deg
+    calls = []
+    real = L.solve_planar_pose
+    monkeypatch.setattr(L, "solve_planar_pose", lambda *a, **k: calls.append(k.get("sigma_from_fit")) or real(*a, **k))
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    loc.phase = "adjustment"
+    e = loc.process(img, 0.0, _imu_from(G))
+    assert e.ok and e.method == "markers" and "outer_dropped_px" not in e.extras, (e.method, e.reason, e.extras)
+    assert calls == [(3.0, 0.1), None], calls
+    assert e.extras["px_sigma"] == round(s, 3)  # the image-only fit does not depend on the IMU
+
+
 def test_outer_corners_smeared_by_jpeg_chroma_leave_the_markers_pose(pad):
     """JPEG keeps chroma at half resolution: the pad's outer corners, fitted on the border's colour,
     come out ~0.5 px outward while the markers' corners, on luma, stay at ~0.1 px.  Joined to the
