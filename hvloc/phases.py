@@ -494,6 +494,8 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
         return None
     full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if cut:
+        contours = list(contours) + _rejoined_pieces(full, contours, pad_geometry)
     ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2  # the border's share of the pad
     best, best_score = None, -1.0
     for c in contours:
@@ -519,6 +521,29 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
         if score > best_score:
             best, best_score = quad, score
     return best
+
+
+def _rejoined_pieces(full: np.ndarray, contours, geo: PadGeometry) -> list:
+    """Contours of the pieces of a ring that the cue's gap split: the cue square is left out of the
+    border's mask, so a ring that also runs out of the image falls apart in two (a stretch of one
+    side from the image's edge to the cue, and the rest).  Pieces whose gap is at most about the
+    border's width (the cue's side) are joined: each piece's pixels grown by the width its own area
+    and length say the border has, and the pieces that then touch make one contour (the convex hull
+    of their own pixels, nothing grown).  Only groups of two pieces or more are returned."""
+    pieces = [c for c in contours if cv2.contourArea(c) >= 36]
+    if len(pieces) < 2:
+        return []
+    # a strip's width: its area over half its perimeter; the gap is the cue's side, in border widths
+    width = max(2.0 * cv2.contourArea(c) / max(cv2.arcLength(c, True), 1.0) for c in pieces)
+    cue_side = 0.0 if geo.cue is None else float(np.ptp(geo.cue.corners[:, 0]))
+    k = max(3, min(int(np.ceil(1.2 * width * cue_side / geo.border_m)), 64))
+    grown = cv2.dilate(full, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    n, labels = cv2.connectedComponents(grown)
+    groups = {}
+    for c in pieces:
+        x, y = c[0, 0]
+        groups.setdefault(int(labels[y, x]), []).append(c)
+    return [cv2.convexHull(np.concatenate(g)) for g in groups.values() if len(g) >= 2]
 
 
 def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera: Camera | None) -> np.ndarray:
