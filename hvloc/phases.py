@@ -146,7 +146,11 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     H_img, W_img = rgb.shape[:2]
     cut_edges = (x0 == 0, y0 == 0, x0 + img.shape[1] >= W_img, y0 + img.shape[0] >= H_img)
     best = _best_ring(mask, pad_geometry, cut_edges)
-    if best is None:  # the pad running out of the image: three corners and the sides toward the fourth
+    tries = [] if best is None else [best]
+    if best is None or _at_cut(best, small.shape, cut_edges).any():
+        # the pad running out of the image: three corners and the sides toward the fourth (also when a
+        # ring read whole touches the image's edge, and its outline is not found: a corner just out of
+        # view is read either way, a piece of a cut ring only as cut)
         best = _best_ring(mask, pad_geometry, cut_edges, cut=True)
     if best is None:
         # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
@@ -156,26 +160,40 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
         best = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
                           cut_edges, min_share=0.5 * band)
-    if best is None:
+    tries += [] if best is None or (tries and best is tries[0]) else [best]
+    if not tries:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
             return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
         return None, "no pad-coloured quadrilateral"
-    quad = best
-    cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all()  # a corner out of view
-    if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
-        # small in the reduced copy: its corners would be too coarse to start from
-        return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+    for quad in tries:
+        if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
+            # small in the reduced copy: its corners would be too coarse to start from
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+        found, why = _outline_from_ring(rgb, quad, small, scale, (x0, y0), cut_edges, pad_geometry, camera)
+        if found is not None:
+            return found, why
+    return found, why
+
+
+def _outline_from_ring(rgb: np.ndarray, quad: np.ndarray, small: np.ndarray, scale: int, origin, cut_edges,
+                       pad_geometry: PadGeometry, camera: Camera | None) -> tuple:
+    """``(OutlineQuad | None, reason)`` from a ring's quadrilateral ``quad`` found in ``small`` (the
+    searched area reduced ``scale`` times, at ``origin`` in the image)."""
+    # a corner out of view, or at the image's edge (a hull that ran along it a little: the corner just
+    # out of view, its sides there fitted on the stretches in view)
+    cut = not ((quad >= -0.5) & (quad <= [small.shape[1] - 0.5, small.shape[0] - 0.5])).all() \
+        or bool(_at_cut(quad, small.shape, cut_edges).any())
     if _signed_area(quad) < 0:
         quad = quad[::-1]
     if scale > 1:  # sharpen the coarse quad where it was found before going to full resolution
         sq, _ = refine_quad(_border_channel(small), quad, half_width=2.0)
         if sq is not None and np.max(np.linalg.norm(sq - quad, axis=1)) < 2.5:
             quad = sq
-    quad = (quad + 0.5) * scale - 0.5 + [x0, y0]
+    quad = (quad + 0.5) * scale - 0.5 + np.asarray(origin)
     # sub-pixel first: edges on a channel linear in the colours, where the border is bright; the
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+    side_px = _mean_side(quad)
     found, why = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera)
     if found is None and why in MISREAD_WHEN:
         # glare washes out the border's rim and the colour hull lies a pixel or two inside a far
@@ -360,7 +378,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     if np.mean((v @ _colour_direction(border)) / np.maximum(v.sum(axis=1), 30.0) > 0.5 * level) > 0.5:
         return None
 
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+    side_px = _mean_side(quad)
     sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
     if side_px < 12 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
         return None
@@ -494,11 +512,14 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
         return None
     full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     contours, _ = cv2.findContours(full, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    contours = list(contours)
+    rejoined = None  # (hulls of pieces the cue's gap split, the indices of those pieces), when needed
     if cut:
-        contours = list(contours) + _rejoined_pieces(full, contours, pad_geometry)
+        rejoined = _rejoined_pieces(full, contours, pad_geometry)
+        contours += rejoined[0]
     ring_share = 1.0 - (pad_geometry.field_side_m / pad_geometry.side_m) ** 2  # the border's share of the pad
     best, best_score = None, -1.0
-    for c in contours:
+    for i, c in enumerate(contours):
         area = cv2.contourArea(c)
         if area < 36:
             continue
@@ -507,8 +528,15 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
                 continue
             quad = _cut_quad(cv2.convexHull(c), mask.shape, cut_edges)
         else:
-            quad = _hull_quad(cv2.convexHull(c))
-        if quad is None or (not cut and _at_cut(quad, mask.shape, cut_edges).any()):
+            hull = cv2.convexHull(c)
+            quad = _hull_quad(hull)
+            if quad is not None and _at_cut(quad, mask.shape, cut_edges).any():
+                if _along_cut(hull, mask.shape, cut_edges) > 0.25 * _mean_side(quad):
+                    continue  # squeezed against the image's edge: read as cut, if at all
+                rejoined = rejoined or _rejoined_pieces(full, contours, pad_geometry)
+                if i in rejoined[1]:
+                    continue  # a piece of a ring cut by the edge, which the cue's gap split: read as cut
+        if quad is None:
             continue
         qa = abs(_signed_area(quad))
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
@@ -523,27 +551,46 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
     return best
 
 
+def _along_cut(hull: np.ndarray, shape, cut_edges) -> float:
+    """How long (px) a convex hull runs along the image's edges flagged in ``cut_edges``.  A short
+    run is a corner just out of view, or the smear of a blurred corner just in it: the hull's
+    quadrilateral (:func:`_hull_quad`, which puts a corner cut off back where its sides meet) is the
+    pad's; a long one is a pad cut by the edge (:func:`_cut_quad`)."""
+    pts = hull.reshape(-1, 2).astype(np.float64)
+    on = _at_cut(pts, shape, cut_edges)
+    along = np.any(on & np.roll(on, -1, axis=0), axis=1)
+    return float(np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)[along].sum())
+
+
+def _mean_side(quad: np.ndarray) -> float:
+    """The mean length (px) of a quadrilateral's four sides."""
+    return float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
+
+
 def _rejoined_pieces(full: np.ndarray, contours, geo: PadGeometry) -> list:
     """Contours of the pieces of a ring that the cue's gap split: the cue square is left out of the
     border's mask, so a ring that also runs out of the image falls apart in two (a stretch of one
     side from the image's edge to the cue, and the rest).  Pieces whose gap is at most about the
     border's width (the cue's side) are joined: each piece's pixels grown by the width its own area
     and length say the border has, and the pieces that then touch make one contour (the convex hull
-    of their own pixels, nothing grown).  Only groups of two pieces or more are returned."""
-    pieces = [c for c in contours if cv2.contourArea(c) >= 36]
+    of their own pixels, nothing grown).  ``(hulls of the groups of two pieces or more, the indices
+    in ``contours`` of those pieces)``."""
+    pieces = [i for i, c in enumerate(contours) if cv2.contourArea(c) >= 36]
     if len(pieces) < 2:
-        return []
+        return [], set()
     # a strip's width: its area over half its perimeter; the gap is the cue's side, in border widths
-    width = max(2.0 * cv2.contourArea(c) / max(cv2.arcLength(c, True), 1.0) for c in pieces)
+    width = max(2.0 * cv2.contourArea(contours[i]) / max(cv2.arcLength(contours[i], True), 1.0) for i in pieces)
     cue_side = 0.0 if geo.cue is None else float(np.ptp(geo.cue.corners[:, 0]))
     k = max(3, min(int(np.ceil(1.2 * width * cue_side / geo.border_m)), 64))
     grown = cv2.dilate(full, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
     n, labels = cv2.connectedComponents(grown)
     groups = {}
-    for c in pieces:
-        x, y = c[0, 0]
-        groups.setdefault(int(labels[y, x]), []).append(c)
-    return [cv2.convexHull(np.concatenate(g)) for g in groups.values() if len(g) >= 2]
+    for i in pieces:
+        x, y = contours[i][0, 0]
+        groups.setdefault(int(labels[y, x]), []).append(i)
+    joined = [g for g in groups.values() if len(g) >= 2]
+    return ([cv2.convexHull(np.concatenate([contours[i] for i in g])) for g in joined],
+            {i for g in joined for i in g})
 
 
 def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera: Camera | None) -> np.ndarray:
@@ -791,7 +838,7 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     Returns ``(corners or None, swollen past, the field's fit or None)``: the second says the field
     fitted well but lies further inside than a corner's move may mend (the outline is then suspect:
     :func:`_field_rescue`), the third is the field fitted, used or not."""
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    side_px = _mean_side(quad_px)
     # a field fitted less cleanly still says whether the outline swelled past it (a dark patch of
     # the border's hue beside the pad: its lines fit to 0.42 px, and the swollen outline went on)
     got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px,
@@ -818,7 +865,7 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     guess = _through_quad(quad_px, geo, camera, geo.field_corners[:, :2])
     if guess is None:
         return None
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    side_px = _mean_side(quad_px)
     checker_px = side_px * (geo.border_m - geo.border.solid_band_m) / geo.side_m
     gray8 = cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2GRAY)
     gray = gray8.astype(np.float32)
@@ -853,7 +900,7 @@ def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     """Whether the white field, fitted on luma in the outline's window from where ``quad_px`` puts
     it, is found there: its four sides fit (a hidden part of the field breaks a side) and no corner
     lies further than a corner may move."""
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    side_px = _mean_side(quad_px)
     crop, lo = _window(rgb, quad_px, int(np.ceil(0.3 * side_px + 8)))
     got = _field_fit(crop, quad_px - lo, geo, _shifted(camera, *lo), max(5.0, 0.25 * side_px))
     return got is not None and got[1] <= max(3.0, 0.1 * side_px)
@@ -874,7 +921,7 @@ def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     usual fit does at those sizes), and the
     outer square put where the field's homography puts it.  That quad must
     then pass the band checks the colour's did not."""
-    side_px = float(np.mean(np.linalg.norm(np.roll(quad_px, -1, axis=0) - quad_px, axis=1)))
+    side_px = _mean_side(quad_px)
     got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), rounds=3)
     if got is None or not got[2]:
         return None
@@ -1227,7 +1274,7 @@ def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
     h, w = rgb.shape[:2]
     if guess.min() < 4 or guess[:, 0].max() > w - 5 or guess[:, 1].max() > h - 5:
         return None
-    side_px = float(np.mean(np.linalg.norm(np.roll(guess, -1, axis=0) - guess, axis=1)))
+    side_px = _mean_side(guess)
     hw = float(np.clip(side_px * pad_geometry.border.solid_band_m / pad_geometry.side_m * 0.9, 1.0, 3.0))
     f, (bx0, by0) = _window(rgb, guess, 6)
     chan = _border_channel(f)
