@@ -606,6 +606,8 @@ class HierarchicalLocalizer:
         if det is None:
             return None, why
         sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
+        if det.info.get("px_sigma_blur"):  # and a corner placed under motion smear
+            sigma = np.hypot(sigma, det.info["px_sigma_blur"])
 
         def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
             g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)

@@ -65,6 +65,7 @@ class OutlineQuad:
     line_rms: object
     field_px: np.ndarray | None = None  # the field's corners, where they are to be used instead (:func:`_field_quad`)
     sigma_scale: np.ndarray | None = None  # (4,) how much less sure each corner is than a seen one (:func:`_corner_sigma_scale`)
+    smear_px: float = 0.0  # how far motion smears its edges (px, in luma: :func:`_smear_near`)
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -274,7 +275,8 @@ def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px
     scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
-    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma), "ok"
+    smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
+    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear), "ok"
 
 
 def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -390,8 +392,9 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
         return None  # its sides and its colour hull disagree
     if visible(refined[3:4])[0] or not visible(refined[:3]).all():
         return None  # three corners seen, the fourth behind the cut
+    smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
     if (_band_missing(rgb, refined, geo, camera, visible=visible) or _corner_missing(rgb, refined, geo, camera, visible)
-            or _too_smeared(rgb, refined, geo, camera)):
+            or smear > 5.0):  # (the outline of a partly seen pad cannot be placed under more: see _too_smeared)
         return None
     # and something does hide it: behind the cut, the border's band must be missing (a whole pad
     # whose outline was refused for another reason, JPEG's smeared colour, is no hidden one)
@@ -407,7 +410,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     scale_sigma = _corner_sigma_scale(refined, rgb.shape, visible)
     if not np.isfinite(scale_sigma).all():
         return None
-    return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma)
+    return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma, smear)
 
 
 def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -619,8 +622,12 @@ def _moved_sides(quad: np.ndarray, e: np.ndarray) -> np.ndarray:
     return out
 
 
+SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are placed by the border's centroid
+CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px of smear
+
+
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-               min_blur_px: float = 5.0, reach_px: float = 16.0, segments: int = 2,
+               min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
                partial: bool = False, trim: float = 0.25) -> np.ndarray | None:
     """``quad_px`` with its sides moved to where the border's centroid puts them
     (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px`` (beyond
@@ -962,6 +969,12 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}
+    if found.smear_px > SMEARED_PX:
+        # placed by the border's centroid in linear light, which a tone curve not known exactly
+        # (a camera's is not sRGB) moves by a share of the smear: ~0.5 px outward at 5-12 px of smear
+        # on the conditions suite's gusty descent (the four corners' own 0.3 px made such poses'
+        # covariances 3-5x too tight)
+        info["px_sigma_blur"] = round(CENTROID_SIGMA_PER_SMEAR * found.smear_px, 3)
     if found.sigma_scale is not None:  # a pad cut by the image's edge: its hidden corner is less sure
         info.update(corners_seen=int(np.sum(found.sigma_scale == 1.0)),
                     px_sigma_scale=[round(float(v), 3) for v in found.sigma_scale[order]])
