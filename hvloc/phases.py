@@ -394,7 +394,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
         return None  # three corners seen, the fourth behind the cut
     smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
     if (_band_missing(rgb, refined, geo, camera, visible=visible) or _corner_missing(rgb, refined, geo, camera, visible)
-            or smear > 5.0):  # (the outline of a partly seen pad cannot be placed under more: see _too_smeared)
+            or smear > SMEARED_PX):  # (the outline of a partly seen pad cannot be placed under more: see _too_smeared)
         return None
     # and something does hide it: behind the cut, the border's band must be missing (a whole pad
     # whose outline was refused for another reason, JPEG's smeared colour, is no hidden one)
@@ -570,7 +570,7 @@ def _mean_side(quad: np.ndarray) -> float:
     return float(np.mean(np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)))
 
 
-def _rejoined_pieces(full: np.ndarray, contours, geo: PadGeometry) -> list:
+def _rejoined_pieces(full: np.ndarray, contours, geo: PadGeometry) -> tuple:
     """Contours of the pieces of a ring that the cue's gap split: the cue square is left out of the
     border's mask, so a ring that also runs out of the image falls apart in two (a stretch of one
     side from the image's edge to the cue, and the rest).  Pieces whose gap is at most about the
@@ -586,7 +586,7 @@ def _rejoined_pieces(full: np.ndarray, contours, geo: PadGeometry) -> list:
     cue_side = 0.0 if geo.cue is None else float(np.ptp(geo.cue.corners[:, 0]))
     k = max(3, min(int(np.ceil(1.2 * width * cue_side / geo.border_m)), 64))
     grown = cv2.dilate(full, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    n, labels = cv2.connectedComponents(grown)
+    _, labels = cv2.connectedComponents(grown)
     groups = {}
     for i in pieces:
         x, y = contours[i][0, 0]
@@ -706,7 +706,7 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
 
 
 def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-                 limit_px: float = 5.0) -> bool:
+                 limit_px: float = SMEARED_PX) -> bool:
     """Whether motion smears the field's edge past ``limit_px`` around ``quad_px`` (the outline of a
     partly seen pad cannot then be placed: its sides' centroids need the whole border)."""
     return _smear_near(rgb, quad_px, geo, camera, 12.0)[2] > limit_px
