@@ -693,16 +693,25 @@ def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
 def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                 margin_px: float) -> tuple:
     """``(linear crop, its origin, smear px)``: the neighbourhood of ``quad_px`` (``margin_px``
-    around it) in linear light, and how far motion smears the white field's edge there in luma, the
-    most over the sides (0 when none can be read).  Luma, not colour: JPEG's chroma is smeared
-    linearly in the encoded values, not in light, while its luma stays sharp; only motion smears
-    both."""
+    around it) in linear light, and how far motion smears the white field's edge there in luma (0
+    when no side can be read).  Luma, not colour: JPEG's chroma is smeared linearly in the encoded
+    values, not in light, while its luma stays sharp; only motion smears both.
+
+    Motion smears the two sides of a parallel pair alike (one blur kernel, seen edge-on the same way
+    from both), so the smear is the larger over the two pairs of the pair's mean reading (a side's
+    alone where the other is not read).  A wide reading on one side, or on two adjacent ones, is
+    mostly the pad's own structure: on sharp 25-35 px pads under JPEG or glare the field's edge
+    merges with the checker's and read 5-6 px on one side (blur 0-0.6 px), the most over the sides,
+    which took the outline to the centroid placement meant for motion and gave it the smear's
+    noise.  (The pair's smaller reading is too strict: on a 36 px pad under 9 px of blur one side
+    of the smeared pair read 4.4 px, the other 7.9.)"""
     crop, lo = _window(rgb, quad_px, margin_px)
     lin = srgb_to_linear(crop)
     luma = np.ascontiguousarray(lin @ _LUMA)
     q = quad_px - lo
-    smear = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
-    return lin, lo, float(np.nanmax(np.append(smear, 0.0)))
+    s = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
+    pairs = np.where(np.isnan(s[:2]), s[2:], np.where(np.isnan(s[2:]), s[:2], 0.5 * (s[:2] + s[2:])))
+    return lin, lo, float(np.nanmax(np.append(pairs, 0.0)))
 
 
 def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
