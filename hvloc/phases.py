@@ -146,22 +146,22 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     # the image's own edges are where a pad can be cut off.
     H_img, W_img = rgb.shape[:2]
     cut_edges = (x0 == 0, y0 == 0, x0 + img.shape[1] >= W_img, y0 + img.shape[0] >= H_img)
-    best = _best_ring(mask, pad_geometry, cut_edges)
-    tries = [] if best is None else [best]
-    if best is None or _at_cut(best, small.shape, cut_edges).any():
+    whole = _best_ring(mask, pad_geometry, cut_edges)
+    tries = [] if whole is None else [whole]
+    if whole is None or _at_cut(whole, small.shape, cut_edges).any():
         # the pad running out of the image: three corners and the sides toward the fourth (also when a
         # ring read whole touches the image's edge, and its outline is not found: a corner just out of
         # view is read either way, a piece of a cut ring only as cut)
-        best = _best_ring(mask, pad_geometry, cut_edges, cut=True)
-    if best is None:
-        # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
-        # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
-        # under noon glare); then the colour is read relative to brightness everywhere, as in shadow
-        # (the checker's dark cells wash out first: the ring may be the solid band alone)
-        band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
-        best = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
-                          cut_edges, min_share=0.5 * band)
-    tries += [] if best is None or (tries and best is tries[0]) else [best]
+        other = _best_ring(mask, pad_geometry, cut_edges, cut=True)
+        if other is None:
+            # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
+            # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
+            # under noon glare); then the colour is read relative to brightness everywhere, as in shadow
+            # (the checker's dark cells wash out first: the ring may be the solid band alone)
+            band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
+            other = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
+                               cut_edges, min_share=0.5 * band)
+        tries += [] if other is None else [other]
     if not tries:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
             return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
