@@ -18,7 +18,8 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
-from .pose import PIXEL_SIGMA, PoseResult, outlying_points, point_residuals, projection_sigma_px, solve_planar_pose
+from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
+                   solve_planar_pose)
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -65,6 +66,7 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
 OUTER_AGREE_PX = 0.45  # the pad's outer corners join a markers pose when the markers' own fit puts them this close (RMS)
 MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
+MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
 
 
@@ -622,17 +624,34 @@ class HierarchicalLocalizer:
         def weighable(P):
             return up_C is not None and np.ndim(sigma) == 0 and len(markers_seen(P)[1]) >= 3
 
-        def pose_of(P, px, s, weigh=False):
-            w = (MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if weigh else None
-            return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
-                                      array_key(prior) if up_C is None else None, array_key(s), w),
-                             solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
-                             sigma_from_fit=w)
+        # a pose from fewer than three markers is not weighed by its residual (too few to show the
+        # noise); its markers' corners share errors besides their own (SharedNoise): MARKER_SHARED_PER_SIGMA
+        # per unit of their noise, or, in a frame where a marker was left out for being off, as much
+        # as that marker was off (the blur, the lens or the threshold that moved it reached the others)
+        shared_off = [0.0]
 
-        def refit(keep, weigh=True):  # the pose of the correspondences ``keep`` alone, with what they are
+        def outer_of(P):  # which points are the pad's outer corners
+            return (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
+
+        def shared_for(P, s, weigh):  # (the outer corners, fitted on the border's colour, share theirs too)
+            if det.kind != "markers" or weigh:
+                return None
+            v = max(MARKER_SHARED_PER_SIGMA * float(np.mean(s)), shared_off[0] / math.sqrt(3.0))
+            return SharedNoise(np.where(outer_of(P), len(self.geometry.markers), markers_seen(P)[0]), v, v)
+
+        def pose_of(P, px, s, weigh=False, share=True):
+            w = (MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if weigh else None
+            sh = shared_for(P, s, weigh) if share else None
+            return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
+                                      array_key(prior) if up_C is None else None, array_key(s), w,
+                                      None if sh is None else (sh.shift, sh.dilation)),
+                             solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
+                             sigma_from_fit=w, shared=sh)
+
+        def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
             w = weigh and weighable(P[keep])
-            p = pose_of(P[keep], px[keep], s, w)
+            p = pose_of(P[keep], px[keep], s, w, share)
             return None if p is None else (p, P[keep], px[keep], s, w)
 
         P, px = det.pts_P, det.px
@@ -649,24 +668,27 @@ class HierarchicalLocalizer:
         if r is not None and max(float(np.sqrt(np.mean(r[groups == g] ** 2))) for g in seen) > 1.0:
             best = None
             for g in seen:
-                others = refit(np.nonzero(groups != g)[0])
+                others = refit(np.nonzero(groups != g)[0], share=False)  # judged by the image's fit
                 if others is None:
                     continue
                 r = point_residuals(self.camera, others[0].cam2pad, P, px)
                 off = float(np.sqrt(np.mean(r[groups == g] ** 2)))
                 fits = float(np.sqrt(np.mean(r[groups != g] ** 2)))
                 if off > max(1.5, 5.0 * fits) and (best is None or off / fits > best[0]):
-                    best = (off / fits, g, others)
+                    best = (off / fits, g, others, off)
             if best is not None:
                 pose, P, px, sigma, weighed = best[2]
                 info["marker_dropped"] = self.geometry.markers[best[1]].name
+                shared_off[0] = best[3]
+                if not weighed:  # the others' pose again, with the errors that marker shows them to share
+                    pose = pose_of(P, px, sigma, False) or pose
         # the pad's outer corners, fitted on the border's colour, double the markers' baseline; but
         # where chroma is kept at half resolution (JPEG, H.264) the border's colour edge smears and
         # they come out ~0.5 px outward (the markers, on luma, stay at ~0.1 px), and the joint fit
         # tilts toward them: judged by the markers' own fit, they go when they disagree with it
-        outer = (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
+        outer = outer_of(P)
         if up_C is not None and outer.any() and len(markers_seen(P)[1]) >= 3:
-            alone = refit(np.nonzero(~outer)[0], weigh=False)  # judged at the corners' floor noise
+            alone = refit(np.nonzero(~outer)[0], weigh=False, share=False)  # judged at the corners' floor noise
             if alone is not None:
                 r = point_residuals(self.camera, alone[0].cam2pad, P[outer], px[outer])
                 off = float(np.sqrt(np.mean(r**2)))

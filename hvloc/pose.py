@@ -9,6 +9,7 @@ as a prior on the pad's tilt; a 6x6 covariance from the reprojection Jacobian.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -36,14 +37,14 @@ PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's o
 
 
 def tilt_disagreement(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
-                      sigma_px: float) -> tuple:
+                      sigma_px: float, shared: "SharedNoise | None" = None) -> tuple:
     """``(angle, sigma)`` in degrees: how far the pad normal of an image-only pose is from the IMU's
     up direction, and how well the image fixes that normal (from the reprojection Jacobian with
     pixel noise ``sigma_px`` or the fit's own residuals, whichever is larger)."""
     z = cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # pad normal in C
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
     ang = float(np.degrees(np.arccos(np.clip(z @ up, -1.0, 1.0))))
-    cov = pose_covariance(camera, cam2pad, pts_P, px, min_sigma_px=sigma_px)[3:, 3:]  # rotation about C's axes
+    cov = pose_covariance(camera, cam2pad, pts_P, px, min_sigma_px=sigma_px, shared=shared)[3:, 3:]  # about C's axes
     if not np.isfinite(cov).all():
         return ang, float("inf")
     # a rotation tilts the normal by its part across the normal (about the normal it does nothing):
@@ -161,18 +162,61 @@ def _row_sigmas(sigma_px, n: int) -> np.ndarray:
     return np.repeat(np.broadcast_to(np.asarray(sigma_px, np.float64), (n,)), 2)
 
 
+@dataclass(frozen=True)
+class SharedNoise:
+    """Errors that a group of points (a marker's corners) share, besides each point's own: the whole
+    group shifted by ``shift`` px (standard deviation per axis) and grown or shrunk by ``dilation``
+    px (at the group's RMS radius about its centroid).  A marker's corners are found
+    on one blurred, compressed, thresholded patch: blur across it, JPEG's blocks and a binarising
+    threshold off by a little move or swell all of them together.  Two markers' relative size is
+    what fixes the tilt between them, so independent noise alone reads it far too sure.
+
+    ``groups``: (N,) the group of each point, -1 for points on their own."""
+    groups: np.ndarray
+    shift: float
+    dilation: float
+
+
+def _whitener(sigma_px, px: np.ndarray, shared: SharedNoise | None = None) -> np.ndarray:
+    """What whitens the (2n,) pixel residuals and their Jacobian's rows: ``(2n,)`` sigmas to divide
+    by when the points' errors are independent, else a ``(2n, 2n)`` block-diagonal matrix to
+    multiply by (the inverse Cholesky factor of each group's noise covariance)."""
+    n = len(px)
+    s = _row_sigmas(sigma_px, n)
+    if shared is None or not (shared.shift > 0 or shared.dilation > 0):
+        return s
+    W = np.diag(1.0 / s)
+    groups = np.asarray(shared.groups)
+    for g in np.unique(groups[groups >= 0]):
+        idx = np.nonzero(groups == g)[0]
+        if len(idx) < 2:
+            continue
+        rows = np.stack([2 * idx, 2 * idx + 1], axis=1).ravel()
+        d = px[idx] - px[idx].mean(axis=0)
+        radius = math.sqrt(max(float(np.mean(np.sum(d * d, axis=1))), 1e-12))
+        T = np.tile(np.eye(2), (len(idx), 1))
+        D = d.reshape(-1, 1) / radius
+        C = np.diag(s[rows] ** 2) + shared.shift ** 2 * (T @ T.T) + shared.dilation ** 2 * (D @ D.T)
+        W[np.ix_(rows, rows)] = np.linalg.inv(np.linalg.cholesky(C))
+    return W
+
+
+def _whiten(W: np.ndarray, r: np.ndarray, J: np.ndarray) -> tuple:
+    return (r / W, J / W[:, None]) if W.ndim == 1 else (W @ r, W @ J)
+
+
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
-                    sigma_up_rad: float | None = None) -> np.ndarray:
+                    sigma_up_rad: float | None = None, shared: SharedNoise | None = None) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector of ``R_P_C @ exp(d)``, i.e. about
     the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
     ``min_sigma_px`` squared: a scalar, or one per point where some are less sure than others).
     With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
-    gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too."""
+    gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too.
+    ``shared``: errors groups of points share (:class:`SharedNoise`)."""
     r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
     dof = max(r0.size - 6, 1)
-    s = _row_sigmas(min_sigma_px, len(r0) // 2)
-    r0, J = r0 / s, J / s[:, None]
+    r0, J = _whiten(_whitener(min_sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared), r0, J)
     info = J.T @ J / max(float(r0 @ r0) / dof, 1.0)
     if up_C is not None and sigma_up_rad:
         info = info + Jn.T @ Jn / sigma_up_rad ** 2
@@ -192,7 +236,8 @@ def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pt
 
 
 def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
-                        sigma_px: float, sigma_up_rad: float, iterations: int = 4) -> np.ndarray:
+                        sigma_px: float, sigma_up_rad: float, iterations: int = 4,
+                        shared: SharedNoise | None = None) -> np.ndarray:
     """Gauss-Newton on the reprojection error plus a prior that the pad's normal is the IMU's up.
 
     With few, close-together correspondences (the pad outline far away) the tilt of a planar
@@ -202,12 +247,12 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
     T = cam2pad.copy()
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
 
-    s = _row_sigmas(sigma_px, len(pts_P))
+    W = _whitener(sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared)
 
     def system(T):  # whitened residuals and Jacobian: pixels, then the normal's distance from up
         r, J, n, Jn = _linearised(camera, T, pts_P, px)
-        return (np.concatenate([r / s, (n - up) / sigma_up_rad]),
-                np.concatenate([J / s[:, None], Jn / sigma_up_rad], axis=0))
+        r, J = _whiten(W, r, J)
+        return np.concatenate([r, (n - up) / sigma_up_rad]), np.concatenate([J, Jn / sigma_up_rad], axis=0)
 
     r0, J = system(T)
     lam = 1e-6
@@ -267,12 +312,13 @@ def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy
 def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
                       gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
-                      sigma_from_fit: tuple | None = None) -> PoseResult | None:
+                      sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
     ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
     scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
     at least ``floor``, so that the gravity prior is weighed against the noise the image shows (in
-    the same solve: the image-only fit is made anyway).
+    the same solve: the image-only fit is made anyway).  ``shared``: errors groups of the points
+    share (:class:`SharedNoise`).
 
     ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
     the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
@@ -323,11 +369,11 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         image_rms = reprojection_rms(camera, T, obj, px)
         if sigma_from_fit is not None and np.ndim(sigma_px) == 0 and np.isfinite(image_rms):
             sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
-        tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px)
+        tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px, shared)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
-            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up)
+            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
-    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up)
+    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up, shared=shared)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px)
