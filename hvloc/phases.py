@@ -221,29 +221,29 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
         start = quad if refined is None else refined + [bx0, by0]
-        smeared = _smeared_in_view(rgb, start, pad_geometry, camera)
+        smeared, smear = _smeared_in_view(rgb, start, pad_geometry, camera)
         if smeared is None or np.max(np.linalg.norm(smeared - quad, axis=1)) > max(3.0, 0.1 * side_px) \
                 or _seen(smeared, rgb.shape).sum() < 3:
             return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
                           else "pad cut by the image's edge and smeared by motion")
-        return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut)
+        return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut, smear)
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
-        smeared = _deblurred(rgb, quad, pad_geometry, camera)
+        smeared, smear = _deblurred(rgb, quad, pad_geometry, camera)
         refined = quad if smeared is None else smeared
     elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(3.0, 0.1 * side_px):
         return None, "its sides and its colour hull disagree"
     else:
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
-        smeared = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
+        smeared, smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
-            smeared = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
+            smeared, smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
-            again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
+            again, smear = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
             refined = smeared if again is None else again
         else:
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
@@ -255,6 +255,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 if rescued is None:
                     return None, why
                 refined, field = rescued[0] + [bx0, by0], rescued[1]  # (the field is kept in the fit's window)
+                smear = None  # (read on a swollen quad: read again where the field puts the pad)
         if smeared is None and field is None:  # (under blur the field's luma edge is smeared as much as the colour's)
             field, far, fitted = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
             if (far or fitted is None) and not cut:
@@ -262,20 +263,23 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 # was out of the fit's reach: the field, found further in, says where the pad is
                 rescued = _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is not None:
-                    refined, field = rescued[0] + [bx0, by0], rescued[1]
+                    refined, field, smear = rescued[0] + [bx0, by0], rescued[1], None
                 elif far:
                     return None, "its colour swells past its white field"
     return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
-                         None if field is None else field + [bx0, by0], cut)
+                         None if field is None else field + [bx0, by0], cut, smear)
 
 
-def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool) -> tuple:
-    """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled."""
+def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
+                  smear: float | None = None) -> tuple:
+    """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled;
+    ``smear``: the motion smear already read around it (read here when ``None``)."""
     cue = _cue_scores(rgb, refined, geo, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
-    smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
+    if smear is None:
+        smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
     return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear), "ok"
 
 
@@ -628,21 +632,20 @@ CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px o
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
-               partial: bool = False, trim: float = 0.25) -> np.ndarray | None:
-    """``quad_px`` with its sides moved to where the border's centroid puts them
-    (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px`` (beyond
-    the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be read or
-    would move further than its smear explains.
+               partial: bool = False, trim: float = 0.25) -> tuple:
+    """``(quad | None, smear px)``: ``quad_px`` with its sides moved to where the border's centroid
+    puts them (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px``
+    (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
+    read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
+    around ``quad_px`` (kept with the outline: it is read once).
 
     Measured on the conditions suite's gusty descent (12 px of blur at 12 m, a 55 px pad): the
     edge fit put every corner 4-5 px outside the pad, the pose 3.8 m off, accepted; the centroid
     leaves 0.5-0.7 px, the outward bias of an image whose tone curve is not exactly sRGB."""
     levels = _border_channel(srgb_to_linear(np.array([geo.border.color_rgb, geo.border.dark_color_rgb])))
-    if levels[0] <= 0:
-        return None
     lin, lo, smear = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
-    if not smear > min_blur_px:
-        return None
+    if levels[0] <= 0 or not smear > min_blur_px:
+        return None, smear
     q, cam, bands = quad_px - lo, _shifted(camera, *lo), _bands_px(quad_px, geo)
     if partial:  # the profiles reach no further than the smear needs: a side near the image's edge stays read
         reach_px = min(reach_px, max(6.0, 0.75 * smear + 3.0))
@@ -650,7 +653,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
                                         cam, reach_px=reach_px, trim=trim, segments=segments)
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
-        return None
+        return None, smear
     # each side through its stretches' edge points (the side's angle is as uncertain as its place);
     # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view
     d = np.roll(q, -1, axis=0) - q
@@ -663,14 +666,14 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     for j in range(4):  # corner j where sides j - 1 and j meet
         A = np.stack([u[j - 1], -u[j]], axis=1)
         if abs(np.linalg.det(A)) < 1e-9:
-            return None
+            return None, smear
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
-    return out + lo
+    return out + lo, smear
 
 
 def _smeared_in_view(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-                     min_blur_px: float = 0.0) -> np.ndarray | None:
+                     min_blur_px: float = 0.0) -> tuple:
     """:func:`_deblurred` for a pad at or across the image's edge: each side through the border's
     centroid over those of five stretches (from a tenth of the side on) whose cross-profiles lie in
     view, at least two per side, reaching no further than the smear needs."""
