@@ -110,11 +110,20 @@ def load_suite(path) -> tuple:
         if not any(runs_on(loc, s) for s in specs):
             raise InputError(f"{path}: localizers.{i} ({loc.name}): no dataset of the pad variant it needs "
                              f"({', '.join(pad_variants(loc.kind))})")
-    h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [c.model_dump_json() for _, c in configs]
+    h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [_config_identity(c) for _, c in configs]
                                   # gates off leaves the entry as it was before the field existed
                                   + [l.model_dump_json(exclude=None if l.gates else {"gates"}) for l, _ in configs]
                                   ).encode()).hexdigest()
     return suite, specs, configs, h
+
+
+# LocalizerConfig fields added after suites were first hashed, with the default that behaves as before
+# the field existed: left out of the hash at that default, so adding one leaves every suite as it was
+CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0}
+
+
+def _config_identity(c: LocalizerConfig) -> str:
+    return c.model_dump_json(exclude={k for k, v in CONFIG_FIELDS_ADDED.items() if getattr(c, k) == v} or None)
 
 
 def runs_on(loc: LocalizerEntry, spec) -> bool:

@@ -49,6 +49,11 @@ class LocalizerConfig(BaseModel):
                                     "works), and take it out of the attitude the gravity prior and the gates use; "
                                     "0 (the default): off, since a lens or codec that biases the markers' tilt "
                                     "teaches it a wrong error (README)")
+    pad_relief_m: float = Field(0.0, ge=0.0, description="how far the pad's surface may stand above the plane it "
+                                "lies on (a paper pad's sag and wrinkles), as the user knows it: every pose is "
+                                "measured to the surface the camera sees, so each pose from the pad carries half "
+                                "this as a standard deviation on each axis of its position (the tracker's poses "
+                                "inherit it from their keyframe); 0 (the default): a flat pad")
     # tracker
     flow_reanchor_scale: float = Field(1.15, gt=1.0, description="new keyframe when the scale changes by more")
     flow_min_tracks: int = Field(30, ge=8)

@@ -491,7 +491,13 @@ class HierarchicalLocalizer:
                 reasons.append(f"{method}: {why}")
                 continue
             pose, n, extras = res
-            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
+            cov = pose.cov
+            if cfg.pad_relief_m > 0 and method != "flow" and cov is not None:
+                # seen from the surface, not the plane it lies on: once here, and the tracker's poses
+                # inherit it from their keyframe
+                cov = cov.copy()
+                cov[:3, :3] += np.eye(3) * (cfg.pad_relief_m / 2.0) ** 2
+            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, cov, method=method,
                            extras=extras)
             verdict = self._gate(est, R_W_B)
             if verdict:
