@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -491,13 +491,7 @@ class HierarchicalLocalizer:
                 reasons.append(f"{method}: {why}")
                 continue
             pose, n, extras = res
-            cov = pose.cov
-            if cfg.pad_relief_m > 0 and method != "flow" and cov is not None:
-                # seen from the surface, not the plane it lies on: once here, and the tracker's poses
-                # inherit it from their keyframe
-                cov = cov.copy()
-                cov[:3, :3] += np.eye(3) * (cfg.pad_relief_m / 2.0) ** 2
-            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, cov, method=method,
+            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                            extras=extras)
             verdict = self._gate(est, R_W_B)
             if verdict:
@@ -634,7 +628,7 @@ class HierarchicalLocalizer:
         # noise); its markers' corners share errors besides their own (SharedNoise): MARKER_SHARED_PER_SIGMA
         # per unit of their noise, or, in a frame where a marker was left out for being off, as much
         # as that marker was off (the blur, the lens or the threshold that moved it reached the others)
-        shared_off = [0.0]
+        shared_off = 0.0
 
         def outer_of(P):  # which points are the pad's outer corners
             return (np.abs(P[:, None, :] - self.geometry.outer_corners[None]).max(axis=2) < 1e-9).any(axis=1)
@@ -642,7 +636,7 @@ class HierarchicalLocalizer:
         def shared_for(P, s, weigh):  # (the outer corners, fitted on the border's colour, share theirs too)
             if det.kind != "markers" or weigh:
                 return None
-            v = max(MARKER_SHARED_PER_SIGMA * float(np.mean(s)), shared_off[0] / math.sqrt(3.0))
+            v = max(MARKER_SHARED_PER_SIGMA * float(np.mean(s)), shared_off / math.sqrt(3.0))
             return SharedNoise(np.where(outer_of(P), len(self.geometry.markers), markers_seen(P)[0]), v, v)
 
         def pose_of(P, px, s, weigh=False, share=True):
@@ -685,7 +679,7 @@ class HierarchicalLocalizer:
             if best is not None:
                 pose, P, px, sigma, weighed = best[2]
                 info["marker_dropped"] = self.geometry.markers[best[1]].name
-                shared_off[0] = best[3]
+                shared_off = best[3]
                 if not weighed:  # the others' pose again, with the errors that marker shows them to share
                     pose = pose_of(P, px, sigma, False) or pose
         # the pad's outer corners, fitted on the border's colour, double the markers' baseline; but
@@ -726,6 +720,12 @@ class HierarchicalLocalizer:
                 pose, weighed = again, True
         if weighed and np.ndim(pose.sigma_px) == 0:
             info["px_sigma"] = round(float(pose.sigma_px), 3)
+        if self.config.pad_relief_m > 0 and pose.cov is not None:
+            # every pose from the pad is seen from its surface, not the plane it lies on (the tracker's
+            # poses inherit this from their keyframe); a copy: the pose may be shared image work
+            cov = pose.cov.copy()
+            cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
+            pose = replace(pose, cov=cov)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 
