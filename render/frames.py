@@ -45,12 +45,17 @@ class FrameLayers:
 
 
 class SequenceRenderer:
-    """The scene, camera and image formation of one sequence; :meth:`render` makes frame ``k``."""
+    """The scene, camera and image formation of one sequence; :meth:`render` makes frame ``k``.
+
+    Creating one makes this process keep the memory it frees (:func:`render.memory.keep_freed_memory`):
+    each frame reuses the last one's pages instead of faulting fresh ones in."""
 
     def __init__(self, spec: DatasetSpec, index: int, texture_png=None):
         from .imaging import ImageFormation
+        from .memory import keep_freed_memory
         from .scene import PAD_THICKNESS_M, LandingScene
 
+        keep_freed_memory()
         self.spec = spec
         self.plan = plan = plan_sequence(spec, index)
         self.pad = pad = pad_for(spec, texture_png)

@@ -195,6 +195,33 @@ def test_resume_after_interruption_equals_uninterrupted(tmp_path):
     assert _dataset_digest(part) == _dataset_digest(full)
 
 
+def test_a_renderer_keeps_the_memory_a_frame_frees():
+    """A frame is made from dozens of full-size temporaries.  With glibc's defaults every round of
+    them faults its pages in afresh (the heap is trimmed, big blocks are unmapped); once a renderer
+    exists the process keeps freed memory, and the next round reuses it.  (Linux, glibc: CI's.)"""
+    code = """
+import resource, numpy as np
+def faults():
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(10):
+        a = [np.ones((800, 800, 3), np.float32) for _ in range(8)]
+        del a
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+faults()
+before = faults()
+from render.frames import SequenceRenderer
+from tests.test_render import _tiny
+SequenceRenderer(_tiny(), 0).close()
+faults()
+print(before, faults())
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    before, after = map(int, r.stdout.split())
+    pages = 10 * 8 * 800 * 800 * 3 * 4 // 4096
+    assert before > pages // 10 and after < pages // 100, (before, after, pages)
+
+
 def test_other_spec_in_out_dir_is_refused(tmp_path):
     from pad_design.errors import InputError
 
