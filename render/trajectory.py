@@ -122,28 +122,27 @@ class Trajectory:
 
     def state(self, t, h: float = 1e-3) -> TrajectoryState:
         t = np.atleast_1d(np.asarray(t, np.float64))
-        p0, yaw = self._rel(t)
-        pm, _ = self._rel(t - h)
-        pp, _ = self._rel(t + h)
+        p0, pm, pp, acc, R = self._attitude(t, h)
         vel = (pp - pm) / (2 * h) + np.append(self.pad_vel, 0.0)
-        acc = (pp - 2 * p0 + pm) / (h * h)
-        R = attitude_from_acc(acc, yaw)
-        Rm = self._R(t - h)
-        Rp = self._R(t + h)
+        Rm = self._attitude(t - h)[-1]
+        Rp = self._attitude(t + h)[-1]
         omega = np.stack([so3_log(a.T @ b) for a, b in zip(Rm, Rp)]) / (2 * h)
         pad = self.pad_origin(t)
         return TrajectoryState(t, p0 + pad, vel, acc, R, omega, pad)
 
-    def _R(self, t, h: float = 1e-3):
+    def _attitude(self, t, h: float = 1e-3) -> tuple:
+        """``(p, p(t - h), p(t + h), acc, R_W_B)`` at times ``t``, positions relative to the pad."""
         p0, yaw = self._rel(t)
         pm, _ = self._rel(t - h)
         pp, _ = self._rel(t + h)
-        return attitude_from_acc((pp - 2 * p0 + pm) / (h * h), yaw)
+        acc = (pp - 2 * p0 + pm) / (h * h)
+        return p0, pm, pp, acc, attitude_from_acc(acc, yaw)
 
     def body_poses(self, t) -> np.ndarray:
-        """``T_W_B`` (N, 4, 4)."""
-        s = self.state(t)
-        return np.stack([make_transform(R, p) for R, p in zip(s.R_W_B, s.pos_W)])
+        """``T_W_B`` (N, 4, 4): the poses of :meth:`state`, without its rates (a third of the work)."""
+        t = np.atleast_1d(np.asarray(t, np.float64))
+        p0, _, _, _, R = self._attitude(t)
+        return np.stack([make_transform(Ri, p) for Ri, p in zip(R, p0 + self.pad_origin(t))])
 
     def pad_poses(self, t) -> np.ndarray:
         """``T_W_P`` (N, 4, 4): the pad translates, never rotates."""

@@ -222,6 +222,22 @@ print(before, faults())
     assert before > pages // 10 and after < pages // 100, (before, after, pages)
 
 
+def test_body_poses_are_the_states_poses():
+    """``Trajectory.body_poses`` skips the rates :meth:`state` also computes; the poses are the same
+    to the bit (a rolling shutter asks for many)."""
+    from hvloc.geometry import make_transform
+
+    for fam, mount in (("straight", [180.0, 0.0, -90.0]), ("spiral", [180.0, 0.0, -90.0]),
+                       ("hover_correct", [205.0, 0.0, -90.0]), ("manoeuvres", [205.0, 0.0, -90.0])):
+        spec = _tiny(**{"trajectory.families": [fam], "trajectory.gust_accel_mps2": [0.3, 0.4],
+                        "camera.mount": {"rpy_deg": mount}})
+        traj = plan_sequence(spec, 0).trajectory
+        t = np.linspace(0.0, traj.duration, 37)
+        s = traj.state(t)
+        want = np.stack([make_transform(R, p) for R, p in zip(s.R_W_B, s.pos_W)])
+        assert np.array_equal(traj.body_poses(t), want)
+
+
 def test_other_spec_in_out_dir_is_refused(tmp_path):
     from pad_design.errors import InputError
 
