@@ -177,20 +177,20 @@ class GroundDetail:
         self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
         self.min_dot = (0.05 * np.sqrt(self.r2)).astype(np.float32)
         self.flat_objects = list(flat_objects)
+        self._bufs = None
 
     def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
         """``(H, W)`` float32 albedo factor (1 off the ground), or ``None`` where nothing would change."""
         finite = np.isfinite(z)
         if not finite.any():
             return None
-        zc = np.where(finite, z, np.float32(0.0)).astype(np.float32)
+        zc = np.where(finite, z, np.float32(0.0)).astype(np.float32, copy=False)
         sub = np.s_[::4, ::4]
         footprint4 = self._footprint(zc[sub], cam2world, sub)
         fp_all = float(np.median(footprint4[::2, ::2][finite[::8, ::8]]))
         if not any(self._level(fp_all, o[1], o[-1]) is not None for o in self.octaves):
             return None  # every octave averages out within a pixel
-        W = cv2.transform(cv2.merge([self.xn * zc, self.yn * zc, zc]), cam2world[:3, :].astype(np.float32))
-        wx, wy, wz = cv2.split(W)
+        wx, wy, wz = self._world_points(zc, cam2world)
         ground = (finite & (np.abs(wz) < GROUND_Z_TOL_M)).astype(np.float32)
         H, Wd = z.shape
         for x0, y0, yaw, sx, sy, moves in self.flat_objects:  # fade out within 2 px of their edges
@@ -239,6 +239,17 @@ class GroundDetail:
             logf += cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
         cv2.multiply(logf, ground, dst=logf)
         return cv2.exp(logf)
+
+    def _world_points(self, zc: np.ndarray, cam2world: np.ndarray) -> tuple:
+        """``(x, y, z)`` planes of each pixel's point in the world (depth ``zc``), in buffers kept
+        from frame to frame (three full-frame planes each way: the cost is moving them)."""
+        if self._bufs is None or self._bufs[0].shape != zc.shape:
+            self._bufs = [np.empty(zc.shape, np.float32) for _ in range(5)] + [np.empty((*zc.shape, 3), np.float32)
+                                                                               for _ in range(2)]
+        a, b, wx, wy, wz, merged, world = self._bufs
+        cv2.merge([np.multiply(self.xn, zc, out=a), np.multiply(self.yn, zc, out=b), zc], dst=merged)
+        cv2.transform(merged, cam2world[:3, :].astype(np.float32), dst=world)
+        return cv2.split(world, [wx, wy, wz])
 
     def _footprint(self, zc: np.ndarray, cam2world: np.ndarray, where) -> np.ndarray:
         """The footprint (m) on a horizontal surface of the pixels ``where`` (a slice) at depths

@@ -103,7 +103,8 @@ class ImageFormation:
         if params.vignetting > 0:
             yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
             rho2 = ((xx - camera.cx) ** 2 + (yy - camera.cy) ** 2) / corner**2
-            self.vignette = (1.0 - params.vignetting * rho2).astype(np.float32)
+            # three channels, once: a same-shape multiply is 2x faster than numpy's broadcast of one
+            self.vignette = np.repeat((1.0 - params.vignetting * rho2).astype(np.float32)[..., None], 3, axis=2)
         self.ca_scale = params.chromatic_aberration_px / corner if params.chromatic_aberration_px > 0 else 0.0
 
     def to_pixels(self, render: np.ndarray) -> np.ndarray:
@@ -146,7 +147,7 @@ class ImageFormation:
                                                  flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                                  borderMode=cv2.BORDER_REPLICATE)
         if self.vignette is not None:
-            linear *= self.vignette[..., None]
+            cv2.multiply(linear, self.vignette, dst=linear)
         return linear
 
     def finish(self, linear: np.ndarray, frame_index: int, exposure: float = 1.0) -> np.ndarray:
