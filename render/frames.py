@@ -188,9 +188,7 @@ class SequenceRenderer:
             t3 = t4 = time.perf_counter()
         else:
             linear = self.imaging.linear(rgb_r)
-            if self.ground is not None:
-                self.ground.apply(linear, depth, cam2world, T_W_P)
-            self._pad_light(linear, depth, cam2pad)
+            self._surface_light(linear, depth, cam2world, T_W_P, cam2pad)
             t3 = time.perf_counter()
             if self.line_s > 0:
                 linear = mo.velocity_blur(linear, flows[0], flows[1], n, self.flow.base, self.row_dt / half,
@@ -378,17 +376,36 @@ class SequenceRenderer:
         cover[r[ok], c[ok]] = share[ok]
         return cover
 
-    def _pad_light(self, linear: np.ndarray, depth: np.ndarray, cam2pad: np.ndarray) -> None:
-        """The light a flat-shaded render leaves out on the pad, in linear light, in one pass over its
-        pixels: a wrinkled pad's facets lit as they face the sun, and the sun's specular glare on a
-        glossy pad (Blinn-Phong, about each facet's normal: glints run along the wrinkles); both
-        only where the sun reaches the pad (not in the drone's shadow or a box's)."""
+    def _surface_light(self, linear: np.ndarray, depth: np.ndarray, cam2world: np.ndarray, T_W_P: np.ndarray,
+                       cam2pad: np.ndarray) -> None:
+        """What a flat-shaded render of the ground and the pad leaves out, into ``linear`` in place:
+        the ground's fine detail (an albedo factor) and the pad's own light (a factor and the glare
+        added), the two factors multiplied in at once (each is 1 where the other is not)."""
+        g = self.ground.factor(depth, cam2world, T_W_P) if self.ground is not None else None
+        light = self._pad_light(depth, cam2pad)
+        rows, cols, f, lobe = light if light is not None else (None, None, None, None)
+        if g is not None:
+            if f is not None:
+                g[rows, cols] *= f
+            linear *= g[..., None]
+        elif f is not None:
+            linear[rows, cols] *= f[..., None]
+        if lobe is not None:
+            linear[rows, cols] += lobe[..., None]
+
+    def _pad_light(self, depth: np.ndarray, cam2pad: np.ndarray):
+        """The light a flat-shaded render leaves out on the pad, in linear light, over the window of
+        rows and columns it shows in: a wrinkled pad's facets lit as they face the sun (a factor),
+        and the sun's specular glare on a glossy pad (Blinn-Phong, about each facet's normal:
+        glints run along the wrinkles; added); both only where the sun reaches the pad (not in the
+        drone's shadow or a box's).  ``(rows, cols, factor or None, glare or None)``, or ``None``
+        when there is nothing to add."""
         relief, gloss = self.material.get("relief"), self.material["gloss"]
         if relief is None and not gloss > 0:
-            return
+            return None
         got = self._pad_pixels(depth, cam2pad)
         if got is None:
-            return
+            return None
         rows, cols, P, on = got
         cover = self._pad_cover(rows, cols, P, on, cam2pad)
         # whole-window arrays, multiplied by 1 and added 0 off the pad (boolean gathers and scatters
@@ -396,10 +413,9 @@ class SequenceRenderer:
         vis = None  # the sun's visibility pixel by pixel (a shadow's edge is sharp), once for both
         T_W_P = self._pad2world_now
         if self.scene.shadows and self.scene.pad_may_be_shaded(T_W_P[:2, 3], self.pad.side_m / math.sqrt(2.0) + 0.01):
-            vis = self.scene.pad_sun_visibility(P[..., :2].reshape(-1, 2).astype(np.float64) + T_W_P[:2, 3])
+            vis = self.scene.pad_sun_visibility(P[..., :2].reshape(-1, 2) + T_W_P[:2, 3].astype(np.float32))
             vis = vis.reshape(on.shape)
-        roi = linear[rows, cols]
-        normals = None
+        normals = f = lobe = None
         if relief is not None:
             # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
             normals = relief.normal(P[::4, ::4, :2].reshape(-1, 2).astype(np.float64))
@@ -407,11 +423,10 @@ class SequenceRenderer:
             f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
             f = f[:on.shape[0], :on.shape[1]]
             if vis is not None:
-                f = (vis * f + (1.0 - vis)).astype(np.float32)
+                f = vis * f + (np.float32(1.0) - vis)
             f -= np.float32(1.0)
             f *= cover
             f += np.float32(1.0)
-            roi *= f[..., None]
         if gloss > 0:
             # the lobe varies slowly over a flat pad: evaluated on every 8th pixel, interpolated between;
             # on a wrinkled one it follows the facets' normals, on the relief's grid
@@ -427,8 +442,8 @@ class SequenceRenderer:
             lobe = cv2.resize(lobe, (lobe.shape[1] * step, lobe.shape[0] * step), interpolation=cv2.INTER_LINEAR)
             lobe = lobe[:on.shape[0], :on.shape[1]] * (cover * np.float32(gloss))
             if vis is not None:
-                lobe *= vis.astype(np.float32)
-            roi += lobe[..., None]
+                lobe *= vis
+        return rows, cols, f, lobe
 
     def _flows(self, depth, cam2world, cam2pad, T_W_P, t, half: float) -> tuple:
         """``((2, H, W, 2), longest path px)``: every pixel's image motion to ``t - half`` and
@@ -486,10 +501,8 @@ class SequenceRenderer:
                 rgb, z = self.scene.render_with_depth(Bi @ self.T_B_C)
                 lin = self.imaging.linear(rgb)
                 depth = self.imaging.depth_to_pixels(z)
-                if self.ground is not None:
-                    self.ground.apply(lin, depth, Bi @ self.T_B_C, Pi)
                 self._pad2world_now = Pi  # (the pad's glare and relief: each sample's own)
-                self._pad_light(lin, depth, invert(Pi) @ Bi @ self.T_B_C)
+                self._surface_light(lin, depth, Bi @ self.T_B_C, Pi, invert(Pi) @ Bi @ self.T_B_C)
                 acc = lin if acc is None else acc + lin
         finally:
             self._pad2world_now = now

@@ -286,9 +286,3 @@ class GroundDetail:
         None when the tile is down to 16 texels or fewer there (it averages out within a pixel)."""
         level = max(0, int(math.floor(math.log2(max(footprint_m / texel_m, 1e-9)))))
         return level if level < len(mip) and mip[level].shape[0] > 16 else None
-
-    def apply(self, linear: np.ndarray, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray:
-        f = self.factor(z, cam2world, pad2world)
-        if f is not None:
-            linear *= f[..., None]
-        return linear

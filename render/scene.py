@@ -359,19 +359,23 @@ class LandingScene:
     def pad_sun_visibility(self, xy_W: np.ndarray) -> np.ndarray:
         """``(N,)`` how much of the sun reaches points of the pad's surface (1 lit, 0 in a shadow):
         the drone's shadow as last placed, and the boxes' where the pad lies on the ground (on a
-        platform their shadows stay on the ground).  What the sun's glare on the pad is weighted by."""
-        xy_W = np.asarray(xy_W, np.float64).reshape(-1, 2)
-        shade = np.zeros(len(xy_W))
+        platform their shadows stay on the ground).  What the sun's glare on the pad is weighted by.
+        Computed in float32 when ``xy_W`` is (a pad filling the view is most of the frame's pixels;
+        a few micrometres are nothing to a shadow's edge), else in float64."""
+        xy_W = np.asarray(xy_W)
+        xy_W = xy_W.astype(np.float64 if xy_W.dtype != np.float32 else np.float32, copy=False).reshape(-1, 2)
+        ftype = xy_W.dtype.type
+        shade = np.zeros(len(xy_W), xy_W.dtype)
         if not self.has_platform_box and self._ground_shadow_maps:
             shade = self._ground_shadow_cover(xy_W)
-        if self._drone_shadow_at is not None:
+        if self._drone_shadow_at is not None:  # a square: the points in its frame, within half its side
             (cx, cy), yaw = self._drone_shadow_at
             c, sn = math.cos(yaw), math.sin(yaw)
-            dx, dy = xy_W[:, 0] - cx, xy_W[:, 1] - cy
+            to_square = np.array([[c, sn, -(c * cx + sn * cy)], [-sn, c, sn * cx - c * cy]], xy_W.dtype)
             h = self.drone_size / 2
-            inside = (np.abs(c * dx + sn * dy) <= h) & (np.abs(-sn * dx + c * dy) <= h)
-            shade = np.maximum(shade, inside.astype(np.float64))
-        return 1.0 - shade
+            inside = cv2.inRange(cv2.transform(xy_W.reshape(-1, 1, 2), to_square), (-h, -h), (h, h)).reshape(-1)
+            shade[inside > 0] = 1.0
+        return ftype(1.0) - shade
 
     def pad_may_be_shaded(self, centre_xy_W, radius_m: float) -> bool:
         """Whether any shadow that :meth:`pad_sun_visibility` counts can reach within ``radius_m``
@@ -396,11 +400,11 @@ class LandingScene:
     def _ground_shadow_cover(self, xy_W: np.ndarray) -> np.ndarray:
         """``(N,)`` how much of the sun the boxes' and the platform's shadows already take at ground
         points (0 lit, 1 in full shadow; anti-aliased edges between)."""
-        cover = np.zeros(len(xy_W))
+        cover = np.zeros(len(xy_W), xy_W.dtype)
         for alpha, lo, hi, m_per_px, on_platform in self._ground_shadow_maps:
-            xy = xy_W - (self.platform_xy if on_platform else 0.0)
-            u = ((xy[:, 0] - lo[0]) / m_per_px).astype(np.float32)
-            v = ((hi[1] - xy[:, 1]) / m_per_px).astype(np.float32)
+            xy = xy_W - (self.platform_xy.astype(xy_W.dtype) if on_platform else 0.0)
+            u = ((xy[:, 0] - xy_W.dtype.type(lo[0])) / xy_W.dtype.type(m_per_px)).astype(np.float32)
+            v = ((xy_W.dtype.type(hi[1]) - xy[:, 1]) / xy_W.dtype.type(m_per_px)).astype(np.float32)
             cover = np.maximum(cover, _sample_at(alpha, u, v))
         return cover
 

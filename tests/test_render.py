@@ -339,7 +339,7 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     dirty = {"pad_material": {"dirt": [0.2, 0.2]}}
     from render.spec import render_revision
 
-    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [4, 4, 4, 2]
+    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [5, 5, 5, 2]
     assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 
