@@ -60,10 +60,15 @@ def refine_quad(gray: np.ndarray, quad_px, half_width: float = 3.0, camera: Came
     return out[0], float(rms[0])
 
 
-def _side_points_batch(starts: np.ndarray, ends: np.ndarray, m: int, trim: float, camera: Camera | None):
+def _side_points_batch(starts: np.ndarray, ends: np.ndarray, m: int, trim, camera: Camera | None):
     """Sample points ``(S, m, 2)`` and unit normals ``(S, m, 2)`` along S segments (images of
-    straight 3D edges: through the lens when ``camera`` distorts)."""
-    s = np.linspace(trim, 1 - trim, m)[None, :, None]
+    straight 3D edges: through the lens when ``camera`` distorts), over ``[trim, 1 - trim]`` of
+    each, or with ``trim = (lo, hi)`` (arrays (S,)) over ``[lo, hi]`` of segment i."""
+    if np.ndim(trim) == 0:
+        s = np.linspace(trim, 1 - trim, m)[None, :, None]
+    else:
+        lo, hi = (np.asarray(v, np.float64)[:, None, None] for v in trim)
+        s = lo + (hi - lo) * np.linspace(0.0, 1.0, m)[None, :, None]
     if camera is None or not camera.has_distortion:
         d = ends - starts
         d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
@@ -80,6 +85,49 @@ def _side_points_batch(starts: np.ndarray, ends: np.ndarray, m: int, trim: float
     d = dist[1] - dist[2]
     d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-12)
     return dist[0], np.stack([-d[..., 1], d[..., 0]], axis=2)
+
+
+# a side the image's edge cuts is read over its stretch in view when its trimmed middle shows fewer
+# than this many profiles; it is then read from this far past a corner in view (not a fifth of the
+# side: a corner is rounded by blur over a few pixels, and profiles this far out clear the other side)
+CUT_SIDE_MIN_PROFILES = 8
+CUT_SIDE_CORNER_PX = 10.0
+
+
+def _cut_short(pts: np.ndarray, hw: np.ndarray, shape) -> np.ndarray:
+    """(S,) whether a side's sample points ``pts`` (S, m, 2) show fewer than
+    :data:`CUT_SIDE_MIN_PROFILES` whole profiles (``hw`` px either way) in the image, and some."""
+    margin = (hw + 1.0)[:, None]
+    x, y = pts[..., 0], pts[..., 1]
+    seen = ((x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)).sum(axis=1)
+    return seen < min(CUT_SIDE_MIN_PROFILES, pts.shape[1])
+
+
+def _spans_in_view(starts, ends, trim: float, hw, camera: Camera | None, shape):
+    """``(lo, hi)`` (S,): the stretch of each side whose profiles lie in the image, ``trim`` of the
+    side clear of a corner in view (:data:`CUT_SIDE_CORNER_PX` when that leaves too little), the
+    profile's half width clear of the image's edge; ``lo >= hi`` where too little is in view."""
+    n = 129
+    pts, _ = _side_points_batch(starts, ends, n, 0.0, camera)
+    margin = (np.asarray(hw, np.float64) + 1.0)[:, None]
+    x, y = pts[..., 0], pts[..., 1]
+    seen = (x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)
+    t = np.linspace(0.0, 1.0, n)
+    length = np.linalg.norm(pts[:, -1] - pts[:, 0], axis=1)
+    lo, hi = np.ones(len(starts)), np.zeros(len(starts))
+    for i in range(len(starts)):
+        idx = np.flatnonzero(seen[i])
+        if len(idx) < 2 or length[i] < 1.0:
+            continue
+        a, b = t[idx[0]], t[idx[-1]]
+        corner = min(trim, CUT_SIDE_CORNER_PX / length[i])
+        # a corner in view: clear it by the trim, or by a few pixels where the trim leaves too little
+        lo[i] = (trim if (b - trim) * length[i] >= 2 * CUT_SIDE_MIN_PROFILES else corner) if idx[0] == 0 else a
+        hi[i] = (1 - trim if (1 - trim - a) * length[i] >= 2 * CUT_SIDE_MIN_PROFILES else 1 - corner) \
+            if idx[-1] == n - 1 else b
+        if (hi[i] - lo[i]) * length[i] < CUT_SIDE_MIN_PROFILES:
+            lo[i], hi[i] = 1.0, 0.0
+    return lo, hi
 
 
 def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None = None, m: int | None = None,
@@ -106,6 +154,13 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
         longest = float(np.nanmax(np.linalg.norm(ends - starts, axis=1))) if S else 0.0
         m = int(np.clip(longest * (1 - 2 * trim), 8, 40)) if np.isfinite(longest) else 8
     pts, nrm = _side_points_batch(starts, ends, m, trim, camera)
+    short = _cut_short(pts, hw, g.shape)
+    if short.any():  # sides the image's edge leaves little of between the trims: their stretch in view
+        lo, hi = _spans_in_view(starts[short], ends[short], trim, hw[short], camera, g.shape)
+        keep = lo < hi
+        if keep.any():
+            idx = np.flatnonzero(short)[keep]
+            pts[idx], nrm[idx] = _side_points_batch(starts[idx], ends[idx], m, (lo[keep], hi[keep]), camera)
     nr = int(round(2 * float(hw.max()) / step)) + 1
     u = np.linspace(-1.0, 1.0, nr)
     r = u[None, :] * hw[:, None]                                    # (S, R) offsets per side
