@@ -52,7 +52,19 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
             "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
             "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),
             "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float),
-            "pos_nees": nees}
+            "pos_nees": nees, "in_scope": in_scope(gt_cols)}
+
+
+def in_scope(gt_cols: dict) -> np.ndarray:
+    """(N,) the frames a localizer should pose: in touchdown, or with the pad wholly in view, or at
+    least two of its markers (what a pose can be made from).  Datasets without the visibility
+    columns: every frame."""
+    n = len(gt_cols["frame"])
+    if not all(c in gt_cols for c in ("pad_fully_visible", "markers_visible")):
+        return np.ones(n, bool)
+    full = np.asarray(gt_cols["pad_fully_visible"], float) > 0.5
+    markers = np.asarray(gt_cols["markers_visible"], float) >= 2
+    return (np.asarray(gt_cols["phase_gt"]) == "touchdown") | full | markers
 
 
 def _stats(x: np.ndarray, prefix: str) -> dict:
@@ -85,6 +97,9 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     pe, re = fe["pos_err_m"], fe["rot_err_deg"]
     wrong = (pe > FALSE_ACCEPT_REL * h) | (re > FALSE_ACCEPT_DEG)
     out["availability"] = float(ok.sum() / n)
+    # in scope: touchdown, or the pad whole or two markers in view (frames where a pose can be made)
+    scope = fe["in_scope"] & m if "in_scope" in fe else m
+    out["availability_in_scope"] = float((ok & scope).sum() / scope.sum()) if scope.any() else None
     out["longest_gap_s"] = longest_gap_s(fe["t_s"][m], ok[m])
     out.update(_stats(pe[ok], "pos_err_m"))
     out.update(_stats(100.0 * pe[ok] / h[ok], "pos_err_pct"))

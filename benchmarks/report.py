@@ -22,9 +22,10 @@ def _f(v, scale=1.0, fmt="{:.1f}"):
 def phase_table(summary: dict, dataset: str | None = None) -> str:
     """Markdown rows per localizer and ground-truth phase; ``dataset``: that dataset's scopes only."""
     pre = f"{dataset}/" if dataset else ""
-    lines = ["| localizer | phase (ground truth) | frames | availability | pos RMSE mm | pos p95 mm | "
+    # "in scope": over the frames in touchdown or showing the pad whole or two markers
+    lines = ["| localizer | phase (ground truth) | frames | availability | in scope | pos RMSE mm | pos p95 mm | "
              "pos median % h | rot RMSE deg | yaw median deg | false accepts | beyond cov 3 sigma | ms p50 | ms p95 |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for loc, s in summary.items():
         for scope in ["gt:approaching", "gt:adjustment", "gt:touchdown", "all"]:
             m = s.get(pre + scope, {})
@@ -32,6 +33,7 @@ def phase_table(summary: dict, dataset: str | None = None) -> str:
                 continue
             lines.append("| " + " | ".join([
                 loc, scope.replace("gt:", ""), str(m["frames"]), _f(m.get("availability"), 100, "{:.1f} %"),
+                _f(m.get("availability_in_scope"), 100, "{:.1f} %"),
                 _f(m.get("pos_err_m_rmse"), 1000), _f(m.get("pos_err_m_p95"), 1000),
                 _f(m.get("pos_err_pct_median"), 1, "{:.2f}"), _f(m.get("rot_err_deg_rmse"), 1, "{:.2f}"),
                 _f(m.get("yaw_err_deg_median"), 1, "{:.2f}"), str(m["false_accepts"] if m.get("false_accepts") is not None else "-"),

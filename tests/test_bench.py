@@ -127,6 +127,30 @@ def test_bad_suite_exits_2(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_availability_in_scope_counts_the_frames_a_pose_can_be_made_from():
+    """The availability the localizer is asked for: over the frames in touchdown or with the pad
+    whole or two of its markers in view (a pad mostly out of view is no failure to pose it)."""
+    from benchmarks import metrics as M
+
+    n = 6
+    gt = {"frame": np.arange(n, dtype=float), "t": np.arange(n) * 0.1, "tx": np.zeros(n), "ty": np.zeros(n),
+          "tz": np.array([10, 9, 8, 7, 2, 0.5]), "qx": np.ones(n), "qy": np.zeros(n), "qz": np.zeros(n),
+          "qw": np.zeros(n), "phase_gt": np.array(["approaching"] * 4 + ["adjustment", "touchdown"]),
+          "pad_fully_visible": np.array([1, 0, 0, 0, 1, 0.0]), "markers_visible": np.array([3, 1, 2, 0, 3, 0.0])}
+    est = {k: v.copy() for k, v in gt.items() if k in ("frame", "t", "tx", "ty", "tz", "qx", "qy", "qz", "qw")}
+    est["status"] = np.array(["ok", "lost", "lost", "lost", "ok", "ok"], dtype=object)
+    est["phase"] = np.array(["approaching"] * 4 + ["adjustment", "touchdown"], dtype=object)
+    est["ms"] = np.ones(n)
+    s = M.score(M.frame_errors(gt, est))
+    assert s["availability"] == pytest.approx(3 / 6)
+    assert s["availability_in_scope"] == pytest.approx(3 / 4)  # frames 1 and 3 show neither pad nor two markers
+    # per phase too, and a dataset without the visibility columns counts every frame
+    fe = M.frame_errors(gt, est)
+    assert M.score(fe, fe["phase_gt"] == "approaching")["availability_in_scope"] == pytest.approx(1 / 2)
+    plain = {k: v for k, v in gt.items() if k not in ("pad_fully_visible", "markers_visible")}
+    assert M.score(M.frame_errors(plain, est))["availability_in_scope"] == pytest.approx(3 / 6)
+
+
 def test_metrics_on_a_hand_made_case():
     from benchmarks import metrics as M
 
