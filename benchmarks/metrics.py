@@ -98,7 +98,7 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     wrong = (pe > FALSE_ACCEPT_REL * h) | (re > FALSE_ACCEPT_DEG)
     out["availability"] = float(ok.sum() / n)
     # in scope: touchdown, or the pad whole or two markers in view (frames where a pose can be made)
-    scope = fe["in_scope"] & m if "in_scope" in fe else m
+    scope = fe["in_scope"] & m
     out["availability_in_scope"] = float((ok & scope).sum() / scope.sum()) if scope.any() else None
     out["longest_gap_s"] = longest_gap_s(fe["t_s"][m], ok[m])
     out.update(_stats(pe[ok], "pos_err_m"))

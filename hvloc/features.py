@@ -22,10 +22,11 @@ def _distort_px(camera: Camera, px_und: np.ndarray) -> np.ndarray:
     return np.column_stack([xy[:, 0] * camera.fx + camera.cx, xy[:, 1] * camera.fy + camera.cy])
 
 
-def _inside(px: np.ndarray, shape) -> np.ndarray:
+def _inside(px: np.ndarray, shape, margin=0.0) -> np.ndarray:
     """``px[..., 0:2]`` within the image of ``shape`` (pixel centres at integers), interpolation
-    included."""
-    return (px[..., 0] >= 0) & (px[..., 1] >= 0) & (px[..., 0] <= shape[1] - 1) & (px[..., 1] <= shape[0] - 1)
+    included, and ``margin`` px (broadcast against ``px[..., 0]``) clear of its edges."""
+    x, y = px[..., 0], px[..., 1]
+    return (x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)
 
 
 def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: float, camera: Camera | None) -> list:
@@ -96,11 +97,8 @@ CUT_SIDE_CORNER_PX = 10.0
 
 def _cut_short(pts: np.ndarray, hw: np.ndarray, shape) -> np.ndarray:
     """(S,) whether a side's sample points ``pts`` (S, m, 2) show fewer than
-    :data:`CUT_SIDE_MIN_PROFILES` whole profiles (``hw`` px either way) in the image, and some."""
-    margin = (hw + 1.0)[:, None]
-    x, y = pts[..., 0], pts[..., 1]
-    seen = ((x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)).sum(axis=1)
-    return seen < min(CUT_SIDE_MIN_PROFILES, pts.shape[1])
+    :data:`CUT_SIDE_MIN_PROFILES` whole profiles (``hw`` px either way) in the image."""
+    return _inside(pts, shape, (hw + 1.0)[:, None]).sum(axis=1) < min(CUT_SIDE_MIN_PROFILES, pts.shape[1])
 
 
 def _spans_in_view(starts, ends, trim: float, hw, camera: Camera | None, shape):
@@ -109,9 +107,7 @@ def _spans_in_view(starts, ends, trim: float, hw, camera: Camera | None, shape):
     profile's half width clear of the image's edge; ``lo >= hi`` where too little is in view."""
     n = 129
     pts, _ = _side_points_batch(starts, ends, n, 0.0, camera)
-    margin = (np.asarray(hw, np.float64) + 1.0)[:, None]
-    x, y = pts[..., 0], pts[..., 1]
-    seen = (x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)
+    seen = _inside(pts, shape, (np.asarray(hw, np.float64) + 1.0)[:, None])
     t = np.linspace(0.0, 1.0, n)
     length = np.linalg.norm(pts[:, -1] - pts[:, 0], axis=1)
     lo, hi = np.ones(len(starts)), np.zeros(len(starts))
