@@ -105,13 +105,22 @@ def _spans_in_view(starts, ends, trim: float, hw, camera: Camera | None, shape):
     """``(lo, hi)`` (S,): the stretch of each side whose profiles lie in the image, ``trim`` of the
     side clear of a corner in view (:data:`CUT_SIDE_CORNER_PX` when that leaves too little), the
     profile's half width clear of the image's edge; ``lo >= hi`` where too little is in view."""
-    n = 129
-    pts, _ = _side_points_batch(starts, ends, n, 0.0, camera)
+    pts, _ = _side_points_batch(starts, ends, SPAN_SAMPLES, 0.0, camera)
     seen = _inside(pts, shape, (np.asarray(hw, np.float64) + 1.0)[:, None])
+    return _spans(seen, np.linalg.norm(pts[:, -1] - pts[:, 0], axis=1), trim)
+
+
+SPAN_SAMPLES = 129  # places along a side at which :func:`_spans` is told what is in view
+
+
+def _spans(seen: np.ndarray, length: np.ndarray, trim: float):
+    """``(lo, hi)`` (S,) of :func:`_spans_in_view` from ``seen`` (S, n): which of n places evenly
+    from each side's start to its end (both included) show a whole profile, and the sides'
+    lengths (px)."""
+    n = seen.shape[1]
     t = np.linspace(0.0, 1.0, n)
-    length = np.linalg.norm(pts[:, -1] - pts[:, 0], axis=1)
-    lo, hi = np.ones(len(starts)), np.zeros(len(starts))
-    for i in range(len(starts)):
+    lo, hi = np.ones(len(seen)), np.zeros(len(seen))
+    for i in range(len(seen)):
         idx = np.flatnonzero(seen[i])
         if len(idx) < 2 or length[i] < 1.0:
             continue
@@ -332,30 +341,41 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
 
 
 def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, levels: np.ndarray,
-                          camera: Camera | None = None, reach_px: float = 16.0, trim: float = 0.25,
-                          step: float = 0.5, segments: int = 2) -> tuple:
-    """``(offsets (4, segments), blur (4, segments), at (segments,))``: where (px, along each side's
-    inward normal from the sides of ``quad_px``) the outer edge of a banded border lies, read from
-    the centroid of the border's cross-profile over each of ``segments`` equal stretches of the
+                          camera: Camera | None = None, reach_px=16.0, trim: float = 0.25,
+                          step: float = 0.5, segments: int = 2, in_view: bool = False) -> tuple:
+    """``(offsets (4, segments), blur (4, segments), at (4, segments))``: where (px, along each
+    side's inward normal from the sides of ``quad_px``) the outer edge of a banded border lies, read
+    from the centroid of the border's cross-profile over each of ``segments`` equal stretches of the
     side's middle (centred at fractions ``at`` of the side), and how wide a box blur along that
-    normal the profile's spread shows; NaN where a stretch cannot be told.
+    normal the profile's spread shows; NaN where a stretch cannot be told.  ``in_view``: the
+    stretches share the part of each side's middle whose profiles lie in the image
+    (:func:`_spans_in_view`'s rule), not the whole middle, of which a side cut by the image's
+    edge may show only one stretch or none.
 
     For motion blur wider than an edge fit's window (a 12 px smear of a 6 px border) there is no
     edge left to fit, but blur by any kernel symmetric about the frame time (the exposure is centred
     on it) moves no mass: the profile's centroid is the sharp border's, whose place behind the edge
     the design fixes (bands ending at ``bands_px[i]`` with ``levels`` relative to the first).
     ``chan`` must be linear in light (:func:`srgb_to_linear`); its ground and field levels are read
-    just outside the bump around the profile's peak and taken away."""
+    just outside the bump around the profile's peak and taken away.  ``reach_px``: how far beyond
+    the border the profiles reach, one for all sides or (4,) one per side."""
     g = chan if chan.dtype == np.float32 else chan.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
-    starts, ends = q, np.roll(q, -1, axis=0)
-    per = int(np.clip(np.linalg.norm(ends - starts, axis=1).max() * (1 - 2 * trim) / segments, 4, 20))
-    at = trim + (1 - 2 * trim) * (np.arange(segments) + 0.5) / segments
+    length = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
     bands = np.asarray(bands_px, np.float64).reshape(4, -1)
     lv = np.asarray(levels, np.float64)
     offsets, blur = np.full((4, segments), np.nan), np.full((4, segments), np.nan)
-    rs = [np.arange(-reach_px, bands[i].max() + reach_px + 1e-9, step) for i in range(4)]
-    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
+    reach = np.broadcast_to(np.asarray(reach_px, np.float64), (4,))
+    rs = [np.arange(-reach[i], bands[i].max() + reach[i] + 1e-9, step) for i in range(4)]
+    t0, t1 = np.full(4, trim), np.full(4, 1.0 - trim)  # the stretch of each side read
+    if in_view:
+        t0, t1 = _spans(np.stack([seen for _, seen in _cross_profiles(g, q, rs, SPAN_SAMPLES, 0.0, camera)]),
+                        length, trim)
+    per = int(np.clip(np.max(length * np.clip(t1 - t0, 0.0, None)) / segments, 4, 20))
+    at = t0[:, None] + (t1 - t0)[:, None] * (np.arange(segments) + 0.5) / segments
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, (t0, t1) if in_view else trim, camera)):
+        if t0[i] >= t1[i]:
+            continue  # too little of the side in view
         r = rs[i]
         edges = np.concatenate([[0.0], bands[i]])
         mass = lv * np.diff(edges)  # the sharp profile: level lv[k] between edges k and k + 1

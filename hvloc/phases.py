@@ -221,29 +221,34 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
         start = quad if refined is None else refined + [bx0, by0]
-        smeared, smear = _smeared_in_view(rgb, start, pad_geometry, camera)
-        if smeared is None or np.max(np.linalg.norm(smeared - quad, axis=1)) > max(3.0, 0.1 * side_px) \
+        smeared, smear, fitted = _smeared_in_view(rgb, start, pad_geometry, camera, in_view=True)
+        # a corner in view must agree with the hull; the hidden one, where two of the swollen hull's
+        # sides were carried out of view, up to the smear further (the hull's a few pixels wide of
+        # the pad along a smeared side turns its corner by as much: 8-17 px under 14 px of smear,
+        # with the corner read from the centroids 4-7 px from the labelled one)
+        if smeared is None or (np.linalg.norm(smeared - quad, axis=1)
+                               > max(3.0, 0.1 * side_px) + np.where(_seen(smeared, rgb.shape), 0.0, smear)).any() \
                 or _seen(smeared, rgb.shape).sum() < 3:
             return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
                           else "pad cut by the image's edge and smeared by motion")
-        return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut, smear)
+        return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut, smear, fitted)
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
-        smeared, smear = _deblurred(rgb, quad, pad_geometry, camera)
+        smeared, smear, _ = _deblurred(rgb, quad, pad_geometry, camera)
         refined = quad if smeared is None else smeared
     elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(3.0, 0.1 * side_px):
         return None, "its sides and its colour hull disagree"
     else:
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
-        smeared, smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
+        smeared, smear, _ = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
-            smeared, smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
+            smeared, smear, _ = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
-            again, smear = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
+            again, smear, _ = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
             refined = smeared if again is None else again
         else:
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
@@ -271,11 +276,12 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
-                  smear: float | None = None) -> tuple:
+                  smear: float | None = None, fitted: np.ndarray | None = None) -> tuple:
     """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled;
-    ``smear``: the motion smear already read around it (read here when ``None``)."""
+    ``smear``: the motion smear already read around it (read here when ``None``); ``fitted``: the
+    stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`)."""
     cue = _cue_scores(rgb, refined, geo, camera)
-    scale_sigma = _corner_sigma_scale(refined, rgb.shape) if cut else None
+    scale_sigma = _corner_sigma_scale(refined, rgb.shape, fitted=fitted) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
     if smear is None:
@@ -417,13 +423,13 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma, smear)
 
 
-def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None) -> np.ndarray:
+def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None, fitted: np.ndarray | None = None) -> np.ndarray:
     """(4,) for a quad with corners out of the image: 1 for a seen corner, and for a hidden one how
     many times less sure it is, as the intersection of lines fitted to the stretches of its two
-    sides that are seen.  A line fitted over a stretch ``l`` long is off at distance ``D`` from the
+    sides that are seen (``fitted``, (4, 2): only between these fractions of each side, from its
+    first corner).  A line fitted over a stretch ``l`` long is off at distance ``D`` from the
     stretch's middle by sqrt(1 + 12 D^2 / l^2) times its error there; a seen corner lies at the end
     of its stretches (D = l / 2), a hidden one beyond.  The worse of its two sides counts."""
-    H, W = shape[:2]
     out = np.ones(4)
     t = np.linspace(0.0, 1.0, 257)
     for k in range(4):
@@ -435,8 +441,12 @@ def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None) -> np.ndarray:
             seen = t[_seen(a + t[:, None] * (b - a), shape, visible)]
             if len(seen) < 2:
                 return np.full(4, np.inf)
-            length = (seen[-1] - seen[0]) * np.linalg.norm(b - a)
-            D = (1.0 - 0.5 * (seen[0] + seen[-1])) * np.linalg.norm(b - a)
+            s0, s1 = seen[0], seen[-1]
+            if fitted is not None:  # (t runs from the other corner to this one)
+                f0, f1 = fitted[other] if other == (k - 1) % 4 else 1.0 - fitted[k][::-1]
+                s0, s1 = max(s0, f0), min(s1, f1)
+            length = (s1 - s0) * np.linalg.norm(b - a)
+            D = (1.0 - 0.5 * (s0 + s1)) * np.linalg.norm(b - a)
             worst = max(worst, np.sqrt(1.0 + 12.0 * D**2 / max(length, 1e-9) ** 2) / 2.0)
         out[k] = worst
     return out
@@ -632,52 +642,63 @@ CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px o
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
-               partial: bool = False, trim: float = 0.25) -> tuple:
-    """``(quad | None, smear px)``: ``quad_px`` with its sides moved to where the border's centroid
+               partial: bool = False, trim: float = 0.25, in_view: bool = False) -> tuple:
+    """``(quad | None, smear px, fitted (4, 2) | None)``: ``quad_px`` with its sides moved to where the border's centroid
     puts them (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px``
     (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
     read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
-    around ``quad_px`` (kept with the outline: it is read once).
+    around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
+    (fractions of each side, from its first corner) the side's line was fitted.
 
     Measured on the conditions suite's gusty descent (12 px of blur at 12 m, a 55 px pad): the
     edge fit put every corner 4-5 px outside the pad, the pose 3.8 m off, accepted; the centroid
     leaves 0.5-0.7 px, the outward bias of an image whose tone curve is not exactly sRGB."""
     levels = _border_channel(srgb_to_linear(np.array([geo.border.color_rgb, geo.border.dark_color_rgb])))
-    lin, lo, smear = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
+    lin, lo, smear, pairs = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
     if levels[0] <= 0 or not smear > min_blur_px:
-        return None, smear
+        return None, smear, None
     q, cam, bands = quad_px - lo, _shifted(camera, *lo), _bands_px(quad_px, geo)
-    if partial:  # the profiles reach no further than the smear needs: a side near the image's edge stays read
-        reach_px = min(reach_px, max(6.0, 0.75 * smear + 3.0))
+    if partial:
+        # the profiles reach no further than the smear across the side needs (its pair's: one blur
+        # kernel smears both alike), so that a side near the image's edge stays read: a pad cut by
+        # the right edge under 14 px of smear across its top and bottom, 3 px across its sides, had
+        # every profile of the cut side reach out of view when all reached as far as the top's
+        across = np.where(np.isfinite(pairs), pairs, smear)[[0, 1, 0, 1]]
+        reach_px = np.minimum(reach_px, np.maximum(6.0, 0.75 * across + 3.0))
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
-                                        cam, reach_px=reach_px, trim=trim, segments=segments)
+                                        cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view)
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
-        return None, smear
+        return None, smear, None
     # each side through its stretches' edge points (the side's angle is as uncertain as its place);
     # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view
     d = np.roll(q, -1, axis=0) - q
     n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
     n *= np.sign(np.sum((q.mean(axis=0) - q) * n, axis=1))[:, None]  # inward
-    p = q[:, None, :] + at[None, :, None] * d[:, None, :] + np.where(read, e, 0.0)[..., None] * n[:, None, :]
+    p = q[:, None, :] + at[..., None] * d[:, None, :] + np.where(read, e, 0.0)[..., None] * n[:, None, :]
     first, last = read.argmax(axis=1), segments - 1 - read[:, ::-1].argmax(axis=1)
     a, u = p[np.arange(4), first], p[np.arange(4), last] - p[np.arange(4), first]
     out = q.copy()
     for j in range(4):  # corner j where sides j - 1 and j meet
         A = np.stack([u[j - 1], -u[j]], axis=1)
         if abs(np.linalg.det(A)) < 1e-9:
-            return None, smear
+            return None, smear, None
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
-    return out + lo, smear
+    return out + lo, smear, np.stack([at[np.arange(4), first], at[np.arange(4), last]], axis=1)
 
 
 def _smeared_in_view(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
-                     min_blur_px: float = 0.0) -> tuple:
+                     min_blur_px: float = 0.0, in_view: bool = False) -> tuple:
     """:func:`_deblurred` for a pad at or across the image's edge: each side through the border's
-    centroid over those of five stretches (from a tenth of the side on) whose cross-profiles lie in
-    view, at least two per side, reaching no further than the smear needs."""
-    return _deblurred(rgb, quad_px, geo, camera, min_blur_px=min_blur_px, segments=5, partial=True, trim=0.1)
+    centroid over those of five stretches of its middle (from a tenth of the side on) whose
+    cross-profiles lie in view, at least two per side, reaching no further than the smear across
+    that side needs.  ``in_view``: the five stretches share the part of the middle in view (a side
+    mostly cut off is read on what is left of it; where an edge fit can be made, that reads such a
+    side better: at 4 m under 7 px of smear, 40 mm against 77 mm from the centroids of a tenth of
+    the side)."""
+    return _deblurred(rgb, quad_px, geo, camera, min_blur_px=min_blur_px, segments=5, partial=True, trim=0.1,
+                      in_view=in_view)
 
 
 def _near_edge(quad_px: np.ndarray, shape, margin_px: float) -> bool:
@@ -695,9 +716,10 @@ def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
 
 def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                 margin_px: float) -> tuple:
-    """``(linear crop, its origin, smear px)``: the neighbourhood of ``quad_px`` (``margin_px``
-    around it) in linear light, and how far motion smears the white field's edge there in luma (0
-    when no side can be read).  Luma, not colour: JPEG's chroma is smeared linearly in the encoded
+    """``(linear crop, its origin, smear px, (2,) smear px per pair)``: the neighbourhood of
+    ``quad_px`` (``margin_px`` around it) in linear light, and how far motion smears the white
+    field's edge there in luma (0 when no side can be read), over all sides and across each pair of
+    opposite sides (sides 0 and 2, 1 and 3; NaN for a pair with neither side read).  Luma, not colour: JPEG's chroma is smeared linearly in the encoded
     values, not in light, while its luma stays sharp; only motion smears both.
 
     Motion smears the two sides of a parallel pair alike (one blur kernel, seen edge-on the same way
@@ -714,7 +736,7 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     q = quad_px - lo
     s = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
     pairs = np.where(np.isnan(s[:2]), s[2:], np.where(np.isnan(s[2:]), s[:2], 0.5 * (s[:2] + s[2:])))
-    return lin, lo, float(np.nanmax(np.append(pairs, 0.0)))
+    return lin, lo, float(np.nanmax(np.append(pairs, 0.0))), pairs
 
 
 def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
