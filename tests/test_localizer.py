@@ -1201,24 +1201,42 @@ def test_a_dark_patch_of_the_border_hue_beside_the_pad_does_not_swell_its_outlin
             assert err < 0.03 * side_px, (side_px, yaw, err)
 
 
-def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad):
+def _box_over(img, G, geo, k, f1, f2, corners=1, soften_px=0.8):
+    """``img`` (the view at ``G``) with a grey box's edge across the pad from ``f1`` of the way
+    along one side to ``f2`` along another, hiding corner ``k`` (``corners=2``: corners ``k`` and
+    ``k + 1``), and an optics' blur of ``soften_px`` over all; ``(image, the pad's corners px)``."""
+    c = CAM.project_from(G, geo.outer_corners)
+    j = (k + 1) % 4
+    if corners == 1:
+        p1, p2, far = c[k] + f1 * (c[j] - c[k]), c[k] + f2 * (c[k - 1] - c[k]), c[k]
+    else:
+        p1, p2, far = c[k] + f1 * (c[k - 1] - c[k]), c[j] + f2 * (c[(j + 1) % 4] - c[j]), (c[k] + c[j]) / 2
+    away = 3.0 * (far - c.mean(axis=0))
+    img = img.copy()
+    cv2.fillConvexPoly(img, np.round(np.array([p1, p2, p2 + away, p1 + away])).astype(np.int32), (120, 122, 128))
+    return (cv2.GaussianBlur(img, (0, 0), soften_px) if soften_px else img), c
+
+
+@pytest.mark.parametrize("soften_px", [0.0, 1.0])
+def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad, soften_px):
     """A box over a corner (a moving deck slid under it) cuts the ring: its hull then has a side
     along the box's edge, the outline was refused ("border band missing", "sides and hull
     disagree") or, worse, taken whole with a corner tens of pixels off.  Each hull side is now tried
     as the occluder's edge: the hidden corner is where the two cut sides meet, only what lies on
     this side of the edge is read, the border must be missing behind it and the field (not the
-    border) lie just this side of it.  Most such views are posed, every one within its covariance."""
+    border) lie just this side of it.  Nearly every such view is posed (an optics' blur of
+    ``soften_px`` over the box's edge too), every one within its covariance.
+
+    "Behind it" once meant "not a pixel and a half clear on this side": a stretch of the band
+    along the box's edge, half in that strip, read a quarter of the band's colour and the pad was
+    refused (a moving_deck frame at 9.7 m).  Of these 40 views 31-34 were found; now 40."""
     geo = pad.geometry
     tried = found = 0
     for h in (5.0, 9.0):
         for yaw in (0.2, 1.3, 2.4, 3.5, 4.6):
             for k in range(4):
                 G = tilted(0.2, -0.1, h, yaw, 0.02, -0.03)
-                img = warp_pad_view(pad, CAM, G, (110, 90, 60))
-                c = CAM.project_from(G, geo.outer_corners)
-                p1, p2 = c[k] + 0.4 * (c[(k + 1) % 4] - c[k]), c[k] + 0.45 * (c[k - 1] - c[k])
-                away = 3.0 * (c[k] - c.mean(axis=0))
-                cv2.fillConvexPoly(img, np.round(np.array([p1, p2, p2 + away, p1 + away])).astype(np.int32), (120, 122, 128))
+                img, c = _box_over(warp_pad_view(pad, CAM, G, (110, 90, 60)), G, geo, k, 0.4, 0.45, soften_px=soften_px)
                 tried += 1
                 out, why = find_outline(img, geo, CAM)
                 if out is None:
@@ -1235,7 +1253,7 @@ def test_a_pad_with_a_corner_hidden_by_a_box_is_posed_from_what_is_seen(pad):
                 pose = solve_planar_pose(CAM, geo.outer_corners, q, up_C=up_in_camera(G), sigma_px=0.3 * scale)
                 err = pose.cam2pad[:3, 3] - G[:3, 3]
                 assert err @ np.linalg.solve(pose.cov[:3, :3], err) < 16.3, (h, yaw, k, err)  # chi2(3), 99.9 %
-    assert found >= 0.6 * tried, (found, tried)
+    assert found >= 0.9 * tried, (found, tried)
 
 
 
