@@ -87,8 +87,10 @@ _LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 / sRGB weight
 SWOLLEN_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side",
                 "its border band is missing beside a corner", "its colour swells past its white field")
 MISREAD_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side")
+SIDES_NOT_FOUND = "its sides not found, and nothing smears them"
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
-                 "its border band is missing beside a corner", "its sides and its colour hull disagree")
+                 "its border band is missing beside a corner", "its sides and its colour hull disagree",
+                 SIDES_NOT_FOUND)
 
 
 def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -236,6 +238,10 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
         smeared, smear, _ = _deblurred(rgb, quad, pad_geometry, camera)
+        if smeared is None and not smear > SMEARED_PX:
+            # but nothing smears it: something hides a stretch of a side (a box over two corners,
+            # whose hull's corner lay 35 px from the pad's, taken as it was)
+            return None, SIDES_NOT_FOUND
         refined = quad if smeared is None else smeared
     elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(3.0, 0.1 * side_px):
         return None, "its sides and its colour hull disagree"
@@ -248,9 +254,15 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             smeared, smear, _ = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
-            again, smear, _ = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
-            refined = smeared if again is None else again
-        else:
+            again, smear_again, _ = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
+            if smear_again > SMEARED_PX:
+                refined, smear = (smeared if again is None else again), smear_again
+            else:
+                # read around where the centroid put it, the pad is sharp: the smear was read off
+                # sides that were not the pad's (a box's edge across its corner read 5.04 px, the
+                # centroid then put that corner 10 px out, "ok"; read again there, 2.3 px)
+                smeared = smear = None
+        if smeared is None:
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
             why = "its border band is missing along a side" if _band_missing(rgb, refined, pad_geometry, camera) \
                 else "its border band is missing beside a corner" if _corner_missing(rgb, refined, pad_geometry, camera) \
