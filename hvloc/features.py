@@ -337,7 +337,10 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
     """8-bit sRGB to linear light, float32 on the same 0..255 scale.  Blur (motion, defocus) mixes
     light, so a blurred edge is symmetric about its true position in linear values only: in sRGB the
     dark side of a ramp is lifted and a wide ramp's centre moves by a pixel or more."""
-    return _SRGB_TO_LINEAR[np.asarray(rgb, np.uint8)]
+    a = np.asarray(rgb, np.uint8)
+    if a.ndim == 2 or (a.ndim == 3 and a.shape[2] <= 4):
+        return cv2.LUT(a, _SRGB_TO_LINEAR)  # (the same values, eight times as fast as numpy's indexing)
+    return _SRGB_TO_LINEAR[a]
 
 
 def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, levels: np.ndarray,

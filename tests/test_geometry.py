@@ -154,3 +154,24 @@ def test_projection_sigma_is_the_spread_of_the_pose_covariance_in_the_image():
     spread = np.sqrt(np.mean(np.square(moved), axis=(0, 2)))
     assert np.all(predicted > 0.5)  # pixels, not a vanishing number
     np.testing.assert_allclose(predicted, spread, rtol=0.06)
+
+
+def test_srgb_to_linear_is_the_srgb_curve_for_any_shape():
+    """8-bit sRGB to linear light on the 0..255 scale, by the sRGB standard's piecewise curve, for
+    colours, grey images, RGB and RGBA images, strided views and other shapes alike (OpenCV's LUT
+    does most of them, numpy's indexing the rest: the same numbers)."""
+    from hvloc.features import srgb_to_linear
+
+    def srgb(v):
+        c = np.asarray(v, np.float64) / 255.0
+        return 255.0 * np.where(c <= 10 / 255.0, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+    rng = np.random.default_rng(3)
+    for shape in [(5,), (2, 3), (7, 9), (7, 9, 3), (7, 9, 4), (7, 9, 5), (2, 3, 4, 3)]:
+        a = rng.integers(0, 256, shape).astype(np.uint8)
+        for v in (a, a[::2]):
+            out = srgb_to_linear(v)
+            assert out.shape == v.shape and out.dtype == np.float32, shape
+            np.testing.assert_allclose(out, srgb(v), rtol=1e-6, atol=1e-5)
+    assert srgb_to_linear(np.arange(256, dtype=np.uint8)).max() == np.float32(255.0)
+    np.testing.assert_allclose(srgb_to_linear([[198, 51, 176]]), srgb([[198, 51, 176]]), rtol=1e-6)
