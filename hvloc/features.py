@@ -345,7 +345,7 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
 
 def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, levels: np.ndarray,
                           camera: Camera | None = None, reach_px=16.0, trim: float = 0.25,
-                          step: float = 0.5, segments: int = 2, in_view: bool = False) -> tuple:
+                          step: float = 0.5, segments: int = 2, in_view: bool = False, widen: int = 0) -> tuple:
     """``(offsets (4, segments), blur (4, segments), at (4, segments))``: where (px, along each
     side's inward normal from the sides of ``quad_px``) the outer edge of a banded border lies, read
     from the centroid of the border's cross-profile over each of ``segments`` equal stretches of the
@@ -361,7 +361,8 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
     the design fixes (bands ending at ``bands_px[i]`` with ``levels`` relative to the first).
     ``chan`` must be linear in light (:func:`srgb_to_linear`); its ground and field levels are read
     just outside the bump around the profile's peak and taken away.  ``reach_px``: how far beyond
-    the border the profiles reach, one for all sides or (4,) one per side."""
+    the border the profiles reach, one for all sides or (4,) one per side; a bump that runs out of
+    that is read again reaching twice as far, up to ``widen`` times (``chan`` must hold that much)."""
     g = chan if chan.dtype == np.float32 else chan.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     length = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
@@ -376,67 +377,96 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
                         length, trim)
     per = int(np.clip(np.max(length * np.clip(t1 - t0, 0.0, None)) / segments, 4, 20))
     at = t0[:, None] + (t1 - t0)[:, None] * (np.arange(segments) + 0.5) / segments
-    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, (t0, t1) if in_view else trim, camera)):
-        if t0[i] >= t1[i]:
-            continue  # too little of the side in view
-        r = rs[i]
-        edges = np.concatenate([[0.0], bands[i]])
-        mass = lv * np.diff(edges)  # the sharp profile: level lv[k] between edges k and k + 1
-        c0 = float(np.sum(mass * (edges[1:] + edges[:-1]) / 2) / mass.sum())
-        var0 = float(np.sum(lv * np.diff(edges**3) / 3) / mass.sum() - c0**2)
-        for k in range(segments):
-            part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
-            if len(part) < 2:
+    todo = np.repeat((t0 < t1)[:, None], segments, axis=1)  # (sides with too little in view: never read)
+    for _ in range(widen + 1):
+        runs_on = np.zeros_like(todo)
+        for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, (t0, t1) if in_view else trim,
+                                                         camera)):
+            if not todo[i].any():
                 continue
-            y = part.mean(axis=0)
-            p = int(np.argmax(y))
-            low = y < 0.15 * y[p]
-            before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
-            if y[p] <= 0 or not len(before) or not len(after):
-                continue  # no bump, or one that runs out of the window
-            a, b = before[-1], p + after[0]          # the first low samples either side of the bump
-            n = max(2, int(round(2.0 / step)))
-            base_out = float(np.median(y[max(0, a - n):a + 1]))
-            base_in = float(np.median(y[b:b + n + 1]))
-            lo, hi = max(0, a - n), min(len(y), b + n + 1)
-            rr = r[lo:hi]
-            base = base_out + (base_in - base_out) * np.clip((rr - r[a]) / max(r[b] - r[a], 1e-9), 0.0, 1.0)
-            v = np.clip(y[lo:hi] - base, 0.0, None)
-            if v.sum() <= 0:
-                continue
-            c = float(np.sum(v * rr) / v.sum())
-            offsets[i, k] = c - c0
-            blur[i, k] = float(np.sqrt(max(12.0 * (np.sum(v * (rr - c) ** 2) / v.sum() - var0), 0.0)))
+            r = rs[i]
+            edges = np.concatenate([[0.0], bands[i]])
+            mass = lv * np.diff(edges)  # the sharp profile: level lv[k] between edges k and k + 1
+            c0 = float(np.sum(mass * (edges[1:] + edges[:-1]) / 2) / mass.sum())
+            var0 = float(np.sum(lv * np.diff(edges**3) / 3) / mass.sum() - c0**2)
+            for k in np.flatnonzero(todo[i]):
+                part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
+                if len(part) < 2:
+                    continue
+                y = part.mean(axis=0)
+                p = int(np.argmax(y))
+                low = y < 0.15 * y[p]
+                before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
+                if y[p] <= 0:
+                    continue  # no bump
+                if not len(before) or not len(after):
+                    runs_on[i, k] = True  # a bump that runs out of the window
+                    continue
+                a, b = before[-1], p + after[0]          # the first low samples either side of the bump
+                n = max(2, int(round(2.0 / step)))
+                base_out = float(np.median(y[max(0, a - n):a + 1]))
+                base_in = float(np.median(y[b:b + n + 1]))
+                lo, hi = max(0, a - n), min(len(y), b + n + 1)
+                rr = r[lo:hi]
+                base = base_out + (base_in - base_out) * np.clip((rr - r[a]) / max(r[b] - r[a], 1e-9), 0.0, 1.0)
+                v = np.clip(y[lo:hi] - base, 0.0, None)
+                if v.sum() <= 0:
+                    continue
+                c = float(np.sum(v * rr) / v.sum())
+                offsets[i, k] = c - c0
+                blur[i, k] = float(np.sqrt(max(12.0 * (np.sum(v * (rr - c) ** 2) / v.sum() - var0), 0.0)))
+        todo = runs_on
+        if not todo.any():
+            break
+        reach = 2.0 * reach  # (every side's profiles again: those read are kept)
+        rs = [np.arange(-reach[i], bands[i].max() + reach[i] + 1e-9, step) for i in range(4)]
     return offsets, blur, at
 
 
 def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: Camera | None = None,
-              reach_px: float = 12.0, trim: float = 0.3, step: float = 0.5) -> np.ndarray:
+              reach_px: float = 12.0, trim: float = 0.3, step: float = 0.5, widen: int = 0) -> np.ndarray:
     """(4,) the width (px) of the box blur that the steepest rising edge within ``reach_px`` of
     ``at_px[i]`` (px along side i's inward normal from ``quad_px``) shows across that side, NaN
     where none is found: sqrt(12) times the spread of the profile's derivative, the blur kernel
     seen edge-on.  ``gray`` should be linear in light.  Motion blur smears luma as much as colour;
-    JPEG's half-resolution chroma leaves luma sharp, so a luma edge tells the two apart."""
+    JPEG's half-resolution chroma leaves luma sharp, so a luma edge tells the two apart.
+
+    A rise that runs on past either end of the window (a smear wider than it: 30 px across a 20
+    px border merges the border's two edges into one ramp) is read again in a window twice as wide,
+    up to ``widen`` times, from the same steepest place: read as nothing, a 30-45 px smear across
+    one pair of sides left the other pair's 1.6 px as the pad's smear, and its edges were fitted as
+    sharp ones, 7-20 % of a side out."""
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
-    rs = [np.arange(at_px[i] - reach_px, at_px[i] + reach_px + 1e-9, step) for i in range(4)]
     out = np.full(4, np.nan)
-    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, m, trim, camera)):
-        r = rs[i]
-        if seen.sum() < 2:
-            continue
-        y = prof[seen].mean(axis=0)
-        d = np.clip(np.diff(y), 0.0, None)
-        x = (r[1:] + r[:-1]) / 2
-        p = int(np.argmax(d))
-        low = d < 0.15 * d[p]
-        before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
-        if d[p] <= 0 or not len(before) or not len(after):
-            continue
-        v, xx = d[before[-1]:p + after[0] + 1], x[before[-1]:p + after[0] + 1]
-        c = float(np.sum(v * xx) / v.sum())
-        out[i] = float(np.sqrt(12.0 * np.sum(v * (xx - c) ** 2) / v.sum()))
+    todo = np.ones(4, bool)
+    for k in range(widen + 1):
+        reach = reach_px * 2 ** k
+        rs = [np.arange(at_px[i] - reach, at_px[i] + reach + 1e-9, step) for i in range(4)]
+        runs_on = np.zeros(4, bool)
+        for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, m, trim, camera)):
+            if not todo[i] or seen.sum() < 2:
+                continue
+            r = rs[i]
+            y = prof[seen].mean(axis=0)
+            d = np.clip(np.diff(y), 0.0, None)
+            x = (r[1:] + r[:-1]) / 2
+            first = np.abs(x - at_px[i]) <= reach_px  # the steepest place is the first window's
+            p = int(np.argmax(np.where(first, d, -1.0)))
+            low = d < 0.15 * d[p]
+            before, after = np.nonzero(low[:p])[0], np.nonzero(low[p:])[0]
+            if d[p] <= 0:
+                continue
+            if not len(before) or not len(after):
+                runs_on[i] = True
+                continue
+            v, xx = d[before[-1]:p + after[0] + 1], x[before[-1]:p + after[0] + 1]
+            c = float(np.sum(v * xx) / v.sum())
+            out[i] = float(np.sqrt(12.0 * np.sum(v * (xx - c) ** 2) / v.sum()))
+        todo = runs_on
+        if not todo.any():
+            break
     return out
 
 

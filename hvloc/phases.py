@@ -219,7 +219,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
     field = None
-    if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=10.0)):
+    if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=EDGE_FIT_SMEAR_PX)):
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
         start = quad if refined is None else refined + [bx0, by0]
@@ -252,15 +252,21 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
             smeared, smear, _ = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
+        if smeared is None and smear > EDGE_FIT_SMEAR_PX:
+            # no edge to fit and no centroid to read: fitted as sharp edges, such sides lay half the
+            # smear out (unseen18: the pad read 6 % large under 43 px of smear, a false accept)
+            return None, TOO_SMEARED
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
             again, smear_again, _ = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
-            if smear_again > SMEARED_PX:
+            if smear_again > SMEARED_PX or smear > EDGE_FIT_SMEAR_PX:
                 refined, smear = (smeared if again is None else again), smear_again
             else:
                 # read around where the centroid put it, the pad is sharp: the smear was read off
                 # sides that were not the pad's (a box's edge across its corner read 5.04 px, the
-                # centroid then put that corner 10 px out, "ok"; read again there, 2.3 px)
+                # centroid then put that corner 10 px out, "ok"; read again there, 2.3 px).  Not
+                # past what structure can widen an edge by: under 30-45 px of smear a placed pad's
+                # field edge is so shallow that the field's texture is steeper (read again, 2.7 px)
                 smeared = smear = None
         if smeared is None:
             refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
@@ -650,6 +656,10 @@ def _moved_sides(quad: np.ndarray, e: np.ndarray) -> np.ndarray:
     return out
 
 
+SMEAR_REACH_PX, SMEAR_WIDEN = 20.0, 2  # the smear is read within 20 px of the field's edge, or 40, or 80
+CENTROID_WIDEN = 2  # a border's centroid is read within 16 px of it, or 32, or 64 (a smear that runs on)
+EDGE_FIT_SMEAR_PX = 10.0  # px of smear an edge fit holds to (twice its window)
+TOO_SMEARED = "smeared past where its sides can be placed"
 SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are placed by the border's centroid
 CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px of smear
 
@@ -680,7 +690,8 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         across = np.where(np.isfinite(pairs), pairs, smear)[[0, 1, 0, 1]]
         reach_px = np.minimum(reach_px, np.maximum(6.0, 0.75 * across + 3.0))
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
-                                        cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view)
+                                        cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view,
+                                        widen=0 if partial else CENTROID_WIDEN)
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
         return None, smear, None
@@ -731,7 +742,8 @@ def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
 def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                 margin_px: float) -> tuple:
     """``(linear crop, its origin, smear px, (2,) smear px per pair)``: the neighbourhood of
-    ``quad_px`` (``margin_px`` around it) in linear light, and how far motion smears the white
+    ``quad_px`` (``margin_px`` around it, or as far as the smear and the border's centroid may be
+    read: :data:`SMEAR_REACH_PX`) in linear light, and how far motion smears the white
     field's edge there in luma (0 when no side can be read), over all sides and across each pair of
     opposite sides (sides 0 and 2, 1 and 3; NaN for a pair with neither side read).  Luma, not colour: JPEG's chroma is smeared linearly in the encoded
     values, not in light, while its luma stays sharp; only motion smears both.
@@ -744,11 +756,11 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     which took the outline to the centroid placement meant for motion and gave it the smear's
     noise.  (The pair's smaller reading is too strict: on a 36 px pad under 9 px of blur one side
     of the smeared pair read 4.4 px, the other 7.9.)"""
-    crop, lo = _window(rgb, quad_px, margin_px)
+    crop, lo = _window(rgb, quad_px, max(margin_px, SMEAR_REACH_PX * 2 ** SMEAR_WIDEN + 3.0))
     lin = srgb_to_linear(crop)
     luma = np.ascontiguousarray(lin @ _LUMA)
     q = quad_px - lo
-    s = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=20.0)
+    s = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=SMEAR_REACH_PX, widen=SMEAR_WIDEN)
     pairs = np.where(np.isnan(s[:2]), s[2:], np.where(np.isnan(s[2:]), s[:2], 0.5 * (s[:2] + s[2:])))
     return lin, lo, float(np.nanmax(np.append(pairs, 0.0))), pairs
 
