@@ -8,7 +8,9 @@ its pad normal and the true one, both in the camera frame), the AHRS's (its up d
 the camera mount, against the true one; the AHRS row a flight computer would have at the frame,
 ``benchmarks.run.imu_at``), and the lateral RMS over the height as an angle.  Where the pose's tilt
 error tracks the AHRS's and the lateral angle tracks both, the gravity prior carries the AHRS's
-error into the position (a tilt of 0.3 degrees is 0.5 % of the height sideways).
+error into the position (a tilt of 0.3 degrees is 0.5 % of the height sideways).  The last
+column is that floor for the outline's poses: the same solver on the labelled corners, with the
+AHRS's up (nan in bands without outline poses).
 """
 from __future__ import annotations
 
@@ -31,9 +33,14 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 
 def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
     """``(dataset, sequence, frame, height m, lateral error m, pose tilt error deg, AHRS tilt error
-    deg or nan)`` for every accepted pose of ``localizer`` in a results folder.  The pad lies level
-    (its normal is the world's up), as in every dataset hvloc renders."""
+    deg or nan, lateral error m of the pose from the labelled corners or nan)`` for every accepted
+    pose of ``localizer`` in a results folder.  The pad lies level (its normal is the world's up),
+    as in every dataset hvloc renders.  The last, for outline poses (``method`` outline), is what
+    the AHRS alone leaves them: the pose hvloc's solver makes of the pad's four outer corners where
+    the labels put them, with the AHRS's up as its gravity prior (no image error at all)."""
     from render.dataset import Dataset
+
+    from hvloc.pose import solve_planar_pose
 
     root = Path(results_dir)
     est_root = root / "estimates" / localizer
@@ -48,6 +55,7 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
                 continue
             est = read_estimates(path)
             ok = np.asarray(est["status"]) == "ok"
+            outline = np.asarray(est["method"]) == "outline" if "method" in est else np.zeros(len(ok), bool)
             imu = seq.imu
             truth = seq.cam2pad
             for i in np.flatnonzero(ok):
@@ -56,17 +64,25 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
                 R_est = matrix_from_quat_xyzw([est[c][i] for c in ("qx", "qy", "qz", "qw")])
                 up_true, up_est = T[:3, :3][2], R_est[2]  # the pad's normal (the world's up) in the camera frame
                 sample = imu_at(imu, float(seq.t[k]), seq.imu_time_offset_s)
-                ahrs = float("nan")
+                ahrs = floor = float("nan")
                 if sample is not None:
-                    ahrs = _angle_deg(up_in_camera(matrix_from_quat_xyzw(sample[7:11]), seq.T_B_C), up_true)
+                    up_C = up_in_camera(matrix_from_quat_xyzw(sample[7:11]), seq.T_B_C)
+                    ahrs = _angle_deg(up_C, up_true)
+                if sample is not None and outline[i]:
+                    corners = seq.pad.geometry.outer_corners
+                    labelled = solve_planar_pose(seq.camera, corners, seq.camera.project_from(T, corners), up_C=up_C)
+                    if labelled is not None:
+                        floor = math.hypot(*(labelled.cam2pad[:2, 3] - T[:2, 3]))
                 lateral = math.hypot(float(est["tx"][i]) - T[0, 3], float(est["ty"][i]) - T[1, 3])
-                rows.append((ds_dir.name, seq.id, k, float(T[2, 3]), lateral, _angle_deg(up_est, up_true), ahrs))
+                rows.append((ds_dir.name, seq.id, k, float(T[2, 3]), lateral, _angle_deg(up_est, up_true), ahrs,
+                             floor))
     return rows
 
 
 def summary(rows: list, bands) -> list:
     """Per dataset and height band: ``(dataset, lo, hi, n, lateral RMS mm, pose tilt median deg, AHRS
-    tilt median deg, lateral RMS over mean height deg)``."""
+    tilt median deg, lateral RMS over mean height deg, outline poses, their lateral RMS mm, the
+    labelled corners' lateral RMS mm over the same frames)``."""
     out = []
     for name in sorted({r[0] for r in rows}):
         a = np.array([r[3:] for r in rows if r[0] == name], np.float64)
@@ -75,9 +91,11 @@ def summary(rows: list, bands) -> list:
             if not m.any():
                 continue
             lat = float(np.sqrt(np.mean(a[m, 1] ** 2)))
+            o = m & np.isfinite(a[:, 4])  # the outline's poses, with their floor
+            rms = (lambda v: 1000 * float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan"))
             out.append((name, lo, hi, int(m.sum()), 1000 * lat, float(np.median(a[m, 2])),
                         float(np.nanmedian(a[m, 3])) if np.isfinite(a[m, 3]).any() else float("nan"),
-                        math.degrees(lat / float(np.mean(a[m, 0])))))
+                        math.degrees(lat / float(np.mean(a[m, 0]))), int(o.sum()), rms(a[o, 1]), rms(a[o, 4])))
     return out
 
 
@@ -94,13 +112,17 @@ def main(argv=None) -> int:
         p.error("--bands: give at least two edges")
     rows = summary(tilt_rows(a.results, a.localizer), bands)
     print("| dataset | height m | poses | lateral RMS mm | pose tilt error deg (median) | AHRS tilt error deg "
-          "(median) | lateral RMS / height deg |")
-    print("|---|---|---|---|---|---|---|")
-    for name, lo, hi, n, lat, tilt, ahrs, ang in rows:
-        print(f"| {name} | {lo:g}-{hi:g} | {n} | {lat:.1f} | {tilt:.3f} | {ahrs:.3f} | {ang:.3f} |")
+          "(median) | lateral RMS / height deg | outline poses | their lateral RMS mm | from the labelled corners "
+          "mm |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, lo, hi, n, lat, tilt, ahrs, ang, n_out, lat_out, floor in rows:
+        print(f"| {name} | {lo:g}-{hi:g} | {n} | {lat:.1f} | {tilt:.3f} | {ahrs:.3f} | {ang:.3f} | {n_out} | "
+              f"{lat_out:.1f} | {floor:.1f} |")
     if a.json:
         Path(a.json).write_text(json.dumps([dict(zip(("dataset", "lo_m", "hi_m", "poses", "lateral_rms_mm",
-                                                       "pose_tilt_deg", "ahrs_tilt_deg", "lateral_deg"), r))
+                                                       "pose_tilt_deg", "ahrs_tilt_deg", "lateral_deg",
+                                                       "outline_poses", "outline_lateral_rms_mm",
+                                                       "labelled_corners_lateral_rms_mm"), r))
                                             for r in rows], indent=1) + "\n")
     return 0
 
