@@ -398,7 +398,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     def visible(px):  # the seen side of the cut, a pixel and a half clear of it
         return (np.asarray(px, np.float64).reshape(-1, 2) - a) @ n < -1.5
 
-    def behind(px):  # the hidden side, as clear of it (not merely not seen: the strip along the cut is neither)
+    def beyond(px):  # the hidden side, as clear of it (not merely not seen: the strip along the cut is neither)
         return (np.asarray(px, np.float64).reshape(-1, 2) - a) @ n > 1.5
 
     # an occluder's edge crosses the pad: just this side of it lies the field, not the border (a
@@ -430,7 +430,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     # and something does hide it: behind the cut, the border's band must be missing (a whole pad
     # whose outline was refused for another reason, JPEG's smeared colour, is no hidden one)
     got = _band_stretches(rgb, refined, geo, camera, segments=6, per=3)
-    hidden = _band_stretches(rgb, refined, geo, camera, segments=6, per=3, visible=behind, min_share=1.0)
+    hidden = _band_stretches(rgb, refined, geo, camera, segments=6, per=3, visible=beyond, min_share=1.0)
     if got is None or hidden is None or not hidden[2].any():
         return None
     (rel, _, seen), (_, _, behind) = got, hidden
