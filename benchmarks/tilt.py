@@ -9,8 +9,9 @@ the camera mount, against the true one; the AHRS row a flight computer would hav
 ``benchmarks.run.imu_at``), and the lateral RMS over the height as an angle.  Where the pose's tilt
 error tracks the AHRS's and the lateral angle tracks both, the gravity prior carries the AHRS's
 error into the position (a tilt of 0.3 degrees is 0.5 % of the height sideways).  The last
-column is that floor for the outline's poses: the same solver on the labelled corners, with the
-AHRS's up (nan in bands without outline poses).
+columns are that floor for the poses made from corners (``method`` outline or markers): what
+hvloc's solver makes of the same corners where the labels put them, with the AHRS's up (no
+detection error left: what only the AHRS or the fusion can move).
 """
 from __future__ import annotations
 
@@ -35,12 +36,12 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
     """``(dataset, sequence, frame, height m, lateral error m, pose tilt error deg, AHRS tilt error
     deg or nan, lateral error m of the pose from the labelled corners or nan)`` for every accepted
     pose of ``localizer`` in a results folder.  The pad lies level (its normal is the world's up),
-    as in every dataset hvloc renders.  The last, for outline poses (``method`` outline), is what
-    the AHRS alone leaves them: the pose hvloc's solver makes of the pad's four outer corners where
-    the labels put them, with the AHRS's up as its gravity prior (no image error at all)."""
+    as in every dataset hvloc renders.  The last, for poses from corners, is what the AHRS alone
+    leaves them: the pose hvloc's solver makes of the corners where the labels put them, with the
+    AHRS's up as its gravity prior (no image error at all): an outline pose's four outer corners; a
+    markers pose's marker corners in view, weighed as hvloc weighs three markers (by their fit's
+    residual, at least :data:`hvloc.localizer.MARKER_MIN_SIGMA_PX`) when all three are."""
     from render.dataset import Dataset
-
-    from hvloc.pose import solve_planar_pose
 
     root = Path(results_dir)
     est_root = root / "estimates" / localizer
@@ -55,7 +56,7 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
                 continue
             est = read_estimates(path)
             ok = np.asarray(est["status"]) == "ok"
-            outline = np.asarray(est["method"]) == "outline" if "method" in est else np.zeros(len(ok), bool)
+            method = np.asarray(est["method"]) if "method" in est else np.full(len(ok), "")
             imu = seq.imu
             truth = seq.cam2pad
             for i in np.flatnonzero(ok):
@@ -68,9 +69,8 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
                 if sample is not None:
                     up_C = up_in_camera(matrix_from_quat_xyzw(sample[7:11]), seq.T_B_C)
                     ahrs = _angle_deg(up_C, up_true)
-                if sample is not None and outline[i]:
-                    corners = seq.pad.geometry.outer_corners
-                    labelled = solve_planar_pose(seq.camera, corners, seq.camera.project_from(T, corners), up_C=up_C)
+                if sample is not None and method[i] in ("outline", "markers"):
+                    labelled = _from_labelled_corners(seq, T, up_C, method[i])
                     if labelled is not None:
                         floor = math.hypot(*(labelled.cam2pad[:2, 3] - T[:2, 3]))
                 lateral = math.hypot(float(est["tx"][i]) - T[0, 3], float(est["ty"][i]) - T[1, 3])
@@ -79,10 +79,29 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
     return rows
 
 
+def _from_labelled_corners(seq, T, up_C, method: str):
+    """The pose hvloc's solver makes, with ``up_C`` as its gravity prior, of the corners a pose of
+    ``method`` is made from, where the true pose ``T`` puts them (None where too few are in view)."""
+    from hvloc.localizer import MARKER_MIN_SIGMA_PX, MARKER_SIGMA_PER_RMS
+    from hvloc.pose import solve_planar_pose
+
+    geo, cam = seq.pad.geometry, seq.camera
+    if method == "outline":
+        return solve_planar_pose(cam, geo.outer_corners, cam.project_from(T, geo.outer_corners), up_C=up_C)
+    P = np.concatenate([m.points for m in geo.markers])
+    px = cam.project_from(T, P)
+    seen = (px[:, 0] >= 0) & (px[:, 1] >= 0) & (px[:, 0] <= cam.width - 1) & (px[:, 1] <= cam.height - 1)
+    if seen.sum() < 8:
+        return None
+    whole = all(seen[j * len(m.points):(j + 1) * len(m.points)].all() for j, m in enumerate(geo.markers))
+    return solve_planar_pose(cam, P[seen], px[seen], up_C=up_C, prev_cam2pad=T,
+                             sigma_from_fit=(MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if whole else None)
+
+
 def summary(rows: list, bands) -> list:
     """Per dataset and height band: ``(dataset, lo, hi, n, lateral RMS mm, pose tilt median deg, AHRS
-    tilt median deg, lateral RMS over mean height deg, outline poses, their lateral RMS mm, the
-    labelled corners' lateral RMS mm over the same frames)``."""
+    tilt median deg, lateral RMS over mean height deg, poses from corners, their lateral RMS mm,
+    the labelled corners' lateral RMS mm over the same frames)``."""
     out = []
     for name in sorted({r[0] for r in rows}):
         a = np.array([r[3:] for r in rows if r[0] == name], np.float64)
@@ -91,7 +110,7 @@ def summary(rows: list, bands) -> list:
             if not m.any():
                 continue
             lat = float(np.sqrt(np.mean(a[m, 1] ** 2)))
-            o = m & np.isfinite(a[:, 4])  # the outline's poses, with their floor
+            o = m & np.isfinite(a[:, 4])  # the poses from corners, with their floor
             rms = (lambda v: 1000 * float(np.sqrt(np.mean(v ** 2))) if v.size else float("nan"))
             out.append((name, lo, hi, int(m.sum()), 1000 * lat, float(np.median(a[m, 2])),
                         float(np.nanmedian(a[m, 3])) if np.isfinite(a[m, 3]).any() else float("nan"),
@@ -112,7 +131,7 @@ def main(argv=None) -> int:
         p.error("--bands: give at least two edges")
     rows = summary(tilt_rows(a.results, a.localizer), bands)
     print("| dataset | height m | poses | lateral RMS mm | pose tilt error deg (median) | AHRS tilt error deg "
-          "(median) | lateral RMS / height deg | outline poses | their lateral RMS mm | from the labelled corners "
+          "(median) | lateral RMS / height deg | poses from corners | their lateral RMS mm | from the labelled corners "
           "mm |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name, lo, hi, n, lat, tilt, ahrs, ang, n_out, lat_out, floor in rows:
@@ -121,7 +140,7 @@ def main(argv=None) -> int:
     if a.json:
         Path(a.json).write_text(json.dumps([dict(zip(("dataset", "lo_m", "hi_m", "poses", "lateral_rms_mm",
                                                        "pose_tilt_deg", "ahrs_tilt_deg", "lateral_deg",
-                                                       "outline_poses", "outline_lateral_rms_mm",
+                                                       "corner_poses", "corner_lateral_rms_mm",
                                                        "labelled_corners_lateral_rms_mm"), r))
                                             for r in rows], indent=1) + "\n")
     return 0

@@ -192,9 +192,9 @@ def test_metrics_on_a_hand_made_case():
 def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
     """``benchmarks.tilt``: one row per accepted pose, its lateral error the horizontal part of the
     position error the benchmark scored, its tilt errors angles (the AHRS's from imu.csv, through
-    the mount), and for an outline pose the lateral error the labelled corners leave with the
-    AHRS's up (no more than the AHRS's tilt carries sideways over the height); the table has a row
-    per dataset and height band, and an unknown localizer is named."""
+    the mount), and for a pose from corners (outline, markers) the lateral error the labelled
+    corners leave with the AHRS's up (no more than the AHRS's tilt carries sideways over the
+    height); the table has a row per dataset and height band, and an unknown localizer is named."""
     import csv
 
     from benchmarks.tilt import main, summary, tilt_rows
@@ -212,14 +212,14 @@ def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
     for key, err in scored.items():
         h, lateral, tilt, ahrs, floor = mine[key][3], mine[key][4], mine[key][5], mine[key][6], mine[key][7]
         assert lateral <= err + 1e-9 and 0.0 <= tilt < 5.0 and 0.0 < ahrs < 5.0, (key, lateral, err, tilt, ahrs)
-        if methods[key] == "outline":
-            assert 0.0 <= floor <= h * math.tan(math.radians(ahrs)) + 1e-4, (key, floor, h, ahrs)
+        if methods[key] in ("outline", "markers"):
+            assert 0.0 <= floor <= h * math.tan(math.radians(ahrs)) + 1e-4, (key, methods[key], floor, h, ahrs)
         else:
             assert math.isnan(floor), (key, methods[key], floor)
-    assert "outline" in methods.values()
+    assert {"outline", "markers"} <= set(methods.values())
     table = summary(rows, [0, 2, 30])
     assert sum(r[3] for r in table) == len(rows) and {r[1] for r in table} <= {0, 2}
-    assert sum(r[8] for r in table) == sum(m == "outline" for k, m in methods.items() if k in scored)
+    assert sum(r[8] for r in table) == sum(m in ("outline", "markers") for k, m in methods.items() if k in scored)
     assert main([str(out)]) == 0 and "| from the labelled corners mm |" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="no estimates of localizer 'nobody'"):
         tilt_rows(out, "nobody")
