@@ -681,6 +681,10 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     lin, lo, smear, pairs = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
     if levels[0] <= 0 or not smear > min_blur_px:
         return None, smear, None
+    widen = 0 if partial else CENTROID_WIDEN
+    if widen:  # a crop that holds the widest profiles (only here: a smeared pad)
+        crop, lo = _window(rgb, quad_px, reach_px * 2 ** widen + float(_bands_px(quad_px, geo).max()) + 3.0)
+        lin = srgb_to_linear(crop)
     q, cam, bands = quad_px - lo, _shifted(camera, *lo), _bands_px(quad_px, geo)
     if partial:
         # the profiles reach no further than the smear across the side needs (its pair's: one blur
@@ -691,7 +695,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         reach_px = np.minimum(reach_px, np.maximum(6.0, 0.75 * across + 3.0))
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view,
-                                        widen=0 if partial else CENTROID_WIDEN)
+                                        widen=widen)
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
         return None, smear, None
@@ -742,8 +746,8 @@ def _bands_px(quad_px: np.ndarray, geo: PadGeometry) -> np.ndarray:
 def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                 margin_px: float) -> tuple:
     """``(linear crop, its origin, smear px, (2,) smear px per pair)``: the neighbourhood of
-    ``quad_px`` (``margin_px`` around it, or as far as the smear and the border's centroid may be
-    read: :data:`SMEAR_REACH_PX`) in linear light, and how far motion smears the white
+    ``quad_px`` (``margin_px`` around it, or as far as the smear is read where it runs on past its
+    first window: :data:`SMEAR_REACH_PX`) in linear light, and how far motion smears the white
     field's edge there in luma (0 when no side can be read), over all sides and across each pair of
     opposite sides (sides 0 and 2, 1 and 3; NaN for a pair with neither side read).  Luma, not colour: JPEG's chroma is smeared linearly in the encoded
     values, not in light, while its luma stays sharp; only motion smears both.
@@ -756,11 +760,17 @@ def _smear_near(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     which took the outline to the centroid placement meant for motion and gave it the smear's
     noise.  (The pair's smaller reading is too strict: on a 36 px pad under 9 px of blur one side
     of the smeared pair read 4.4 px, the other 7.9.)"""
-    crop, lo = _window(rgb, quad_px, max(margin_px, SMEAR_REACH_PX * 2 ** SMEAR_WIDEN + 3.0))
-    lin = srgb_to_linear(crop)
-    luma = np.ascontiguousarray(lin @ _LUMA)
-    q = quad_px - lo
-    s = step_blur(luma, q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo), reach_px=SMEAR_REACH_PX, widen=SMEAR_WIDEN)
+    def read(margin, widen):
+        crop, lo = _window(rgb, quad_px, margin)
+        lin = srgb_to_linear(crop)
+        q = quad_px - lo
+        return lin, lo, step_blur(np.ascontiguousarray(lin @ _LUMA), q, _bands_px(q, geo)[:, 1], _shifted(camera, *lo),
+                                  reach_px=SMEAR_REACH_PX, widen=widen)
+
+    lin, lo, s = read(margin_px, 0)
+    if np.isinf(s).any():  # a rise runs on past the window (rare: a smear wider than the border): wider
+        lin, lo, s = read(max(margin_px, SMEAR_REACH_PX * 2 ** SMEAR_WIDEN + 3.0), SMEAR_WIDEN)
+    s = np.where(np.isinf(s), np.nan, s)
     pairs = np.where(np.isnan(s[:2]), s[2:], np.where(np.isnan(s[2:]), s[:2], 0.5 * (s[:2] + s[2:])))
     return lin, lo, float(np.nanmax(np.append(pairs, 0.0))), pairs
 
