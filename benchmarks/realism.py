@@ -11,15 +11,28 @@ Statistics per 256 x 256 ground-only patch (luma 0-255), medians over patches:
 * ``corners``: strong corners per 256 x 256 px: local maxima (5 x 5) of the minimum eigenvalue
   (``cv2.cornerMinEigenVal``, block 3, aperture 3, luma in [0, 1]) above 0.01.
 
-Real frames: any folder of downward images of ground (patches holding bright paper, or pixels
-outside ``--real-mask``, e.g. the airframe, are skipped), taken at ``--real-gsd-mm``.  Their
-statistics at coarser GSDs come from the same frames box-downsampled (what a camera higher up
-would see, noise apart).  Rendered frames: a camera of a shipped spec looking straight down
-from the height that gives each GSD, far from the pad, with the spec's own image formation.
+Real frames: a folder of downward images of ground taken at ``--real-gsd-mm``, or a list of
+frames each with its own GSD and ground kind (``--real-list``, CSV ``path,gsd_mm,kind``, paths
+relative to ``--real-root``).  Patches holding bright paper, or pixels outside ``--real-mask``
+(e.g. the airframe), are skipped.  A frame counts at every GSD at least as coarse as its own
+(within 10 %): box-downsampled to it, then blurred by the camera's own blur in the new pixels
+(``--real-psf-px``, a Gaussian sigma), since a camera higher up keeps its blur while a box
+average would drop it.  ``--real-psf-px fit`` measures that blur where the list holds frames of
+one kind at two or more GSDs: the sigma with which the finer frames, so downsampled, show the
+coarser frames' Laplacian variance.  Patches are 256 px, or a whole frame where it is smaller
+(16 px at least); every statistic is taken 2 px inside the patch's border.  Rendered frames: a
+camera of a shipped spec looking straight down from the height that gives each GSD, far from
+the pad, with the spec's own image formation.
 
-The frames this was built against: the 76 frames of ``vision-agh/drone_landing_static`` (a small
-drone over dry grass at 0.2 to 1.5 m, 1280x720, its ``uav_mask.png``).  They are not shipped
-with hvloc (they are not ours); fetch that repository to rerun.
+The frames this was built against (neither set is shipped: they are not ours; fetch them to rerun):
+
+* ``vision-agh/drone_landing_static``: 76 frames of a small drone over dry grass at 0.2 to 1.5 m,
+  1280x720, with its ``uav_mask.png`` (``--real DIR --real-mask uav_mask.png``, 3.5 mm).
+* ``omu-geolab/CrackImageDatasetForDeepLearning``: 294 native-resolution 256 px tiles of
+  nadir photos of port quay pavement (Autel EVO II Pro, 5472 px wide, at 5, 10 and 15 m:
+  1.1, 2.3 and 3.4 mm), listed with their GSDs in ``benchmarks/real_ground/omu_quay.csv``
+  (``--real-list benchmarks/real_ground/omu_quay.csv --real-root REPO/BOX``): site h1 is
+  asphalt-like aggregate, k1 and o6 concrete.  Every tile was chosen for holding a crack.
 """
 from __future__ import annotations
 
@@ -35,15 +48,22 @@ PATCH = 256
 SCALES = (1, 5, 15)  # GSD multiples: the real frames' ~1 m, and 5 m and 15 m equivalents
 
 
+MARGIN = 2  # px inside a patch's border: the filters' reach (block 3 + aperture 3, 5 x 5 maxima)
+MIN_PATCH = 16
+FRAME_EXTS = (".png", ".jpg", ".jpeg")
+
+
 def ground_stats(gray: np.ndarray) -> dict:
-    """The three statistics of one patch (uint8 or float luma, 0-255)."""
+    """The three statistics of one patch (uint8 or float luma, 0-255), over its pixels at least
+    ``MARGIN`` px inside its border (where every filter sees only the patch)."""
     g = gray.astype(np.float32)
-    lap = float(cv2.Laplacian(g, cv2.CV_32F).var())
+    m = np.s_[MARGIN:-MARGIN, MARGIN:-MARGIN]
+    lap = float(cv2.Laplacian(g, cv2.CV_32F)[m].var())
     gx, gy = cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1)
-    grad = float(np.sqrt(gx * gx + gy * gy).mean())
+    grad = float(np.sqrt(gx * gx + gy * gy)[m].mean())
     e = cv2.cornerMinEigenVal(g / 255.0, 3, 3)
-    peaks = (e >= cv2.dilate(e, np.ones((5, 5), np.uint8))) & (e > 0.01)
-    return {"laplacian_var": lap, "gradient_mean": grad, "corners": float(peaks.sum()) * (PATCH * PATCH) / g.size}
+    peaks = ((e >= cv2.dilate(e, np.ones((5, 5), np.uint8))) & (e > 0.01))[m]
+    return {"laplacian_var": lap, "gradient_mean": grad, "corners": float(peaks.sum()) * (PATCH * PATCH) / peaks.size}
 
 
 def _patches(gray: np.ndarray, valid: np.ndarray, size: int) -> list:
@@ -70,30 +90,115 @@ def ratio_text(value: float, real: float) -> str:
     return f"{value / real:.2f}x"
 
 
-def real_statistics(folder, mask_path=None, scales=SCALES) -> dict:
-    """Medians of the statistics over every ground patch of the real frames, per GSD multiple."""
-    paths = sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg"))
-    mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE) if mask_path else None
-    rows = {s: [] for s in scales}
-    for p in paths:
-        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
-        if img is None or (mask is not None and img.shape[:2] != mask.shape):
+def frames_in_folder(folder, gsd_mm: float, kind: str = "") -> list:
+    """``(path, gsd_mm, kind)`` of every image in ``folder``."""
+    return [(p, float(gsd_mm), kind) for p in sorted(Path(folder).iterdir()) if p.suffix.lower() in FRAME_EXTS]
+
+
+def frames_in_list(csv_path, root) -> list:
+    """``(path, gsd_mm, kind)`` rows of a CSV ``path,gsd_mm,kind`` (a header line; paths relative to
+    ``root``).  A missing frame or a bad GSD is an error that names the line."""
+    rows = []
+    lines = Path(csv_path).read_text().splitlines()
+    for i, line in enumerate(lines[1:], start=2):
+        if not line.strip() or line.startswith("#"):
             continue
-        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-        # paper: large bright regions (thin bright straws are ground and stay)
-        paper = cv2.morphologyEx((gray > 180).astype(np.uint8), cv2.MORPH_OPEN, np.ones((15, 15), np.uint8))
-        valid = 1 - cv2.dilate(paper, np.ones((15, 15), np.uint8))
-        if mask is not None:
-            valid &= (mask >= 128).astype(np.uint8)
-        for s in scales:
-            g, v = gray, valid
-            if s > 1:
-                size = (gray.shape[1] // s, gray.shape[0] // s)
-                g = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
-                v = cv2.resize(valid, size, interpolation=cv2.INTER_AREA)
-            size = min(PATCH, g.shape[0] // 2 if s > 1 else PATCH)
-            rows[s] += [ground_stats(q) for q in _patches(g, v > 0.999, size)]
-    return {s: _medians(r) for s, r in rows.items()}
+        parts = [c.strip() for c in line.split(",")]
+        if len(parts) != 3:
+            raise ValueError(f"{csv_path}:{i}: expected path,gsd_mm,kind, got {line!r}")
+        path = Path(root) / parts[0]
+        try:
+            gsd = float(parts[1])
+        except ValueError:
+            gsd = float("nan")
+        if not (math.isfinite(gsd) and gsd > 0):
+            raise ValueError(f"{csv_path}:{i}: gsd_mm must be a positive number, got {parts[1]!r}")
+        if not path.is_file():
+            raise ValueError(f"{csv_path}:{i}: no frame at {path} (is --real-root the folder the list is relative to?)")
+        rows.append((path, gsd, parts[2]))
+    if not rows:
+        raise ValueError(f"{csv_path}: lists no frames")
+    return rows
+
+
+def _ground_gray(path, mask) -> tuple:
+    """Luma and ground-validity of one real frame (``None`` if it cannot be read or does not fit the mask)."""
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None or (mask is not None and img.shape[:2] != mask.shape):
+        return None
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    # paper: large bright regions (thin bright straws are ground and stay)
+    paper = cv2.morphologyEx((gray > 180).astype(np.uint8), cv2.MORPH_OPEN, np.ones((15, 15), np.uint8))
+    valid = 1 - cv2.dilate(paper, np.ones((15, 15), np.uint8))
+    if mask is not None:
+        valid &= (mask >= 128).astype(np.uint8)
+    return gray, valid
+
+
+def _at_gsd(gray, valid, gsd_mm: float, target_mm: float, psf_px: float):
+    """A frame as a camera of ``target_mm`` would see it (``None`` where that needs finer pixels than
+    the frame has): box-downsampled, then blurred by ``psf_px`` in the new pixels."""
+    f = target_mm / gsd_mm
+    if f < 1 / 1.1:
+        return None
+    if f < 1.1:
+        return gray.astype(np.float32), valid
+    size = (int(round(gray.shape[1] / f)), int(round(gray.shape[0] / f)))
+    if min(size) < MIN_PATCH:
+        return None
+    g = cv2.resize(gray.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    if psf_px > 0:
+        g = cv2.GaussianBlur(g, (0, 0), psf_px)
+    return g, cv2.resize(valid, size, interpolation=cv2.INTER_AREA) > 0.999
+
+
+def real_statistics(frames: list, targets_mm, mask_path=None, psf_px: float = 0.0) -> dict:
+    """Medians of the statistics over every ground patch of the real ``frames`` (``(path, gsd_mm,
+    kind)``), per target GSD (mm): ``{target: medians}``."""
+    mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE) if mask_path else None
+    rows = {t: [] for t in targets_mm}
+    for path, gsd, _ in frames:
+        gv = _ground_gray(path, mask)
+        if gv is None:
+            continue
+        for t in targets_mm:
+            at = _at_gsd(*gv, gsd, t, psf_px)
+            if at is None:
+                continue
+            g, v = at
+            rows[t] += [ground_stats(q) for q in _patches(g, v > 0, min(PATCH, *g.shape))]
+    return {t: _medians(r) for t, r in rows.items()}
+
+
+def fit_camera_psf(frames: list, sigmas=np.arange(0.0, 1.51, 0.05)) -> list:
+    """The real camera's own blur, from frames of one kind at two or more GSDs: for each pair of
+    GSDs at least 1.3x apart, the sigma (px) with which the finer frames, box-downsampled to the
+    coarser GSD and blurred, show the coarser frames' median Laplacian variance.  ``[(kind,
+    fine_mm, coarse_mm, sigma)]``."""
+    out = []
+    by = {}
+    for p, g, k in frames:
+        by.setdefault(k, {}).setdefault(round(g, 3), []).append((p, g, k))
+    for kind, groups in sorted(by.items()):
+        gsds = sorted(groups)
+        for i, fine in enumerate(gsds):
+            for coarse in gsds[i + 1:]:
+                if coarse / fine < 1.3:
+                    continue
+                want = real_statistics(groups[coarse], [coarse])[coarse].get("laplacian_var")
+                if not want:
+                    continue
+                got = [real_statistics(groups[fine], [coarse], psf_px=s)[coarse].get("laplacian_var", np.nan)
+                       for s in sigmas]
+                got = np.asarray(got, float)  # falls as sigma grows: the first sigma at or below the target
+                k = int(np.argmax(got <= want)) if (got <= want).any() else len(sigmas) - 1
+                if k > 0 and got[k - 1] > want:  # between the two sigmas, in log Laplacian variance
+                    a, b = math.log(got[k - 1]), math.log(got[k])
+                    s = sigmas[k - 1] + (sigmas[k] - sigmas[k - 1]) * (a - math.log(want)) / (a - b)
+                else:
+                    s = float(sigmas[k])
+                out.append((kind, fine, coarse, float(s)))
+    return out
 
 
 def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 4, seed: int = 0) -> dict:
@@ -133,30 +238,60 @@ def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 4,
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.realism", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--real", required=True, help="folder of real downward frames of ground")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--real", help="folder of real downward frames of ground, all at --real-gsd-mm")
+    src.add_argument("--real-list", help="CSV path,gsd_mm,kind of real frames (each compared with renders of its kind)")
+    p.add_argument("--real-root", default=".", help="the folder --real-list's paths are relative to")
     p.add_argument("--real-mask", help="mask image: pixels < 128 are not ground (the airframe)")
-    p.add_argument("--real-gsd-mm", type=float, default=3.5, help="ground sampling distance of the real frames")
-    p.add_argument("--kinds", nargs="+", default=["grass", "dry_grass", "asphalt", "gravel"])
+    p.add_argument("--real-gsd-mm", type=float, default=3.5, help="ground sampling distance of the --real frames")
+    p.add_argument("--real-psf-px", default="0", help="the real camera's own blur (Gaussian sigma, px) kept when its "
+                   "frames are downsampled, or 'fit' (measured from frames of one kind at several GSDs)")
+    p.add_argument("--base-gsd-mm", type=float, default=3.5, help="the finest GSD compared; also 5x and 15x it")
+    p.add_argument("--kinds", nargs="+", default=None, help="rendered ground kinds (default: the list's kinds, "
+                   "or grass dry_grass asphalt gravel)")
     p.add_argument("--specs", nargs="+", default=["field1080", "sim800"])
     p.add_argument("--out", default="out/realism.json")
     a = p.parse_args(argv)
-    real = real_statistics(a.real, a.real_mask)
-    res = {"real": {str(k): v for k, v in real.items()}, "real_gsd_mm": a.real_gsd_mm, "rendered": {}}
+    try:
+        frames = frames_in_list(a.real_list, a.real_root) if a.real_list else frames_in_folder(a.real, a.real_gsd_mm)
+    except (OSError, ValueError) as e:
+        p.error(str(e))
+    targets = [a.base_gsd_mm * s for s in SCALES]
+    res = {"targets_mm": targets, "real": {}, "rendered": {}}
+    if a.real_psf_px == "fit":
+        fits = fit_camera_psf(frames)
+        if not fits:
+            p.error("--real-psf-px fit needs frames of one kind at two GSDs at least 1.3x apart")
+        for kind, fine, coarse, sig in fits:
+            print(f"camera blur ({kind or 'all'}): {fine:.2f} mm frames downsampled to {coarse:.2f} mm show the "
+                  f"{coarse:.2f} mm frames' Laplacian variance with sigma {sig:.2f} px")
+        psf = float(np.median([f[3] for f in fits]))
+        res["psf_fits"] = fits
+    else:
+        psf = float(a.real_psf_px)
+    res["real_psf_px"] = psf
+    real_kinds = sorted({k for _, _, k in frames})
+    kinds = a.kinds or ([k for k in real_kinds if k] or ["grass", "dry_grass", "asphalt", "gravel"])
     keys = ("laplacian_var", "gradient_mean", "corners")
-    print(f"real frames ({a.real}): " + "; ".join(
-        f"x{s}: " + ", ".join(f"{k} {real[s].get(k, float('nan')):.1f}" for k in keys) + f" ({real[s]['patches']} patches)"
-        for s in SCALES))
+    real = {}
+    for rk in real_kinds:
+        real[rk] = real_statistics([f for f in frames if f[2] == rk], targets, a.real_mask, psf)
+        res["real"][rk or "all"] = {f"{t:g}": v for t, v in real[rk].items()}
+        print(f"real frames, {rk or 'all'} (camera blur {psf:.2f} px): " + "; ".join(
+            f"{t:g} mm: " + ", ".join(f"{k} {real[rk][t].get(k, float('nan')):.1f}" for k in keys)
+            + f" ({real[rk][t]['patches']} patches)" for t in targets))
     print("| camera | ground | GSD (mm) | " + " | ".join(f"{k} (ratio to real)" for k in keys) + " |")
     print("|---|---|---|" + "---|" * len(keys))
     for spec in a.specs:
-        for kind in a.kinds:
-            for s in SCALES:
-                gsd = a.real_gsd_mm * s / 1000.0
-                r = rendered_statistics(spec, kind, gsd)
-                res["rendered"][f"{spec}/{kind}/x{s}"] = r
-                cells = [f"{r.get(k, float('nan')):.1f} ({ratio_text(r.get(k, float('nan')), real[s].get(k, float('nan')))})"
+        for kind in kinds:
+            ref = real.get(kind, real.get(""))
+            for t in targets:
+                r = rendered_statistics(spec, kind, t / 1000.0)
+                res["rendered"][f"{spec}/{kind}/{t:g}"] = r
+                rt = ref[t] if ref is not None else {}
+                cells = [f"{r.get(k, float('nan')):.1f} ({ratio_text(r.get(k, float('nan')), rt.get(k, float('nan')))})"
                          for k in keys]
-                print(f"| {spec} | {kind} | {1000 * gsd:.1f} | " + " | ".join(cells) + " |", flush=True)
+                print(f"| {spec} | {kind} | {t:.1f} | " + " | ".join(cells) + " |", flush=True)
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1) + "\n")

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -500,3 +501,52 @@ def test_realism_ratios_never_divide_by_a_missing_real_median():
     assert ratio_text(415.4, 846.7) == "0.49x"
     assert ratio_text(1.0, 0.0) == "no real reference"
     assert ratio_text(3.0, float("nan")) == "no real reference"
+
+
+def _texture(rng, size: int, blob_px: float) -> np.ndarray:
+    """Stationary random ground at one scale: white noise blurred by ``blob_px``, 0-255."""
+    t = cv2.GaussianBlur(rng.standard_normal((size, size)).astype(np.float32), (0, 0), blob_px)
+    return np.clip(128 + 40 * t / t.std(), 0, 255).astype(np.uint8)
+
+
+def test_realism_measures_the_real_cameras_blur_from_two_heights(tmp_path):
+    """The real reference at a coarser GSD is the frames box-downsampled and blurred by the camera's
+    own blur: a box average alone drops it (Laplacian variance 5x too high on the quay frames).
+    Frames of one ground at 1 mm, and other frames of it as a camera 3x higher with a 0.6 px blur
+    sees it: the fit finds that blur, and the reference made with it matches the higher frames."""
+    from benchmarks.realism import fit_camera_psf, frames_in_list, real_statistics
+
+    rng = np.random.default_rng(5)
+    lines = ["path,gsd_mm,kind"]
+    for i in range(6):
+        fine = _texture(rng, 768, 2.0)
+        cv2.imwrite(str(tmp_path / f"low_{i}.png"), fine)
+        lines.append(f"low_{i}.png,1.0,quay")
+        high = cv2.resize(_texture(rng, 768, 2.0).astype(np.float32), (256, 256), interpolation=cv2.INTER_AREA)
+        cv2.imwrite(str(tmp_path / f"high_{i}.png"), np.clip(cv2.GaussianBlur(high, (0, 0), 0.6) + 0.5, 0, 255).astype(np.uint8))
+        lines.append(f"high_{i}.png,3.0,quay")
+    (tmp_path / "list.csv").write_text("\n".join(lines) + "\n")
+    frames = frames_in_list(tmp_path / "list.csv", tmp_path)
+    [(kind, lo, hi, sigma)] = fit_camera_psf(frames)
+    assert (kind, lo, hi) == ("quay", 1.0, 3.0) and abs(sigma - 0.6) < 0.1, sigma
+    ref = real_statistics([f for f in frames if f[1] == 1.0], [3.0], psf_px=sigma)[3.0]
+    box = real_statistics([f for f in frames if f[1] == 1.0], [3.0])[3.0]
+    high = real_statistics([f for f in frames if f[1] == 3.0], [3.0])[3.0]
+    assert abs(math.log(ref["laplacian_var"] / high["laplacian_var"])) < math.log(1.15)
+    assert box["laplacian_var"] > 1.5 * high["laplacian_var"]
+    # a frame is never upsampled: the 3 mm frames say nothing at 1 mm
+    assert real_statistics([f for f in frames if f[1] == 3.0], [1.0])[1.0] == {"patches": 0}
+
+
+def test_realism_frame_list_errors_name_the_line(tmp_path):
+    from benchmarks.realism import frames_in_list
+
+    cv2.imwrite(str(tmp_path / "a.png"), np.zeros((32, 32), np.uint8))
+    (tmp_path / "l.csv").write_text("path,gsd_mm,kind\n# a comment\na.png,2.0,asphalt\na.png,-1,asphalt\n")
+    with pytest.raises(ValueError, match=r"l.csv:4: gsd_mm must be a positive number, got '-1'"):
+        frames_in_list(tmp_path / "l.csv", tmp_path)
+    (tmp_path / "l.csv").write_text("path,gsd_mm,kind\nb.png,2.0,asphalt\n")
+    with pytest.raises(ValueError, match=r"l.csv:2: no frame at .*b.png"):
+        frames_in_list(tmp_path / "l.csv", tmp_path)
+    (tmp_path / "l.csv").write_text("path,gsd_mm,kind\na.png,2.0,asphalt\n")
+    assert frames_in_list(tmp_path / "l.csv", tmp_path) == [(tmp_path / "a.png", 2.0, "asphalt")]
