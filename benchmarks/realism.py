@@ -19,8 +19,8 @@ relative to ``--real-root``).  Patches holding bright paper, or pixels outside `
 (``--real-psf-px``, a Gaussian sigma), since a camera higher up keeps its blur while a box
 average would drop it.  ``--real-psf-px fit`` measures that blur where the list holds frames of
 one kind at two or more GSDs: the sigma with which the finer frames, so downsampled, show the
-coarser frames' Laplacian variance.  Patches are 256 px, or a whole frame where it is smaller
-(16 px at least); every statistic is taken 2 px inside the patch's border.  Rendered frames: a
+coarser frames' Laplacian variance.  Patches are 256 px, or half a frame's shorter side where
+the frame is smaller (16 px at least); every statistic is taken 2 px inside the patch's border.  Rendered frames: a
 camera of a shipped spec looking straight down from the height that gives each GSD, far from
 the pad, with the spec's own image formation.
 
@@ -152,6 +152,13 @@ def _at_gsd(gray, valid, gsd_mm: float, target_mm: float, psf_px: float):
     return g, cv2.resize(valid, size, interpolation=cv2.INTER_AREA) > 0.999
 
 
+def _patch_size(shape) -> int:
+    """256 px, or in a frame smaller than that half its shorter side (16 px at least, the whole
+    frame at most): several patches per frame, so that a masked corner costs only its own."""
+    short = min(shape)
+    return PATCH if short >= PATCH else min(short, max(MIN_PATCH, short // 2))
+
+
 def real_statistics(frames: list, targets_mm, mask_path=None, psf_px: float = 0.0) -> dict:
     """Medians of the statistics over every ground patch of the real ``frames`` (``(path, gsd_mm,
     kind)``), per target GSD (mm): ``{target: medians}``."""
@@ -166,7 +173,7 @@ def real_statistics(frames: list, targets_mm, mask_path=None, psf_px: float = 0.
             if at is None:
                 continue
             g, v = at
-            rows[t] += [ground_stats(q) for q in _patches(g, v > 0, min(PATCH, *g.shape))]
+            rows[t] += [ground_stats(q) for q in _patches(g, v > 0, _patch_size(g.shape))]
     return {t: _medians(r) for t, r in rows.items()}
 
 
