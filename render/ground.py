@@ -27,12 +27,18 @@ import numpy as np
 TILE_PX = 512
 # octave scales (metres per tile), and the log-albedo amplitude of each octave, per ground kind
 OCTAVES_M = (4.0, 2.0, 1.0, 0.5, 0.25)
-AMPLITUDE = {"grass": 0.34, "dry_grass": 0.34, "gravel": 0.30, "soil": 0.22, "asphalt": 0.20, "sand": 0.14,
-             "concrete": 0.12, "snow": 0.06}
+AMPLITUDE = {"grass": 0.34, "dry_grass": 0.34, "gravel": 0.30, "soil": 0.22, "asphalt": 0.95, "sand": 0.14,
+             "concrete": 0.65, "snow": 0.06}
 # the coarse octaves (32, 16, 8 m, in the rasterised texture) relative to the fine ones: real ground
 # has more structure at the scale of blades and stones than at the scale of tufts and patches
-COARSE = {"grass": 0.4, "dry_grass": 0.4, "gravel": 0.6, "soil": 0.8, "asphalt": 0.7, "sand": 0.8, "concrete": 0.6,
+COARSE = {"grass": 0.4, "dry_grass": 0.4, "gravel": 0.6, "soil": 0.8, "asphalt": 0.1, "sand": 0.8, "concrete": 0.15,
           "snow": 1.0}
+# per-octave weights (OCTAVES_M order) for kinds whose detail has a physical size, not the same at
+# every scale; the rest weigh every octave alike.  Asphalt's stones are 3-18 mm across and
+# concrete's grains 1.5-8 mm (the finest octave's tile; the coarser octaves' copies of it stand
+# for stains and wear): matched to real nadir frames of quay pavement at 3.5, 17.5 and 52.5 mm
+# per pixel (benchmarks/realism.py, benchmarks/real_ground/omu_quay.csv)
+OCTAVE_WEIGHT = {"asphalt": (0.16, 0.15, 0.25, 0.6, 1.0), "concrete": (0.12, 0.12, 0.2, 0.6, 1.0)}
 GROUND_Z_TOL_M = 0.005
 
 
@@ -45,6 +51,32 @@ def _wrap_lines(canvas, pts_a, pts_b, values, widths):
                 p = (int(round((a[0] + dx) * 16)), int(round((a[1] + dy) * 16)))
                 q = (int(round((b[0] + dx) * 16)), int(round((b[1] + dy) * 16)))
                 cv2.line(canvas, p, q, float(v), int(max(1, round(w))), cv2.LINE_AA, shift=4)
+
+
+def _wrap_ellipse(canvas, centre, axes, angle_deg: float, value: float) -> None:
+    """An anti-aliased filled ellipse on a tileable canvas (drawn at the wrapped copies it reaches)."""
+    n = canvas.shape[0]
+    reach = axes[0] + 2
+    for dx in (-n, 0, n):
+        for dy in (-n, 0, n):
+            x, y = centre[0] + dx, centre[1] + dy
+            if -reach < x < n + reach and -reach < y < n + reach:
+                cv2.ellipse(canvas, (int(round(x * 16)), int(round(y * 16))),
+                            (int(round(axes[0] * 16)), int(round(axes[1] * 16))), angle_deg, 0, 360, float(value),
+                            -1, cv2.LINE_AA, shift=4)
+
+
+def _aggregate(n: int, rng, binder: float, binder_grain: float, count: int, radius: tuple, value: tuple,
+               grain: float, fbm: float) -> np.ndarray:
+    """Stones in a binder, tileable: ``count`` ellipses (radius log-normal about ``radius[0]`` with a
+    0.5 log-sd, clipped to ``radius[1:]`` texels; aspect 0.55-1; value normal ``value``) laid
+    largest first on ``binder`` with its own grain, then a fine grain and a fractal mottle over all."""
+    t = binder + binder_grain * _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.7)
+    radii = np.sort(np.clip(np.exp(rng.normal(math.log(radius[0]), 0.5, count)), radius[1], radius[2]))[::-1]
+    for r in radii:
+        _wrap_ellipse(t, rng.uniform(0, n, 2), (r, r * rng.uniform(0.55, 1.0)), rng.uniform(0, 180),
+                      rng.normal(*value))
+    return t + grain * _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.6) + fbm * _fbm(n, rng, 1.0)
 
 
 def _blur_wrapped(t: np.ndarray, sigma: float) -> np.ndarray:
@@ -109,11 +141,11 @@ def detail_tile(kind: str, seed: int) -> np.ndarray:
         for x, y in pits:
             cv2.circle(t, (int(x), int(y)), int(rng.integers(1, 4)), -2.0, -1, cv2.LINE_AA)
     elif kind == "asphalt":
-        t = 0.5 * _fbm(n, rng, 0.6)
-        for _ in range(6000):  # aggregate: bright and dark grains
-            x, y = rng.uniform(0, n, 2)
-            cv2.circle(t, (int(x), int(y)), int(rng.integers(1, 3)), float(rng.choice([-1.5, 1.8])), -1, cv2.LINE_AA)
-        for _ in range(3):  # cracks: random walks
+        # aggregate: dark binder packed with stones of 3-18 texels' radius (1.5-9 mm at the finest
+        # octave), light and dark; cracks as random walks
+        t = _aggregate(n, rng, binder=-1.0, binder_grain=0.3, count=2400, radius=(6.0, 3.0, 18.0),
+                       value=(0.3, 0.8), grain=0.5, fbm=0.1)
+        for _ in range(2):
             p = rng.uniform(0, n, 2)
             a = rng.uniform(0, 2 * math.pi)
             pts = [p.copy()]
@@ -121,16 +153,16 @@ def detail_tile(kind: str, seed: int) -> np.ndarray:
                 a += rng.normal(0, 0.35)
                 p = p + 6 * np.array([math.cos(a), math.sin(a)])
                 pts.append(p.copy())
-            _wrap_lines(t, pts[:-1], pts[1:], [-3.0] * (len(pts) - 1), [1.5] * (len(pts) - 1))
+            _wrap_lines(t, pts[:-1], pts[1:], [-3.0] * (len(pts) - 1), [2.0] * (len(pts) - 1))
     elif kind == "sand":
         grain = _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.8)
         y = np.arange(n, dtype=np.float32)[:, None]
         t = grain + 0.8 * np.sin(2 * np.pi * (y * 6 / n + 0.4 * _fbm(n, rng, 2.5))).astype(np.float32)
     elif kind == "concrete":
-        t = 0.6 * _fbm(n, rng, 0.9) + 0.4 * _blur_wrapped(rng.standard_normal((n, n)).astype(np.float32), 0.7)
-        for _ in range(1500):  # pores
-            x, y = rng.uniform(0, n, 2)
-            cv2.circle(t, (int(x), int(y)), 1, -2.5, -1, cv2.LINE_AA)
+        # cement paste with sand and fine aggregate showing, and pores: grains of 1.5-8 texels' radius
+        # (0.7-4 mm at the finest octave), mostly darker than the paste
+        t = _aggregate(n, rng, binder=0.0, binder_grain=0.4, count=8000, radius=(3.0, 1.5, 8.0),
+                       value=(-0.5, 1.0), grain=0.7, fbm=0.2)
     elif kind == "snow":
         t = _fbm(n, rng, 1.2)
         sparkle = rng.random((n, n)) > 0.997
@@ -156,17 +188,18 @@ class GroundDetail:
         # turned by right angles, mirrored and shifted (so the sum stays tileable), and the group
         # turned by a free angle when it is read
         self.octaves = []
-        for group in (OCTAVES_M[:3], OCTAVES_M[3:]):
+        weights = OCTAVE_WEIGHT.get(kind, (1.0,) * len(OCTAVES_M))
+        for g0, group in ((0, OCTAVES_M[:3]), (3, OCTAVES_M[3:])):
             period, fine = group[0], group[-1]
             n = int(round(TILE_PX * period / fine))
             acc = np.zeros((n, n), np.float32)
-            for lam in group:
+            for j, lam in enumerate(group):
                 t = np.rot90(tile, int(rng.integers(4)))
                 t = t[:, ::-1] if rng.random() < 0.5 else t
                 t = np.roll(t, tuple(int(v) for v in rng.integers(0, TILE_PX, 2)), axis=(0, 1))
                 px = int(round(TILE_PX * lam / fine))  # this octave's tile, in the group's texels
                 up = cv2.resize(np.ascontiguousarray(t), (px, px), interpolation=cv2.INTER_CUBIC) if px != TILE_PX else t
-                acc += AMPLITUDE[kind] * np.tile(up, (n // px, n // px))
+                acc += (AMPLITUDE[kind] * weights[g0 + j]) * np.tile(up, (n // px, n // px))
             mip = [acc]
             while mip[-1].shape[0] > 4:  # box-filtered halvings: the group's prefiltered levels
                 mip.append(cv2.resize(mip[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))

@@ -74,10 +74,29 @@ class SequencePlan:
             self.frame_index = np.arange(len(self.frame_times))
 
 
+def _scene_draw(spec: DatasetSpec, rng: np.random.Generator):
+    """The sequence's scene (ground, sun, distractors), drawn from its generator after the trajectory's seed."""
+    from .scene import draw_scene
+
+    view_radius = spec.trajectory.start_height_m * math.tan(math.radians(spec.camera.hfov_deg) / 2) * 1.5 + \
+        spec.trajectory.lateral_offset_m[1]
+    return draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius)
+
+
+def drawn_ground_kinds(spec: DatasetSpec) -> set:
+    """The ground kinds the spec's sequences draw (as plan_sequence draws them, without the rest)."""
+    kinds = set()
+    for i in range(spec.sequences):
+        rng = np.random.default_rng(sequence_seed(spec.seed, i))
+        rng.integers(2**63)  # the trajectory's seed, drawn first
+        kinds.add(_scene_draw(spec, rng).ground)
+    return kinds
+
+
 def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     from .imaging import ImagingParams
     from .imu import synthesize_imu
-    from .scene import PAD_THICKNESS_M, draw_scene
+    from .scene import PAD_THICKNESS_M
     from .trajectory import make_trajectory
 
     seed = sequence_seed(spec.seed, index)
@@ -90,9 +109,7 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     traj = make_trajectory(spec.trajectory, np.random.default_rng(rng.integers(2**63)), family, body_above_cam,
                            pad_surface, spec.platform.velocity_mps, optical_axis_B=T_B_C[:3, 2])
     cam = spec.camera
-    view_radius = spec.trajectory.start_height_m * math.tan(math.radians(cam.hfov_deg) / 2) * 1.5 + \
-        spec.trajectory.lateral_offset_m[1]
-    draw = draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius)
+    draw = _scene_draw(spec, rng)
     d = spec.degradations
     r2 = np.random.default_rng(rng.integers(2**63))
     u = lambda r: float(r2.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731

@@ -33,11 +33,21 @@ from pad_design.spec import PadSpec
 #      side; and such a pad's light factor is multiplied into the ground detail's before the image
 #      is (one pass less; the pixels both touch, at the pad's edge, may round differently).  Only
 #      specs with such a pad move.
-RENDER_REVISION = 5
+#   6: asphalt and concrete are pavement as real nadir frames show it at 3.5-52.5 mm per pixel
+#      (stones of 3-18 mm in a lighter grey asphalt, grains and pores of 1.5-8 mm in concrete;
+#      benchmarks/realism.py), not a scale-free mottle.  Only specs one of whose sequences draws
+#      asphalt or concrete move.
+RENDER_REVISION = 6
+HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
+    if HARD_SURFACES & set(spec.environment.ground):
+        from .plan import drawn_ground_kinds
+
+        if HARD_SURFACES & drawn_ground_kinds(spec):
+            return 6
     m = spec.pad_material
     return 5 if m.relief_m[1] > 0 or m.gloss[1] > 0 else 2
 

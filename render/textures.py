@@ -24,7 +24,7 @@ def fbm(size: int, rng: np.random.Generator, beta: float = 1.8, lo_cut: float = 
 # mean colour (sRGB) and colour variation of each ground kind
 GROUND_COLOURS = {"grass": ((70, 104, 44), (26, 30, 14)), "dry_grass": ((150, 132, 86), (30, 26, 18)),
                   "gravel": ((128, 122, 112), (18, 18, 18)), "soil": ((112, 84, 60), (26, 20, 14)),
-                  "asphalt": ((74, 74, 77), (10, 10, 10)), "sand": ((196, 172, 132), (16, 14, 10)),
+                  "asphalt": ((118, 118, 122), (10, 10, 10)), "sand": ((196, 172, 132), (16, 14, 10)),
                   "concrete": ((162, 160, 152), (12, 12, 11)), "snow": ((228, 232, 240), (8, 8, 6))}
 
 
