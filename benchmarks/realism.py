@@ -100,6 +100,8 @@ def frames_in_list(csv_path, root) -> list:
     ``root``).  A missing frame or a bad GSD is an error that names the line."""
     rows = []
     lines = Path(csv_path).read_text().splitlines()
+    if not lines or [c.strip() for c in lines[0].split(",")] != ["path", "gsd_mm", "kind"]:
+        raise ValueError(f"{csv_path}:1: the first line must be the header path,gsd_mm,kind")
     for i, line in enumerate(lines[1:], start=2):
         if not line.strip() or line.startswith("#"):
             continue
@@ -263,6 +265,8 @@ def main(argv=None) -> int:
         frames = frames_in_list(a.real_list, a.real_root) if a.real_list else frames_in_folder(a.real, a.real_gsd_mm)
     except (OSError, ValueError) as e:
         p.error(str(e))
+    if not frames:
+        p.error(f"{a.real}: no .png or .jpg frames in it")
     targets = [a.base_gsd_mm * s for s in SCALES]
     res = {"targets_mm": targets, "real": {}, "rendered": {}}
     if a.real_psf_px == "fit":
@@ -275,7 +279,12 @@ def main(argv=None) -> int:
         psf = float(np.median([f[3] for f in fits]))
         res["psf_fits"] = fits
     else:
-        psf = float(a.real_psf_px)
+        try:
+            psf = float(a.real_psf_px)
+        except ValueError:
+            psf = float("nan")
+        if not (math.isfinite(psf) and psf >= 0):
+            p.error(f"--real-psf-px: a blur in px (0 or more) or 'fit', got {a.real_psf_px!r}")
     res["real_psf_px"] = psf
     real_kinds = sorted({k for _, _, k in frames})
     kinds = a.kinds or ([k for k in real_kinds if k] or ["grass", "dry_grass", "asphalt", "gravel"])

@@ -550,3 +550,6 @@ def test_realism_frame_list_errors_name_the_line(tmp_path):
         frames_in_list(tmp_path / "l.csv", tmp_path)
     (tmp_path / "l.csv").write_text("path,gsd_mm,kind\na.png,2.0,asphalt\n")
     assert frames_in_list(tmp_path / "l.csv", tmp_path) == [(tmp_path / "a.png", 2.0, "asphalt")]
+    (tmp_path / "l.csv").write_text("a.png,2.0,asphalt\n")  # no header: its first frame was taken for one
+    with pytest.raises(ValueError, match=r"l.csv:1: the first line must be the header path,gsd_mm,kind"):
+        frames_in_list(tmp_path / "l.csv", tmp_path)
