@@ -82,6 +82,7 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
 def _from_labelled_corners(seq, T, up_C, method: str):
     """The pose hvloc's solver makes, with ``up_C`` as its gravity prior, of the corners a pose of
     ``method`` is made from, where the true pose ``T`` puts them (None where too few are in view)."""
+    from hvloc.features import _inside
     from hvloc.localizer import MARKER_MIN_SIGMA_PX, MARKER_SIGMA_PER_RMS
     from hvloc.pose import solve_planar_pose
 
@@ -90,7 +91,7 @@ def _from_labelled_corners(seq, T, up_C, method: str):
         return solve_planar_pose(cam, geo.outer_corners, cam.project_from(T, geo.outer_corners), up_C=up_C)
     P = np.concatenate([m.points for m in geo.markers])
     px = cam.project_from(T, P)
-    seen = (px[:, 0] >= 0) & (px[:, 1] >= 0) & (px[:, 0] <= cam.width - 1) & (px[:, 1] <= cam.height - 1)
+    seen = _inside(px, (cam.height, cam.width))
     if seen.sum() < 8:
         return None
     whole = all(seen[j * len(m.points):(j + 1) * len(m.points)].all() for j, m in enumerate(geo.markers))

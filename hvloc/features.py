@@ -427,8 +427,8 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
               reach_px: float = 12.0, trim: float = 0.3, step: float = 0.5, widen: int = 0) -> np.ndarray:
     """(4,) the width (px) of the box blur that the steepest rising edge within ``reach_px`` of
     ``at_px[i]`` (px along side i's inward normal from ``quad_px``) shows across that side, NaN
-    where none is found, inf where it runs on past the widest window read (below): sqrt(12) times the spread of the profile's derivative, the blur kernel
-    seen edge-on.  ``gray`` should be linear in light.  Motion blur smears luma as much as colour;
+    where none is found, inf where it runs on past the widest window read (below): sqrt(12) times
+    the spread of the profile's derivative, the blur kernel seen edge-on.  ``gray`` should be linear in light.  Motion blur smears luma as much as colour;
     JPEG's half-resolution chroma leaves luma sharp, so a luma edge tells the two apart.
 
     A rise that runs on past either end of the window (a smear wider than it: 30 px across a 20
