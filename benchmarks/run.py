@@ -114,7 +114,8 @@ def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False,
     from hvloc.localizer import GatedLocalizer
 
     if kind == "hierarchical":
-        loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C, work=work)
+        loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C, work=work, line_s=seq.line_s,
+                                    ref_row=seq.ref_row)
     else:
         loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
     if gates and kind != "hierarchical":

@@ -1576,25 +1576,33 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
 
 def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchored: bool,
                   max_corners: int = 150, mask: np.ndarray | None = None, cov: np.ndarray | None = None,
-                  corners_px: np.ndarray | None = None) -> Keyframe | None:
+                  corners_px: np.ndarray | None = None, unroll=None) -> Keyframe | None:
     """Harris corners of a frame (``corners_px`` when already found), placed on the pad plane with
-    the frame's pose."""
+    the frame's pose; ``unroll(px, cam2pad, pts_P)``: their pixels as the rolling shutter's
+    reference row would have seen them (:mod:`hvloc.shutter`), where the frame's rows differ in time."""
     px = harris_corners(gray, max_corners, mask) if corners_px is None else corners_px
     if px is None or len(px) < 8:
         return None
-    rays = np.column_stack([camera.normalized_from_pixels(px), np.ones(len(px))])  # camera frame
-    R, t = cam2pad[:3, :3], cam2pad[:3, 3]
-    d = rays @ R.T  # ray directions in P
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = -t[2] / d[:, 2]
-    ok = np.isfinite(s) & (s > 0)
-    P = t + s[:, None] * d
+    P, ok = _on_pad_plane(camera, cam2pad, px)
+    if unroll is not None:  # placed once as seen, to tell each point's depth; then as of the pose's time
+        P, ok = _on_pad_plane(camera, cam2pad, np.where(ok[:, None], unroll(px, cam2pad, P), px))
     half = 10.0  # keep points on the pad plane near the pad (the tracker assumes one plane)
     ok &= (np.abs(P[:, 0]) < half) & (np.abs(P[:, 1]) < half)
     if ok.sum() < 8:
         return None
     P[:, 2] = 0.0
     return Keyframe(gray.copy(), cam2pad.copy(), px[ok], P[ok], anchored, cov)
+
+
+def _on_pad_plane(camera: Camera, cam2pad: np.ndarray, px: np.ndarray) -> tuple:
+    """``(P (N, 3), ok (N,))``: where the pixels' rays meet the pad's plane, and which do in front."""
+    rays = np.column_stack([camera.normalized_from_pixels(px), np.ones(len(px))])  # camera frame
+    R, t = cam2pad[:3, :3], cam2pad[:3, 3]
+    d = rays @ R.T  # ray directions in P
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -t[2] / d[:, 2]
+    ok = np.isfinite(s) & (s > 0)
+    return t + np.where(ok, s, 0.0)[:, None] * d, ok
 
 
 LK_PARAMS = dict(winSize=(21, 21), maxLevel=3, criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01))
@@ -1682,6 +1690,7 @@ class FlowTracker:
         self.reanchor_scale = reanchor_scale
         self.min_tracks = min_tracks
         self.work = work if work is not None else ImageWork()
+        self.unroll = None  # (px, cam2pad, pts_P) -> px at the rolling shutter's reference row (make_keyframe)
         self.reset()
 
     def reset(self) -> None:
@@ -1701,7 +1710,8 @@ class FlowTracker:
         :class:`ImageWork` is at) and its pose."""
         tag = self.work.frame if tag is None else tag
         corners = self.work(lambda: ("harris", tag), harris_corners, gray)
-        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners)
+        kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners,
+                           unroll=self.unroll)
         if kf is None:
             return False
         kf.tag = tag
@@ -1722,10 +1732,15 @@ class FlowTracker:
         px = w(lambda: ("lk", kf.tag, array_key(kf.px), self.prev_tag, array_key(self.tracks), array_key(guess)),
                track_to_keyframe, kf, self.prev_gray, self.tracks, gray, 1.0, guess)
         self.pending = (gray, px, w.frame)
+        seen = px
+        if self.unroll is not None and prior_cam2pad is not None:  # as of the pose's row (the prior: the shift barely moves)
+            fin = np.isfinite(px).all(axis=1)
+            seen = px.copy()
+            seen[fin] = self.unroll(px[fin], prior_cam2pad, kf.pts_P[fin])
         # the prior only breaks IPPE's tie when there is no gravity (see solve_planar_pose)
-        res, inl, why = w(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(px), array_key(up_C),
+        res, inl, why = w(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(seen), array_key(up_C),
                                    array_key(prior_cam2pad) if up_C is None else None),
-                          pose_from_tracks, self.camera, kf, px, prior_cam2pad, up_C)
+                          pose_from_tracks, self.camera, kf, seen, prior_cam2pad, up_C)
         if res is not None and kf.cov is not None:
             # the pad points were placed with the keyframe's pose: its error is in every tracked pose
             # (to first order, the keyframe and this frame look the same way: turn < 8 deg)

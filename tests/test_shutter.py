@@ -1,0 +1,83 @@
+"""The localizer under a rolling shutter: each row seen at its own time (hvloc.shutter)."""
+import math
+
+import numpy as np
+import pytest
+
+from hvloc.config import LocalizerConfig
+from hvloc.geometry import Camera, invert, quat_xyzw_from_matrix, so3_exp, transform_points
+from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer
+from hvloc.shutter import RollingShutter, Twist
+from render.planar import nadir_cam2pad, warp_pad_view
+
+CAM = Camera.from_hfov(400, 400, math.radians(60))
+GROUND = (70, 110, 50)
+LINE_S = 30e-3 / CAM.height  # a 30 ms readout
+REF_ROW = (CAM.height - 1) / 2.0
+W_C = np.array([0.8, -1.2, 0.6])     # rad/s, camera frame: a drone rocking in a gust
+V_P = np.array([0.25, -0.15, -0.4])  # m/s, pad frame: drifting while it descends
+T0 = nadir_cam2pad(0.05, -0.03, 1.3, 0.4)
+
+
+def pose(t):
+    """The camera at time ``t``: turning at W_C, moving at V_P (the motion the correction models)."""
+    T = T0.copy()
+    T[:3, :3] = T0[:3, :3] @ so3_exp(W_C * t)
+    T[:3, 3] = T0[:3, 3] + V_P * t
+    return T
+
+
+def rolling_view(pad, t, rows=8):
+    """A frame stamped ``t`` whose row ``r`` is the view at ``t + (r - REF_ROW) * LINE_S`` (taken
+    ``rows`` rows at a time, each band at its middle row's time)."""
+    img = np.zeros((CAM.height, CAM.width, 3), np.uint8)
+    for r0 in range(0, CAM.height, rows):
+        mid = r0 + (rows - 1) / 2.0
+        img[r0:r0 + rows] = warp_pad_view(pad, CAM, pose(t + (mid - REF_ROW) * LINE_S), GROUND, supersample=1)[r0:r0 + rows]
+    return img
+
+
+def imu_row(t):
+    """An imu.csv row: the gyro's body rate and the attitude (the pad level, its yaw the world's)."""
+    R_W_B = pose(t)[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
+    return np.r_[t, DEFAULT_T_B_C[:3, :3] @ W_C, 0.0, 0.0, 9.81, quat_xyzw_from_matrix(R_W_B)]
+
+
+def test_unrolled_pixels_are_where_the_reference_row_saw_them():
+    P = np.array([[x, y, 0.0] for x in (-0.3, 0.0, 0.3) for y in (-0.3, 0.0, 0.3)])
+    seen_at_ref = CAM.project(transform_points(invert(pose(0.0)), P))
+    px = seen_at_ref.copy()
+    for _ in range(10):  # each point where it is at its own row's time (a fixed point: its row moves it)
+        dt = (px[:, 1] - REF_ROW) * LINE_S
+        px = np.array([CAM.project(transform_points(invert(pose(d)), p[None]))[0] for d, p in zip(dt, P)])
+    skew = np.linalg.norm(px - seen_at_ref, axis=1)
+    assert skew.max() > 3.0  # the shutter moves them several pixels
+    shutter = RollingShutter(LINE_S, REF_ROW)
+    back = shutter.unrolled(CAM, pose(0.0), P, px, Twist(V_P, W_C))
+    assert np.abs(back - seen_at_ref).max() < 0.05
+    # nothing known of the motion, or a global shutter: the pixels as seen
+    assert np.array_equal(shutter.unrolled(CAM, pose(0.0), P, px, None), px)
+    assert np.array_equal(RollingShutter(0.0, REF_ROW).unrolled(CAM, pose(0.0), P, px, Twist(V_P, W_C)), px)
+
+
+def test_localizer_told_the_line_time_poses_rolling_shutter_frames(pad):
+    frames = [(0.1 * k, rolling_view(pad, 0.1 * k)) for k in range(7)]
+    errs = {}
+    for line_s in (0.0, LINE_S):
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False), line_s=line_s)
+        errs[line_s] = []
+        for t, img in frames:
+            e = loc.process(img, t, imu_row(t))
+            assert e.status == "ok", f"line_s {line_s}, t {t}: {e.reason}"
+            errs[line_s].append(float(np.linalg.norm(e.cam2pad[:3, 3] - pose(t)[:3, 3])))
+    # from the third frame the velocity is known (two poses); the gyro gives the rate from the first
+    told, blind = np.array(errs[LINE_S][2:]), np.array(errs[0.0][2:])
+    assert told.mean() < 0.5 * blind.mean(), (told, blind)
+    assert told.max() < 0.012, told
+
+
+def test_a_line_time_no_camera_has_is_refused(pad):
+    with pytest.raises(ValueError, match="line_s"):
+        HierarchicalLocalizer(pad, CAM, line_s=0.01)
+    with pytest.raises(ValueError, match="line_s"):
+        HierarchicalLocalizer(pad, CAM, line_s=float("nan"))
