@@ -140,6 +140,12 @@ def import_main(argv: list) -> int:
     p.add_argument("--mount-rpy", type=float, nargs=3, metavar=("ROLL", "PITCH", "YAW"),
                    help="camera mount T_B_C as roll pitch yaw in degrees (default: hvloc's downward camera)")
     p.add_argument("--pad-spec", help="pad spec YAML of the pad that was flown (default: the paper pad)")
+    p.add_argument("--line-time-s", type=float, default=0.0,
+                   help="rolling shutter: the time between the exposures of consecutive rows, in seconds (a sensor "
+                   "read top to bottom in 20 ms over 1080 rows: 1.85e-5); 0, the default: a global shutter. "
+                   "The localizer corrects for it (README, Rolling shutter)")
+    p.add_argument("--ref-row", type=float,
+                   help="with --line-time-s: the row whose exposure time a frame's time is (default: the middle row)")
     p.add_argument("--name", default="imported", help="the dataset's name")
     p.add_argument("--out", required=True, help="new dataset folder")
     p.add_quiet()
@@ -152,7 +158,7 @@ def import_main(argv: list) -> int:
     res = import_recording(a.out, a.frames, a.calibration, calibration_name=a.camera_name, fps=a.fps,
                            timestamps=a.timestamps, groundtruth=a.groundtruth, gt_body=a.gt_body, gt_time_offset_s=a.gt_time_offset,
                            imu=a.imu, mount_rpy_deg=a.mount_rpy, pad_spec=a.pad_spec, name=a.name,
-                           show_progress=not a.quiet)
+                           line_s=a.line_time_s, ref_row=a.ref_row, show_progress=not a.quiet)
     print(f"{res['root']}: {res['frames']} frames, {res['with_ground_truth']} with ground truth, "
           f"{'with' if res['with_imu'] else 'no'} IMU")
     return 0

@@ -208,9 +208,12 @@ def frame_numbers_from_times(t: np.ndarray, fps: float, source) -> np.ndarray:
 
 def import_recording(out, frames, calibration, *, calibration_name: str | None = None, fps: float | None = None,
                      timestamps=None, groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
-                     mount_rpy_deg=None, pad_spec=None, name: str = "imported", show_progress: bool = False) -> dict:
+                     mount_rpy_deg=None, pad_spec=None, name: str = "imported", line_s: float = 0.0,
+                     ref_row: float | None = None, show_progress: bool = False) -> dict:
     """Write the recording as a one-sequence dataset in ``out`` (a new folder, written whole or not at
-    all).  Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
+    all).  ``line_s``, ``ref_row``: the camera's rolling shutter (``camera.json``): the time between
+    its rows' exposures, and the row a frame's time is (default: the middle one).
+    Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
     import yaml
 
     from pad_design.spec import PadSpec
@@ -237,6 +240,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         raise InputError("--fps: needed for an image folder (frame k is at k / fps)")
     if stamps is not None:
         index = stamped_index if stamped_index is not None else frame_numbers_from_times(stamps, fps, timestamps)
+    shutter = _rolling_shutter(line_s, ref_row, cal.camera.height, fps)
     mount = MountSpec() if mount_rpy_deg is None else validate_model(MountSpec, {"rpy_deg": list(mount_rpy_deg)},
                                                                        "--mount-rpy")
     pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
@@ -285,7 +289,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     try:
         return _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good,
                       q if good else None, imu_rows, fps, cal, calibration, groundtruth, gt_body,
-                      gt_time_offset_s, imu, pad_spec, show_progress, timestamps, zero, jitter)
+                      gt_time_offset_s, imu, pad_spec, show_progress, timestamps, zero, jitter, shutter)
     except BaseException:  # nothing half-written: the folder was new (or empty)
         import shutil
 
@@ -294,9 +298,25 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
         raise
 
 
+def _rolling_shutter(line_s, ref_row, height: int, fps: float) -> tuple:
+    """``(line_s, ref_row)`` checked: a time between rows that reads the frame within a frame
+    interval, a reference row inside the frame."""
+    line_s = float(line_s)
+    if not math.isfinite(line_s) or line_s < 0.0 or line_s * height > 1.0 / fps:
+        raise InputError(f"--line-time-s {line_s:g}: the time between rows must be at least 0 and read the "
+                         f"{height} rows within a frame interval (1/{fps:g} s)")
+    if ref_row is None:
+        return line_s, (height - 1) / 2.0
+    if line_s == 0.0:
+        raise InputError("--ref-row: goes with --line-time-s (a global shutter exposes every row at once)")
+    if not (math.isfinite(float(ref_row)) and 0.0 <= float(ref_row) <= height - 1):
+        raise InputError(f"--ref-row {ref_row:g}: must be a row of the image (0 to {height - 1})")
+    return line_s, float(ref_row)
+
+
 def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good, q, imu_rows, fps, cal,
            calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress, timestamps=None,
-           zero=0.0, jitter=0.0) -> dict:
+           zero=0.0, jitter=0.0, shutter=(0.0, None)) -> dict:
     from pad_design.errors import progress_bar
 
     from .imu import IMU_COLUMNS
@@ -332,7 +352,8 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
         info = camera.to_dict()
         info.update({"fps": float(fps), "exposure_s": None, "T_B_C": T_B_C.tolist(), "supersample": 1,
                      "frame_time_jitter_s": jitter,
-                     "rolling_shutter_line_s": 0.0, "rolling_shutter_ref_row": (camera.height - 1) / 2,
+                     "rolling_shutter_line_s": shutter[0],
+                     "rolling_shutter_ref_row": (camera.height - 1) / 2 if shutter[1] is None else shutter[1],
                      "conventions": camera.conventions})
         sources = {"frames": str(frames), "calibration": f"{calibration} ({cal.source})"}
         for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec), ("timestamps", timestamps)):

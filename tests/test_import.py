@@ -137,6 +137,31 @@ def test_bad_recordings_are_refused_naming_what_is_wrong_and_write_nothing(recor
         assert not out.exists() or not any(out.iterdir()), f"{says}: left {list(out.iterdir())}"
 
 
+def test_a_rolling_shutter_stated_at_import_reaches_the_localizer(recording, tmp_path):
+    from benchmarks.run import make_localizer
+    from hvloc.config import LocalizerConfig
+
+    base, cam = recording
+    line_s = 0.5 / cam["fps"] / cam["height"]  # read in half a frame interval
+    seq = _import(base, tmp_path / "ds", base / "frames", "--fps", "10", "--line-time-s", str(line_s), "--ref-row", "3")
+    info = json.loads((tmp_path / "ds" / "seq_0000" / "camera.json").read_text())
+    assert info["rolling_shutter_line_s"] == seq.line_s == line_s and info["rolling_shutter_ref_row"] == seq.ref_row == 3.0
+    shutter = make_localizer("hierarchical", seq, LocalizerConfig()).shutter
+    assert shutter.active and (shutter.line_s, shutter.ref_row) == (line_s, 3.0)
+    plain = _import(base, tmp_path / "plain", base / "frames", "--fps", "10")
+    assert plain.line_s == 0.0 and not make_localizer("hierarchical", plain, LocalizerConfig()).shutter.active
+    cases = [(("--line-time-s", "-1e-5"), "--line-time-s"),
+             (("--line-time-s", str(2.0 / cam["fps"] / cam["height"])), "within a frame interval"),
+             (("--ref-row", "3"), "--ref-row: goes with --line-time-s"),
+             (("--line-time-s", str(line_s), "--ref-row", str(cam["height"])), "--ref-row")]
+    for i, (args, says) in enumerate(cases):
+        out = tmp_path / f"o{i}"
+        r = run_cli("import", base / "frames", "--fps", "10", *args, "--calibration", base / "ost.yaml", "--out", out,
+                    "--quiet")
+        assert_input_error(r, says)
+        assert not out.exists() or not any(out.iterdir()), f"{says}: left {list(out.iterdir())}"
+
+
 def test_numbered_images_keep_their_frame_numbers_and_times_across_dropped_frames(recording, tmp_path):
     """A recording that dropped frames: the images named by frame number keep it, so each is labelled
     at its own time (not shifted into the gap)."""
