@@ -209,12 +209,17 @@ def imu_check(imu) -> tuple:
 
 def imu_rate(imu) -> np.ndarray | None:
     """The body's angular rate (rad/s, FLU) of an imu.csv row (its gyro), or ``None`` for a bare
-    attitude or a row whose gyro is not finite."""
+    attitude or a row whose gyro is not finite or past any gyro's range (:data:`GYRO_MAX_RAD_S`)."""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
         return None
-    return a[1:4].copy() if a.shape == (11,) and np.isfinite(a[1:4]).all() else None
+    if a.shape != (11,) or not np.isfinite(a[1:4]).all() or np.linalg.norm(a[1:4]) > GYRO_MAX_RAD_S:
+        return None
+    return a[1:4].copy()
+
+
+GYRO_MAX_RAD_S = 40.0  # a MEMS gyro's full scale is 2000 deg/s (35 rad/s): a rate past it is a corrupt sample
 
 
 def clock_event(last_t: float | None, last: "Estimate | None", t: float, prior_timeout_s: float) -> tuple:
@@ -401,6 +406,8 @@ class HierarchicalLocalizer:
         self.T_B_C = DEFAULT_T_B_C if T_B_C is None else np.asarray(T_B_C, np.float64)
         if not math.isfinite(line_s) or abs(line_s) * camera.height > 1.0:
             raise ValueError(f"line_s: {line_s!r} s between rows is no camera's rolling shutter")
+        if ref_row is not None and not math.isfinite(ref_row):
+            raise ValueError(f"ref_row: {ref_row!r} is no row")
         self.shutter = RollingShutter(float(line_s), (camera.height - 1) / 2.0 if ref_row is None else float(ref_row))
         # the image work; localizers of one pad and camera that see the same frames may share one
         # (hvloc.work): their estimates are exactly what each would make alone

@@ -81,3 +81,15 @@ def test_a_line_time_no_camera_has_is_refused(pad):
         HierarchicalLocalizer(pad, CAM, line_s=0.01)
     with pytest.raises(ValueError, match="line_s"):
         HierarchicalLocalizer(pad, CAM, line_s=float("nan"))
+    with pytest.raises(ValueError, match="ref_row"):
+        HierarchicalLocalizer(pad, CAM, line_s=LINE_S, ref_row=float("inf"))
+
+
+def test_a_corrupt_gyro_sample_is_not_used_and_never_raises(pad):
+    img = rolling_view(pad, 0.0)
+    for bad in (np.nan, 1e9):
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False), line_s=LINE_S)
+        row = imu_row(0.0)
+        row[1:4] = bad
+        e = loc.process(img, 0.0, row)
+        assert loc.rate_B is None and e.status == "ok", e.reason  # the attitude is still used
