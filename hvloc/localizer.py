@@ -486,7 +486,7 @@ class HierarchicalLocalizer:
             return Estimate(t, self.phase, "lost", None,
                             reason=f"image is {gray.shape[1]}x{gray.shape[0]}, camera is {self.camera.width}x{self.camera.height}")
         up_C = up_in_camera(R_W_B, self.T_B_C)
-        self._update_twist(t)
+        self._update_twist(t, R_W_B is not None)
         cfg = self.config
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
         self._update_phase(h)
@@ -553,7 +553,7 @@ class HierarchicalLocalizer:
             return rejected
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
 
-    def _update_twist(self, t: float) -> None:
+    def _update_twist(self, t: float, imu: bool) -> None:
         """The camera's motion at ``t`` for the rolling shutter's correction: its angular rate from
         the gyro; its velocity, the slope of a line through the accepted poses of the last
         :data:`TWIST_WINDOW_S` (at least two).
@@ -563,8 +563,15 @@ class HierarchicalLocalizer:
         uncorrected was 23 mm off with that rate, 2.7 mm with the gyro's).  The line through up to
         four poses rather than the last two: their errors over 0.1 s are a velocity error (on the
         same datasets the last two gave Adjustment RMSE 4.6 against 4.4 mm on x_field_rs_oblique,
-        14.6 against 14.4 mm on the realism suite's real tier)."""
+        14.6 against 14.4 mm on the realism suite's real tier).
+
+        Nothing without the IMU's attitude this frame (``imu``): poses without gravity are too
+        loose to tell the velocity (bench_v2's no_imu ablation on its two rolling-shutter datasets:
+        107 -> 109 false accepts and touchdown 2.2 -> 5.7 mm with the velocity's correction)."""
         if not self.shutter.active:
+            return
+        if not imu:
+            self.twist = None
             return
         w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         pts = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S]

@@ -85,6 +85,16 @@ def test_a_line_time_no_camera_has_is_refused(pad):
         HierarchicalLocalizer(pad, CAM, line_s=LINE_S, ref_row=float("inf"))
 
 
+def test_without_an_imu_nothing_is_corrected(pad):
+    frames = [(0.1 * k, rolling_view(pad, 0.1 * k)) for k in range(3)]
+    told = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False), line_s=LINE_S)
+    blind = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False))
+    for t, img in frames:
+        a, b = told.process(img, t, None), blind.process(img, t, None)
+        assert told.twist is None and a.status == b.status
+        assert (a.cam2pad is None and b.cam2pad is None) or np.array_equal(a.cam2pad, b.cam2pad)
+
+
 def test_a_corrupt_gyro_sample_is_not_used_and_never_raises(pad):
     img = rolling_view(pad, 0.0)
     for bad in (np.nan, 1e9):
