@@ -535,7 +535,8 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
-            self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, est.cam2pad[:3, 3].copy())]
+            if self.shutter.active:  # (only the rolling shutter's correction reads them)
+                self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, est.cam2pad[:3, 3].copy())]
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t

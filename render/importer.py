@@ -246,7 +246,8 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
     spec = validate_model(DatasetSpec, {
         "name": name, "seed": 0, "sequences": 1,
-        "camera": {**cal.spec_fields(), "fps": float(fps), "exposure_s": 0.0, "mount": mount.model_dump(mode="json")},
+        "camera": {**cal.spec_fields(), "fps": float(fps), "exposure_s": 0.0, "mount": mount.model_dump(mode="json"),
+                   "rolling_shutter_line_s": shutter[0]},  # (the manifest's spec says what camera.json does)
         "pad": validate_model(PadSpec, pad_doc, str(pad_spec or "pad")).model_dump(mode="json"),
         "trajectory": {"start_height_m": 3.0, "lateral_offset_m": [0.0, 0.0]}}, "the recording's spec")
     camera, T_B_C = cal.camera, mount.transform()

@@ -146,6 +146,8 @@ def test_a_rolling_shutter_stated_at_import_reaches_the_localizer(recording, tmp
     seq = _import(base, tmp_path / "ds", base / "frames", "--fps", "10", "--line-time-s", str(line_s), "--ref-row", "3")
     info = json.loads((tmp_path / "ds" / "seq_0000" / "camera.json").read_text())
     assert info["rolling_shutter_line_s"] == seq.line_s == line_s and info["rolling_shutter_ref_row"] == seq.ref_row == 3.0
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["spec"]["camera"]["rolling_shutter_line_s"] == line_s  # the recording's spec says so too
     shutter = make_localizer("hierarchical", seq, LocalizerConfig()).shutter
     assert shutter.active and (shutter.line_s, shutter.ref_row) == (line_s, 3.0)
     plain = _import(base, tmp_path / "plain", base / "frames", "--fps", "10")
