@@ -2,6 +2,7 @@
 sampling distance (GSD).
 
     python -m benchmarks.realism --real DIR [--real-mask MASK.png] [--real-gsd-mm 3.5]
+                                 [--heights 1 5 15 | --base-gsd-mm 3.5]
                                  [--kinds grass dry_grass asphalt ...] [--out FILE.json]
 
 Statistics per 256 x 256 ground-only patch (luma 0-255), medians over patches:
@@ -22,12 +23,18 @@ one kind at two or more GSDs: the sigma with which the finer frames, so downsamp
 coarser frames' Laplacian variance.  Patches are 256 px, or half a frame's shorter side where
 the frame is smaller (16 px at least); every statistic is taken 2 px inside the patch's border.  Rendered frames: a
 camera of a shipped spec looking straight down from the height that gives each GSD, far from
-the pad, with the spec's own image formation.
+the pad, with the spec's own image formation.  The GSDs compared are ``--base-gsd-mm`` and 5 and 15
+times it for every camera, or with ``--heights`` the GSD each spec's camera has straight down from
+those heights (its focal length in px: field1080 sees 1.04, 5.2 and 15.6 mm from 1, 5 and 15 m).
 
 The frames this was built against (neither set is shipped: they are not ours; fetch them to rerun):
 
-* ``vision-agh/drone_landing_static``: 76 frames of a small drone over dry grass at 0.2 to 1.5 m,
-  1280x720, with its ``uav_mask.png`` (``--real DIR --real-mask uav_mask.png``, 3.5 mm).
+* ``vision-agh/drone_landing_static``: 75 frames of a small drone over dry and green grass at 0.15
+  to 1.9 m, 1280x720, with its ``uav_mask.png``, listed with each frame's own GSD (0.45 to 3.17
+  mm, from the 25 cm pad circle's size in px: ``benchmarks/real_ground/agh_grass.csv``;
+  ``--real-list benchmarks/real_ground/agh_grass.csv --real-root DIR --real-mask uav_mask.png``,
+  DIR holding the three test sets' frames as ``test_setN_image_XXXX.png``).  Earlier runs took
+  them all at 3.5 mm (``--real DIR``), two to six times coarser than they are.
 * ``omu-geolab/CrackImageDatasetForDeepLearning``: 294 native-resolution 256 px tiles of
   nadir photos of port quay pavement (Autel EVO II Pro, 5472 px wide, at 5, 10 and 15 m:
   1.1, 2.3 and 3.4 mm), listed with their GSDs in ``benchmarks/real_ground/omu_quay.csv``
@@ -210,6 +217,19 @@ def fit_camera_psf(frames: list, sigmas=np.arange(0.0, 1.51, 0.05)) -> list:
     return out
 
 
+def spec_focal_px(spec_name: str) -> float:
+    """The focal length (px, the smaller of fx and fy) of a shipped spec's camera."""
+    import yaml
+
+    from render.spec import DatasetSpec
+
+    from .suite import REPO
+
+    d = yaml.safe_load((REPO / "data_specs" / f"{spec_name}.yaml").read_text())
+    cam = DatasetSpec.model_validate(d).camera.to_camera()
+    return float(min(cam.fx, cam.fy))
+
+
 def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 4, seed: int = 0) -> dict:
     """Medians over ground patches of ``views`` nadir frames of a shipped spec's camera over
     ``kind`` at the height that gives ``gsd_m`` metres per pixel below the camera."""
@@ -256,6 +276,8 @@ def main(argv=None) -> int:
     p.add_argument("--real-psf-px", default="0", help="the real camera's own blur (Gaussian sigma, px) kept when its "
                    "frames are downsampled, or 'fit' (measured from frames of one kind at several GSDs)")
     p.add_argument("--base-gsd-mm", type=float, default=3.5, help="the finest GSD compared; also 5x and 15x it")
+    p.add_argument("--heights", type=float, nargs="+", default=None,
+                   help="compare at the GSD each spec's camera has from these heights (m) instead")
     p.add_argument("--kinds", nargs="+", default=None, help="rendered ground kinds (default: the list's kinds, "
                    "or grass dry_grass asphalt gravel)")
     p.add_argument("--specs", nargs="+", default=["field1080", "sim800"])
@@ -267,8 +289,14 @@ def main(argv=None) -> int:
         p.error(str(e))
     if not frames:
         p.error(f"{a.real}: no .png or .jpg frames in it")
-    targets = [a.base_gsd_mm * s for s in SCALES]
-    res = {"targets_mm": targets, "real": {}, "rendered": {}}
+    if a.heights is not None and not all(math.isfinite(h) and h > 0 for h in a.heights):
+        p.error(f"--heights: positive heights in metres, got {a.heights}")
+    if a.heights:
+        by_spec = {s: [round(1000.0 * h / spec_focal_px(s), 3) for h in a.heights] for s in a.specs}
+    else:
+        by_spec = {s: [a.base_gsd_mm * k for k in SCALES] for s in a.specs}
+    targets = sorted({t for ts in by_spec.values() for t in ts})
+    res = {"targets_mm": targets, "targets_mm_by_spec": by_spec, "heights_m": a.heights, "real": {}, "rendered": {}}
     if a.real_psf_px == "fit":
         fits = fit_camera_psf(frames)
         if not fits:
@@ -301,13 +329,13 @@ def main(argv=None) -> int:
     for spec in a.specs:
         for kind in kinds:
             ref = real.get(kind, real.get(""))
-            for t in targets:
+            for t in by_spec[spec]:
                 r = rendered_statistics(spec, kind, t / 1000.0)
                 res["rendered"][f"{spec}/{kind}/{t:g}"] = r
                 rt = ref[t] if ref is not None else {}
                 cells = [f"{r.get(k, float('nan')):.1f} ({ratio_text(r.get(k, float('nan')), rt.get(k, float('nan')))})"
                          for k in keys]
-                print(f"| {spec} | {kind} | {t:.1f} | " + " | ".join(cells) + " |", flush=True)
+                print(f"| {spec} | {kind} | {t:.2f} | " + " | ".join(cells) + " |", flush=True)
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1) + "\n")

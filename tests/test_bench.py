@@ -553,3 +553,22 @@ def test_realism_frame_list_errors_name_the_line(tmp_path):
     (tmp_path / "l.csv").write_text("a.png,2.0,asphalt\n")  # no header: its first frame was taken for one
     with pytest.raises(ValueError, match=r"l.csv:1: the first line must be the header path,gsd_mm,kind"):
         frames_in_list(tmp_path / "l.csv", tmp_path)
+
+
+def test_realism_grass_frames_are_listed_at_their_own_gsd(tmp_path):
+    """The grass frames' GSD is the 25 cm pad circle over its size in px (their authors' own
+    calibration): 0.45 to 3.2 mm, where they were all once taken at 3.5 mm.  test_set1's first
+    frame shows the circle 106 px across: 2.358 mm.  Empty kinds: every grass kind is compared."""
+    from benchmarks.realism import frames_in_list, spec_focal_px
+
+    listed = REPO / "benchmarks" / "real_ground" / "agh_grass.csv"
+    for line in listed.read_text().splitlines()[1:]:
+        if line and not line.startswith("#"):
+            (tmp_path / line.split(",")[0]).write_bytes(b"")
+    frames = frames_in_list(listed, tmp_path)
+    assert len(frames) == 75 and {k for _, _, k in frames} == {""}
+    gsd = {p.name: g for p, g, _ in frames}
+    assert gsd["test_set1_image_0001.png"] == pytest.approx(250.0 / 106, abs=1e-3)
+    assert 0.4 < min(gsd.values()) and max(gsd.values()) < 3.5
+    # --heights compares at the GSD each camera has from those heights: field1080 sees 1.04 mm from 1 m
+    assert spec_focal_px("field1080") == pytest.approx(960.0)
