@@ -6,10 +6,15 @@ below that real ground keeps showing finer structure (blades, stones, cracks) wh
 only blurs.  So every pixel that sees the ground gets its albedo multiplied by
 ``exp(sum_o w_o * a_o * tile(R_o (x, y) / lambda_o + offset_o))``: the same kind-specific,
 tileable detail tile at several scales ``lambda_o`` (octaves), each rotated and shifted.  Each
-octave is read from the level of its tile's mipmap whose texels match the pixels' footprint on
-the ground (as the GPU reads the rasterised texture): prefiltered, so nothing aliases, and with
-a scale-free tile the image shows the same amount of detail at every height.  The level is
-chosen per octave and frame from the median footprint of the ground in view.
+octave is read as the GPU reads a mipmapped texture with trilinear filtering: from the two levels
+of its tile's mipmap whose texels are just finer and just coarser than the pixels' footprint on
+the ground, blended by where the footprint lies between them (in log2, in steps of an eighth):
+prefiltered, so nothing aliases, and with a scale-free tile the image shows the same amount of
+detail at every height.  (Render revisions up to 6 read the finer level alone: texels up to half
+a pixel's footprint, so the ground was sharper than a camera sees it at most heights, most at
+footprints just under twice a texel, and its detail jumped as the footprint crossed a power of
+two.)  The levels and the blend are chosen per octave and frame from the median footprint of the
+ground in view.
 
 Applied in linear light on the sharp frame (before motion blur), from the frame's depth and
 pose: ground is where the world height is within a few millimetres of zero and no flat object
@@ -26,20 +31,25 @@ import numpy as np
 
 TILE_PX = 512
 # octave scales (metres per tile), and the log-albedo amplitude of each octave, per ground kind
-OCTAVES_M = (4.0, 2.0, 1.0, 0.5, 0.25)
-AMPLITUDE = {"grass": 0.34, "dry_grass": 0.34, "gravel": 0.30, "soil": 0.22, "asphalt": 0.95, "sand": 0.14,
+OCTAVES_M = (4.0, 2.0, 1.0, 0.5, 0.25, 0.125)
+AMPLITUDE = {"grass": 0.32, "dry_grass": 0.235, "gravel": 0.30, "soil": 0.22, "asphalt": 0.95, "sand": 0.14,
              "concrete": 0.65, "snow": 0.06}
 # the coarse octaves (32, 16, 8 m, in the rasterised texture) relative to the fine ones: real ground
 # has more structure at the scale of blades and stones than at the scale of tufts and patches
-COARSE = {"grass": 0.4, "dry_grass": 0.4, "gravel": 0.6, "soil": 0.8, "asphalt": 0.1, "sand": 0.8, "concrete": 0.15,
+COARSE = {"grass": 0.8, "dry_grass": 0.8, "gravel": 0.6, "soil": 0.8, "asphalt": 0.1, "sand": 0.8, "concrete": 0.15,
           "snow": 1.0}
 # per-octave weights (OCTAVES_M order) for kinds whose detail has a physical size, not the same at
-# every scale; the rest weigh every octave alike.  Asphalt's stones are 3-18 mm across and
-# concrete's grains 1.5-8 mm (the finest octave's tile; the coarser octaves' copies of it stand
-# for stains and wear): matched to real nadir frames of quay pavement at 3.5, 17.5 and 52.5 mm
-# per pixel (benchmarks/realism.py, benchmarks/real_ground/omu_quay.csv)
-OCTAVE_WEIGHT = {"asphalt": (0.16, 0.15, 0.25, 0.6, 1.0), "concrete": (0.12, 0.12, 0.2, 0.6, 1.0)}
+# every scale; the rest weigh every octave alike.  Asphalt's stones are 3-18 mm across (1.5-9 mm
+# in the finest octave: fine aggregate) and concrete's grains 1.5-8 mm (the two finest octaves'
+# tiles; the coarser octaves' copies of it stand for stains and wear): matched to real nadir
+# frames of quay pavement (benchmarks/real_ground/omu_quay.csv), grass and dry grass to frames of
+# mixed grass (benchmarks/real_ground/agh_grass.csv), at 3.5, 17.5 and 52.5 mm per pixel and at
+# what field1080's camera sees from 1, 5 and 15 m (benchmarks/realism.py)
+OCTAVE_WEIGHT = {"asphalt": (0.16, 0.15, 0.25, 0.6, 1.0, 1.0), "concrete": (0.2, 0.16, 0.2, 0.6, 1.0, 1.0),
+                 "grass": (0.8, 0.8, 0.8, 1.0, 1.2, 0.8), "dry_grass": (0.8, 0.8, 0.8, 1.0, 1.2, 0.8)}
 GROUND_Z_TOL_M = 0.005
+MAP_STEPS = (4, 2)  # texture coordinates are made every 4 (or 2) px and upsampled (GroundDetail._map_grid)
+MAP_TOL_PX = 0.02  # ... where the lens's rays, so upsampled, stay this close to every pixel's own
 
 
 def _wrap_lines(canvas, pts_a, pts_b, values, widths):
@@ -210,21 +220,51 @@ class GroundDetail:
         self.r2 = (xn * xn + yn * yn + 1.0).astype(np.float32)
         self.min_dot = (0.05 * np.sqrt(self.r2)).astype(np.float32)
         self.flat_objects = list(flat_objects)
-        self._bufs = None
+        self._blend_cache: dict = {}  # (group, level, step) -> blended tile (:meth:`_blended`)
+        self._toward: dict = {}  # (group, level) -> the coarser level less this one (:meth:`_toward_coarser`)
+        # the rays of a coarse grid (one node past each edge): texture coordinates on the ground plane
+        # are smooth functions of the pixel, made there and upsampled (:meth:`_plane_map`)
+        self.shape = (camera.height, camera.width)
+        self.map_step, self.grid_rays = self._map_grid(camera, xn, yn)
+
+    @staticmethod
+    def _map_grid(camera, xn: np.ndarray, yn: np.ndarray) -> tuple:
+        """``(step, rays)``: the coarsest grid step (4, 2 or 1 px) over which the lens's rays,
+        upsampled bilinearly, stay within MAP_TOL_PX of every pixel's own (a pinhole's rays are
+        linear: 4; a strong barrel lens curves them toward its corners), and the grid's rays
+        ``(gh, gw, 3)`` float64 (x/z, y/z, 1), nodes at pixel ``step * (i - 1) + (step - 1) / 2``."""
+        H, W = xn.shape
+        for st in (MAP_STEPS[0], MAP_STEPS[1], 1):
+            gx = st * (np.arange(-(-W // st) + 2) - 1) + (st - 1) / 2.0
+            gy = st * (np.arange(-(-H // st) + 2) - 1) + (st - 1) / 2.0
+            grid = np.stack(np.meshgrid(gx, gy), axis=-1)
+            rays = camera.normalized_from_pixels(grid.reshape(-1, 2)).reshape(*grid.shape[:2], 2)
+            if st == 1:
+                break
+            up = cv2.resize(rays.astype(np.float32), (rays.shape[1] * st, rays.shape[0] * st),
+                            interpolation=cv2.INTER_LINEAR)[st:st + H, st:st + W]
+            err = np.hypot(up[..., 0] - xn, up[..., 1] - yn) * float(min(camera.fx, camera.fy))
+            if float(err.max()) <= MAP_TOL_PX:
+                break
+        return st, np.concatenate([rays, np.ones((*rays.shape[:2], 1))], axis=-1)
 
     def factor(self, z: np.ndarray, cam2world: np.ndarray, pad2world: np.ndarray) -> np.ndarray | None:
         """``(H, W)`` float32 albedo factor (1 off the ground), or ``None`` where nothing would change."""
-        finite = np.isfinite(z)
-        if not finite.any():
-            return None
-        zc = np.where(finite, z, np.float32(0.0)).astype(np.float32, copy=False)
         sub = np.s_[::4, ::4]
-        footprint4 = self._footprint(zc[sub], cam2world, sub)
-        fp_all = float(np.median(footprint4[::2, ::2][finite[::8, ::8]]))
+        finite4 = np.isfinite(z[sub])
+        if not finite4[::2, ::2].any():
+            return None
+        footprint4 = self._footprint(np.where(finite4, z[sub], np.float32(0.0)), cam2world, sub)
+        fp_all = float(np.median(footprint4[::2, ::2][finite4[::2, ::2]]))
         if not any(self._level(fp_all, o[1], o[-1]) is not None for o in self.octaves):
             return None  # every octave averages out within a pixel
-        wx, wy, wz = self._world_points(zc, cam2world)
-        ground = (finite & (np.abs(wz) < GROUND_Z_TOL_M)).astype(np.float32)
+        R, t = cam2world[:3, :3], cam2world[:3, 3]
+        # the ground: where the depth is the ground plane's (z = 0 in the world) within a few mm (a
+        # depth that is not finite is nowhere)
+        dot = cv2.addWeighted(self.xn, float(R[2, 0]), self.yn, float(R[2, 1]), float(R[2, 2]))  # ray . world up
+        on = cv2.inRange(cv2.multiply(z, dot), float(-t[2] - GROUND_Z_TOL_M), float(-t[2] + GROUND_Z_TOL_M))
+        ground = np.multiply(on, np.float32(1.0 / 255.0), dtype=np.float32)
+        plane = self._ground_plane_grid(cam2world)
         H, Wd = z.shape
         for x0, y0, yaw, sx, sy, moves in self.flat_objects:  # fade out within 2 px of their edges
             ox, oy = (x0 + pad2world[0, 3], y0 + pad2world[1, 3]) if moves else (x0, y0)
@@ -233,31 +273,27 @@ class GroundDetail:
                 continue
             r0, r1, c0, c1 = roi
             c, s = math.cos(yaw), math.sin(yaw)
-            X, Y = wx[r0:r1, c0:c1] - np.float32(ox), wy[r0:r1, c0:c1] - np.float32(oy)
-            # max(|c X + s Y| - sx / 2, |-s X + c Y| - sy / 2) / footprint - 1, clipped to [0, 1] (in place)
-            u = c * X
-            u += s * Y
-            np.abs(u, out=u)
-            u -= sx / 2
-            v = -s * X
-            v += c * Y
-            np.abs(v, out=v)
-            v -= sy / 2
-            np.maximum(u, v, out=u)
-            fp = self._footprint(zc[r0:r1, c0:c1], cam2world, np.s_[r0:r1, c0:c1])
+            # the ground's points in the object's frame (c X + s Y, -s X + c Y), X, Y from its centre
+            turn = np.array([[c, s], [-s, c]])
+            uv = self._plane_map(plane, turn, -turn @ (ox, oy))[r0:r1, c0:c1]
+            # max(|u| - sx / 2, |v| - sy / 2) / footprint - 1, clipped to [0, 1]
+            u = np.abs(uv[..., 0]) - np.float32(sx / 2)
+            np.maximum(u, np.abs(uv[..., 1]) - np.float32(sy / 2), out=u)
+            zr = z[r0:r1, c0:c1]
+            fp = self._footprint(np.where(np.isfinite(zr), zr, np.float32(0.0)), cam2world, np.s_[r0:r1, c0:c1])
             u /= np.maximum(fp, 1e-9, out=fp)
             u -= 1.0
             ground[r0:r1, c0:c1] *= np.clip(u, 0.0, 1.0, out=u)
         if not ground.any():
             return None
-        logf = np.zeros_like(zc)
-        cx, cy = cam2world[0, 3], cam2world[1, 3]
+        logf = np.zeros(z.shape, np.float32)
+        cx, cy = t[0], t[1]
         fp = float(np.median(footprint4[ground[sub] > 0])) if (ground[sub] > 0).any() else fp_all
-        for (period, texel, c, s, ox, oy, mip) in self.octaves:
-            level = self._level(fp, texel, mip)
-            if level is None:
+        for g, (period, texel, c, s, ox, oy, mip) in enumerate(self.octaves):
+            got = self._blended(g, fp, texel, mip)
+            if got is None:
                 continue
-            tile = mip[level]
+            level, tile = got
             n, n0 = tile.shape[0], mip[0].shape[0]
             k = n / period
             # texel coordinates near the camera stay small (remap's fixed point has 16-bit integers):
@@ -267,22 +303,35 @@ class GroundDetail:
             # into the level's texels (centres: level texel i covers base texels [2i, 2i + 1])
             u0, v0, lx, ly = (q * n / n0 for q in (u0, v0, ox, oy))
             lx, ly = lx + 0.5 * n / n0 - 0.5, ly + 0.5 * n / n0 - 0.5
-            mx = cv2.addWeighted(wx, c * k, wy, -s * k, lx - n * math.floor(u0 / n))
-            my = cv2.addWeighted(wx, s * k, wy, c * k, ly - n * math.floor(v0 / n))
-            logf += cv2.remap(tile, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+            maps = self._plane_map(plane, k * np.array([[c, -s], [s, c]]),
+                                   (lx - n * math.floor(u0 / n), ly - n * math.floor(v0 / n)))
+            logf += cv2.remap(tile, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
         cv2.multiply(logf, ground, dst=logf)
         return cv2.exp(logf)
 
-    def _world_points(self, zc: np.ndarray, cam2world: np.ndarray) -> tuple:
-        """``(x, y, z)`` planes of each pixel's point in the world (depth ``zc``), in buffers kept
-        from frame to frame (three full-frame planes each way: the cost is moving them)."""
-        if self._bufs is None or self._bufs[0].shape != zc.shape:
-            self._bufs = [np.empty(zc.shape, np.float32) for _ in range(5)] + [np.empty((*zc.shape, 3), np.float32)
-                                                                               for _ in range(2)]
-        a, b, wx, wy, wz, merged, world = self._bufs
-        cv2.merge([np.multiply(self.xn, zc, out=a), np.multiply(self.yn, zc, out=b), zc], dst=merged)
-        cv2.transform(merged, cam2world[:3, :].astype(np.float32), dst=world)
-        return cv2.split(world, [wx, wy, wz])
+    def _ground_plane_grid(self, cam2world: np.ndarray) -> tuple:
+        """``(camera x y, offsets)``: where the coarse grid's rays meet the ground plane, as world
+        x, y offsets ``(gh, gw, 2)`` float32 from the camera's (0 where a ray does not reach it)."""
+        R, t = cam2world[:3, :3], cam2world[:3, 3]
+        d = self.grid_rays @ R.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = -t[2] / d[..., 2]
+        s[~(s > 0)] = 0.0
+        return t[:2].copy(), (s[..., None] * d[..., :2]).astype(np.float32)
+
+    def _plane_map(self, plane: tuple, A: np.ndarray, b) -> np.ndarray:
+        """``(H, W, 2)`` float32: ``A @ (x, y) + b`` of the world point on the ground plane each pixel
+        sees, made on the coarse grid (``plane``: :meth:`_ground_plane_grid`) and upsampled
+        bilinearly (within a few hundredths of a pixel of its exact value); where no ground is
+        seen, its value at the camera's foot."""
+        origin, offsets = plane
+        M = np.hstack([A, (A @ origin + np.asarray(b, np.float64))[:, None]]).astype(np.float32)
+        m = cv2.transform(offsets, M)
+        st, (H, W) = self.map_step, self.shape
+        if st == 1:
+            return m[1:1 + H, 1:1 + W]
+        big = cv2.resize(m, (m.shape[1] * st, m.shape[0] * st), interpolation=cv2.INTER_LINEAR)
+        return big[st:st + H, st:st + W]
 
     def _footprint(self, zc: np.ndarray, cam2world: np.ndarray, where) -> np.ndarray:
         """The footprint (m) on a horizontal surface of the pixels ``where`` (a slice) at depths
@@ -312,6 +361,56 @@ class GroundDetail:
             return None
         return (max(0, 16 * rows.min() - 16), min(H, 16 * rows.max() + 32),
                 max(0, 16 * cols.min() - 16), min(W, 16 * cols.max() + 32))
+
+    LOD_BIAS = -0.5
+    BLEND_STEPS = 8  # the blend of two mipmap levels, in eighths (the blended tiles are kept)
+
+    def _blended(self, group: int, footprint_m: float, texel_m: float, mip: list):
+        """``(level, tile)``: the finer of the two mipmap levels around the footprint, blended with
+        the coarser one, upsampled onto its texels, by the footprint's place between them
+        (trilinear filtering; the coarser level past the last is the tile's mean, 0); ``None``
+        where the tile averages out within a pixel (:meth:`_level`)."""
+        footprint_m = footprint_m * 2.0 ** self.LOD_BIAS
+        level = self._level(footprint_m, texel_m, mip)
+        if level is None:
+            return None
+        lam = math.log2(max(footprint_m / texel_m, 1e-9))
+        step = int(round(min(max(lam - level, 0.0), 1.0) * self.BLEND_STEPS))
+        if step == 0:
+            return level, mip[level]
+        key = (group, level, step)
+        tile = self._blend_cache.get(key)
+        if tile is None:
+            toward = self._toward_coarser(group, level, mip)
+            tile = cv2.scaleAdd(toward, step / self.BLEND_STEPS, mip[level])
+            if len(self._blend_cache) >= 4:  # a descent moves through the levels: keep the last few
+                self._blend_cache.pop(next(iter(self._blend_cache)))
+            self._blend_cache[key] = tile
+        return level, tile
+
+    def _toward_coarser(self, group: int, level: int, mip: list) -> np.ndarray:
+        """The coarser level, upsampled onto ``level``'s texels, less ``level`` (a blend of the two
+        is ``level`` plus a share of it); past the last level worth reading (:meth:`_level`), minus
+        ``level`` (it fades to the tile's mean, 0).  Made once per level and kept (as much memory
+        again as the group's mipmap: a descent reads most levels)."""
+        key = (group, level)
+        d = self._toward.get(key)
+        if d is None:
+            fine = mip[level]
+            if level + 1 < len(mip) and mip[level + 1].shape[0] > 16:
+                # the coarser level at the finer level's texel centres (wrapped), by the mean of a
+                # bilinear and a bicubic upsampling: read again bilinearly by the remap, the one is
+                # softer than the level read directly and the other sharper, and the mean is what
+                # keeps the detail's statistics continuous where the level changes
+                big = np.pad(mip[level + 1], 2, mode="wrap")
+                up = cv2.addWeighted(cv2.resize(big, None, fx=2.0, fy=2.0, interpolation=cv2.INTER_LINEAR), 0.5,
+                                     cv2.resize(big, None, fx=2.0, fy=2.0, interpolation=cv2.INTER_CUBIC), 0.5,
+                                     0.0)[4:-4, 4:-4]
+                d = cv2.subtract(np.ascontiguousarray(up), fine)
+            else:
+                d = -fine
+            self._toward[key] = d
+        return d
 
     @staticmethod
     def _level(footprint_m: float, texel_m: float, mip: list):

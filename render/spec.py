@@ -37,16 +37,28 @@ from pad_design.spec import PadSpec
 #      (stones of 3-18 mm in a lighter grey asphalt, grains and pores of 1.5-8 mm in concrete;
 #      benchmarks/realism.py), not a scale-free mottle.  Only specs one of whose sequences draws
 #      asphalt or concrete move.
-RENDER_REVISION = 6
+#   7: the ground's detail is read as a camera sees it: two mipmap levels blended (trilinear, a
+#      level finer by half: a pixel integrates a box, not a bilinear tent), where the finer level
+#      alone made the ground up to twice as sharp as it should be and its detail jump where the
+#      level changed; one octave more (0.125 m: detail down to 0.25 mm); grass, dry grass, asphalt
+#      and concrete matched again to real frames at their own GSDs.  Every spec with ground detail
+#      moves, and those without it that draw grass or dry grass (their rasterised texture).
+RENDER_REVISION = 7
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
+GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
 
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
-    if HARD_SURFACES & set(spec.environment.ground):
+    if spec.environment.ground_detail:
+        return 7
+    if (HARD_SURFACES | GRASSES) & set(spec.environment.ground):
         from .plan import drawn_ground_kinds
 
-        if HARD_SURFACES & drawn_ground_kinds(spec):
+        drawn = drawn_ground_kinds(spec)
+        if GRASSES & drawn:
+            return 7
+        if HARD_SURFACES & drawn:
             return 6
     m = spec.pad_material
     return 5 if m.relief_m[1] > 0 or m.gloss[1] > 0 else 2
@@ -299,7 +311,7 @@ class EnvironmentSpec(_Model):
     ambient: NonNegRange = Field((0.25, 0.45), description="ambient light level (0-1)")
     shadows: bool = Field(True, description="cast shadows (sun), including the drone's own on the pad")
     ground_detail: bool = Field(True, description="ground keeps showing finer structure as the camera descends "
-                                "(world-fixed detail at scales from 8 mm to 0.5 mm, render/ground.py)")
+                                "(world-fixed detail at scales from 8 mm to 0.25 mm, render/ground.py)")
 
 
 class DegradationSpec(_Model):

@@ -327,16 +327,19 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     with pytest.raises(InputError, match="camera: dist: the fisheye model has 4 coefficients"):
         validate_model(DatasetSpec, {"camera": {"model": "fisheye", "dist": [0, 0, 0, 0, 0]}})
     # the lens model is part of a spec's identity; a pinhole without distortion is the default spec,
-    # whose identity is the renderer's revision alone (RENDER_REVISION: what an old cache was made by)
+    # whose identity is the renderer's revision alone (RENDER_REVISION: what an old cache was made by;
+    # revision 7 changed the ground detail every default spec draws)
     plain = validate_model(DatasetSpec, {}).sha256()
     assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
-    assert plain == hashlib.sha256(json.dumps({"render_revision": 2}, separators=(",", ":")).encode()).hexdigest()
+    assert plain == hashlib.sha256(json.dumps({"render_revision": 7}, separators=(",", ":")).encode()).hexdigest()
     # revisions 3 (glare on a wrinkled pad's facets) and 4 (a glossy or wrinkled pad's light at
-    # its edge's pixels by their share) moved only the specs that can draw such a pad
-    wrinkled = {"pad_material": {"relief_m": [0.01, 0.01]}}
-    glossy = {"pad_material": {"gloss": [0.3, 0.3]}}
-    both = {"pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
-    dirty = {"pad_material": {"dirt": [0.2, 0.2]}}
+    # its edge's pixels by their share) moved only the specs that can draw such a pad (seen on
+    # sand without ground detail, which revisions 6 and 7 left alone)
+    bare = {"environment": {"ground_detail": False, "ground": ["sand"]}}
+    wrinkled = {**bare, "pad_material": {"relief_m": [0.01, 0.01]}}
+    glossy = {**bare, "pad_material": {"gloss": [0.3, 0.3]}}
+    both = {**bare, "pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
+    dirty = {**bare, "pad_material": {"dirt": [0.2, 0.2]}}
     from render.spec import render_revision
 
     assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [5, 5, 5, 2]
@@ -432,24 +435,30 @@ def test_blur_flow_of_a_ray_leaving_a_strong_lens_does_not_run_away():
     assert np.allclose(np.column_stack([u, v])[kept], raw[kept], atol=1e-9)
 
 
-def test_hard_surfaces_moved_only_the_specs_that_draw_them():
-    """Render revision 6 changed asphalt and concrete: a spec's identity takes it only when one of its
-    sequences draws one (as plan_sequence draws its scene), so every other cached dataset stays valid."""
+def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
+    """Render revision 6 changed asphalt and concrete, revision 7 the ground detail and the grasses'
+    rasterised texture: a spec's identity takes a revision only when one of its sequences draws
+    what it changed (as plan_sequence draws its scene), so every other cached dataset stays valid."""
     from render.plan import drawn_ground_kinds, plan_sequence
     from render.spec import render_revision
 
     seen = {}
-    for seed in range(12):
-        spec = DatasetSpec.model_validate({"seed": seed, "sequences": 2, "environment": {"ground": ["asphalt", "grass"]}})
+    for seed in range(16):
+        spec = DatasetSpec.model_validate({"seed": seed, "sequences": 2,
+                                           "environment": {"ground": ["asphalt", "grass", "sand"], "ground_detail": False}})
         kinds = drawn_ground_kinds(spec)
         assert kinds == {plan_sequence(spec, i).scene_draw.ground for i in range(2)}
         seen[frozenset(kinds)] = render_revision(spec)
-    assert seen[frozenset({"grass"})] == 2 and seen[frozenset({"asphalt"})] == 6, seen
-    assert seen[frozenset({"asphalt", "grass"})] == 6
-    grass = DatasetSpec.model_validate({"environment": {"ground": ["grass"]}})
-    assert render_revision(grass) == 2
-    concrete = DatasetSpec.model_validate({"environment": {"ground": ["concrete"]}})
-    assert render_revision(concrete) == 6
+    assert seen[frozenset({"sand"})] == 2 and seen[frozenset({"asphalt"})] == 6, seen
+    assert seen[frozenset({"grass"})] == 7 and seen[frozenset({"asphalt", "sand"})] == 6, seen
+    assert seen[frozenset({"asphalt", "grass"})] == 7, seen
+    def revision(**env):
+        return render_revision(DatasetSpec.model_validate({"environment": env}))
+
+    assert revision(ground=["sand"], ground_detail=False) == 2
+    assert revision(ground=["concrete"], ground_detail=False) == 6
+    assert revision(ground=["dry_grass"], ground_detail=False) == 7
+    assert revision(ground=["sand"]) == 7  # ground detail, on by default, is drawn on every kind
 
 
 @pytest.mark.parametrize("kind", ["asphalt", "concrete"])
@@ -465,3 +474,46 @@ def test_pavement_shows_stones_that_average_out_higher_up(kind):
     assert near["patches"] and far["patches"]
     assert near["corners"] > 100, near
     assert near["laplacian_var"] > 2 * far["laplacian_var"], (near, far)
+
+
+@pytest.mark.parametrize("kind", ["grass", "asphalt"])
+def test_ground_detail_does_not_jump_where_the_mipmap_level_changes(kind):
+    """A camera descending through an octave of height sees the ground's detail change smoothly:
+    the two mipmap levels around the pixels' footprint are blended (trilinear).  Read from the
+    finer level alone, the Laplacian variance of grass fell 1.8x and of asphalt 2.8x within a
+    quarter of an octave, where the level changed: a pulse in the ground's sharpness at every
+    doubling of the height."""
+    from benchmarks.realism import rendered_statistics
+
+    lap = [rendered_statistics("tiny", kind, 0.004 * 2 ** (i / 4), views=2)["laplacian_var"] for i in range(5)]
+    steps = [max(a, b) / min(a, b) for a, b in zip(lap, lap[1:])]
+    assert max(steps) < 1.3, lap
+
+
+def test_ground_detail_levels_blend_in_place():
+    """The coarser level, upsampled onto the finer level's texels to be blended with it, lies where
+    the finer one does (a shift would move the ground's detail as the camera descends), and a
+    blend toward past the last level fades to the tile's mean."""
+    import cv2
+
+    from render.ground import GroundDetail
+
+    n = 64
+    yy, xx = np.mgrid[0:n, 0:n].astype(np.float32)
+    fine = np.exp(-((xx - 20.3) ** 2 + (yy - 37.6) ** 2) / 18.0).astype(np.float32)
+    mip = [fine]
+    while mip[-1].shape[0] > 4:
+        mip.append(cv2.resize(mip[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+    g = GroundDetail.__new__(GroundDetail)
+    g._blend_cache, g._toward = {}, {}
+    texel = 0.001
+    for steps in (2, 4, 7):  # footprints between the finest level's texel and twice it, past the LOD bias
+        fp = texel * 2 ** (steps / GroundDetail.BLEND_STEPS - GroundDetail.LOD_BIAS)
+        level, tile = g._blended(0, fp, texel, mip)
+        assert level == 0 and tile.shape == fine.shape
+        m = cv2.moments(tile)
+        assert abs(m["m10"] / m["m00"] - 20.3) < 0.05 and abs(m["m01"] / m["m00"] - 37.6) < 0.05
+        assert np.isclose(tile.sum(), fine.sum(), rtol=1e-3)  # a blend of two levels of one mean
+    # past the last level worth reading (over 16 texels: here the 32-texel one) the blend fades to 0
+    level, tile = g._blended(0, texel * 2 ** (1.5 - GroundDetail.LOD_BIAS), texel, mip)
+    assert level == 1 and np.allclose(tile, 0.5 * mip[1])
