@@ -114,9 +114,10 @@ class SequenceRenderer:
             from .ground import GroundDetail
 
             draw = plan.scene_draw
-            flat = [(0.0, 0.0, 0.0, pad.side_m + 0.02, pad.side_m + 0.02, True)]
-            if spec.platform.height_m > 0:
-                flat.append((0.0, 0.0, 0.0, spec.platform.size_m, spec.platform.size_m, True))
+            # on a platform the pad is not on the ground (the platform's base is: its sides must
+            # not take the ground's detail where they meet it)
+            size = spec.platform.size_m if spec.platform.height_m > 0 else pad.side_m + 0.02
+            flat = [(0.0, 0.0, 0.0, size, size, True)]
             flat += [(x, y, yaw, sx, sy, False) for x, y, yaw, sx, sy in draw.decoy_patches]
             flat += [(x, y, yaw, size, size, False) for x, y, yaw, size, _, _ in draw.decoy_markers]
             self.ground = GroundDetail(draw.ground, plan.seed, camera, *self.rays, flat)
@@ -387,7 +388,7 @@ class SequenceRenderer:
         if g is not None:
             if f is not None:
                 g[rows, cols] *= f
-            linear *= g[..., None]
+            cv2.multiply(linear, cv2.merge([g, g, g]), dst=linear)
         elif f is not None:
             linear[rows, cols] *= f[..., None]
         if lobe is not None:
@@ -413,7 +414,9 @@ class SequenceRenderer:
         vis = None  # the sun's visibility pixel by pixel (a shadow's edge is sharp), once for both
         T_W_P = self._pad2world_now
         if self.scene.shadows and self.scene.pad_may_be_shaded(T_W_P[:2, 3], self.pad.side_m / math.sqrt(2.0) + 0.01):
-            vis = self.scene.pad_sun_visibility(P[..., :2].reshape(-1, 2) + T_W_P[:2, 3].astype(np.float32))
+            # the window's points in the world (x, y): one OpenCV pass, not numpy's strided copy
+            to_world = np.array([[1, 0, 0, T_W_P[0, 3]], [0, 1, 0, T_W_P[1, 3]]], np.float32)
+            vis = self.scene.pad_sun_visibility(cv2.transform(P, to_world).reshape(-1, 2))
             vis = vis.reshape(on.shape)
         normals = f = lobe = None
         if relief is not None:

@@ -138,14 +138,15 @@ class ImageFormation:
         return acc
 
     def optics(self, linear: np.ndarray) -> np.ndarray:
-        """Vignetting and lateral chromatic aberration, in place where possible."""
+        """Vignetting and lateral chromatic aberration (``linear`` is consumed)."""
         if self.ca_scale:
             c = self.camera
+            planes = list(cv2.split(linear))  # (whole planes: numpy's strided channel copies cost twice as much)
             for ch, k in ((0, 1.0 + self.ca_scale), (2, 1.0 - self.ca_scale)):  # red outward, blue inward
                 M = np.array([[1 / k, 0, c.cx * (1 - 1 / k)], [0, 1 / k, c.cy * (1 - 1 / k)]], np.float64)
-                linear[..., ch] = cv2.warpAffine(np.ascontiguousarray(linear[..., ch]), M, linear.shape[1::-1],
-                                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                                 borderMode=cv2.BORDER_REPLICATE)
+                planes[ch] = cv2.warpAffine(planes[ch], M, linear.shape[1::-1], flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                            borderMode=cv2.BORDER_REPLICATE)
+            linear = cv2.merge(planes)
         if self.vignette is not None:
             cv2.multiply(linear, self.vignette, dst=linear)
         return linear
