@@ -30,11 +30,14 @@ def _timeit(fn, n: int, warmup: int = 2) -> float:
     return (time.perf_counter() - t) / n
 
 
-def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", subframes=5) -> dict:
+def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", subframes=5,
+                 consecutive: bool = False) -> dict:
     """Frames/s of the real per-frame pipeline (raster with depth, visibility, flow, lens, blur, noise,
     tone curve, labels; no disk), its breakdown by stage, and the PNG encoding that a writer thread
     does beside it; against one ``cv2.warpPerspective`` of the pad texture at the output size.
-    ``spec_path``: a spec YAML, or a ``DatasetSpec``."""
+    ``spec_path``: a spec YAML, or a ``DatasetSpec``.  Frames spread from 30 to 90 % of the descent
+    (each at another height: what is made once per height is made for every one), or with
+    ``consecutive`` the ``n`` frames from 40 % on, as a sequence renders them."""
     import cv2
     import yaml
 
@@ -49,8 +52,13 @@ def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", s
     deg.update(motion_blur=blur, blur_method=blur_method, blur_subframes=subframes)
     spec = DatasetSpec.model_validate(d)
     r = SequenceRenderer(spec, 0)
-    frames = np.linspace(0.3 * (len(r) - 1), 0.9 * (len(r) - 1), n).round().astype(int)
-    r.render(int(frames[0]))  # warm up (shader compilation, first allocations)
+    if consecutive:
+        start = int(0.4 * (len(r) - 1))
+        frames = np.arange(start, min(start + n, len(r)))
+        r.render(int(frames[0]) - 1)  # warm up on the frame before
+    else:
+        frames = np.linspace(0.3 * (len(r) - 1), 0.9 * (len(r) - 1), n).round().astype(int)
+        r.render(int(frames[0]))  # warm up (shader compilation, first allocations)
     r.stage_seconds.clear()
     t = time.perf_counter()
     outs = [r.render(int(k)) for k in frames]
@@ -64,18 +72,20 @@ def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", s
     r.close()
     raster = stages.get("raster+readback", 0.0)
     del cv2, invert
-    return {"spec": spec.name, "resolution": f"{r.camera.width}x{r.camera.height}", "supersample": spec.camera.supersample,
+    return {"spec": spec.name, "frames": "consecutive" if consecutive else "spread",
+            "resolution": f"{r.camera.width}x{r.camera.height}", "supersample": spec.camera.supersample,
             "blur": blur_method if blur else "none", "samples": [o.labels["blur_subframes"] for o in outs],
             "fps": 1.0 / t_frame, "ms_per_frame": 1000 * t_frame, "stages_ms": stages,
             "non_raster_share": 1.0 - raster / (1000 * t_frame), "png_ms_writer_thread": 1000 * t_png,
             "ref_warp_ms": 1000 * t_warp, "ratio_to_warp": t_frame / t_warp}
 
 
-def realism_speed(n: int) -> dict:
+def realism_speed(n: int, consecutive: bool = False) -> dict:
     """The cost of every realism feature: the ``realism`` suite's two tiers (the same descents, once
     plain and once with ground detail, a rolling shutter, vignetting, chromatic aberration, auto
     exposure, sharpening, a glossy dirty wrinkled pad and landing legs), motion blur on in both,
-    timed alternately (three times each, the fastest run kept: the machine is shared)."""
+    timed alternately (three times each, the fastest run kept: the machine is shared); frames
+    spread over the descent, or ``consecutive`` ones (:func:`render_speed`)."""
     from .suite import load_suite
 
     _, specs, _, _ = load_suite("realism")
@@ -83,10 +93,11 @@ def realism_speed(n: int) -> dict:
     runs = {"r_plain": [], "r_real": []}
     for _ in range(3):
         for name in runs:
-            runs[name].append(render_speed(tiers[name], True, n))
+            runs[name].append(render_speed(tiers[name], True, n, consecutive=consecutive))
     best = {k: min(v, key=lambda r: r["ms_per_frame"]) for k, v in runs.items()}
     p, r = best["r_plain"], best["r_real"]
-    return {"plain": p, "real": r, "ratio": r["ms_per_frame"] / p["ms_per_frame"],
+    return {"frames": "consecutive" if consecutive else "spread", "plain": p, "real": r,
+            "ratio": r["ms_per_frame"] / p["ms_per_frame"],
             "ratio_with_png": (r["ms_per_frame"] + r["png_ms_writer_thread"]) / (p["ms_per_frame"] + p["png_ms_writer_thread"])}
 
 
@@ -185,13 +196,15 @@ def main(argv=None) -> int:
                       f"({r['ms_per_frame']:6.1f} ms; not raster {100 * r['non_raster_share']:.0f} %; png "
                       f"{r['png_ms_writer_thread']:.0f} ms on the writer thread)  warpPerspective {r['ref_warp_ms']:5.2f} ms "
                       f"ratio {r['ratio_to_warp']:6.1f}x\n    ms: {st}", flush=True)
-        rs = realism_speed(max(3, n // 2))
-        res["realism"] = rs
-        print(f"realism: every feature on {rs['real']['ms_per_frame']:.1f} ms/frame, off {rs['plain']['ms_per_frame']:.1f} "
-              f"ms/frame ({rs['real']['resolution']}, motion blur on): ratio {rs['ratio']:.2f}x (target <= 1.5x); "
-              f"with the PNG encoding {rs['ratio_with_png']:.2f}x\n    on: "
-              + "  ".join(f"{k} {v:.1f}" for k, v in rs["real"]["stages_ms"].items())
-              + "\n    off: " + "  ".join(f"{k} {v:.1f}" for k, v in rs["plain"]["stages_ms"].items()), flush=True)
+        res["realism"] = []
+        for consecutive, k in ((False, max(3, n // 2)), (True, max(6, n))):
+            rs = realism_speed(k, consecutive)
+            res["realism"].append(rs)
+            print(f"realism ({k} {rs['frames']} frames): every feature on {rs['real']['ms_per_frame']:.1f} ms/frame, off "
+                  f"{rs['plain']['ms_per_frame']:.1f} ms/frame ({rs['real']['resolution']}, motion blur on): ratio "
+                  f"{rs['ratio']:.2f}x (target <= 1.5x); with the PNG encoding {rs['ratio_with_png']:.2f}x\n    on: "
+                  + "  ".join(f"{k} {v:.1f}" for k, v in rs["real"]["stages_ms"].items())
+                  + "\n    off: " + "  ".join(f"{k} {v:.1f}" for k, v in rs["plain"]["stages_ms"].items()), flush=True)
     for w, h, fov in ((800, 800, 60.0), (1920, 1080, 94.0)):
         for r in localizer_speed(w, h, fov, n):
             res["localizer"].append(r)
