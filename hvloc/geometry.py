@@ -417,6 +417,14 @@ class Camera:
         xy = self.normalized_from_pixels(px)
         return np.column_stack([self.fx * xy[:, 0] + self.cx, self.fy * xy[:, 1] + self.cy])
 
+    def ideal_pixel_grid(self) -> np.ndarray:
+        """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (itself without
+        distortion); to warp a drawing made for the pinhole through the lens."""
+        u, v = np.meshgrid(np.arange(self.width, dtype=np.float64), np.arange(self.height, dtype=np.float64))
+        px = np.column_stack([u.ravel(), v.ravel()])
+        und = self.undistort_pixels(px) if self.has_distortion else px
+        return und.reshape(self.height, self.width, 2)
+
     def unproject(self, px, depth) -> np.ndarray:
         """Distorted pixels and z-depths -> ``(N, 3)`` points in the camera frame."""
         xy = self.normalized_from_pixels(px)

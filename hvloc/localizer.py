@@ -36,6 +36,7 @@ METHOD_ORDER = {"approaching": ("outline", "markers", "texture"),
 
 TEXTURE_COLD_EVERY = 4  # with no height known, in Approaching the texture is tried on every 4th frame without a pose
 HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines this long (the AHRS drifts)
+SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at most this old (hvloc.synthesis)
 TWIST_WINDOW_S = 0.45  # the rolling shutter's correction takes the camera's velocity from the poses of this long (4 at 10 Hz)
 
 
@@ -391,9 +392,12 @@ class HierarchicalLocalizer:
     """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``."""
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
-                 work: ImageWork | None = None, line_s: float = 0.0, ref_row: float | None = None):
+                 work: ImageWork | None = None, line_s: float = 0.0, ref_row: float | None = None,
+                 exposure_s: float = 0.0):
         """``line_s``, ``ref_row``: the camera's rolling shutter (:mod:`hvloc.shutter`): the time
-        between its rows, and the row whose time a frame's stamp is (by default the middle one)."""
+        between its rows, and the row whose time a frame's stamp is (by default the middle one).
+        ``exposure_s``: how long a frame is exposed (0: not known), which says how far motion
+        smears it (:mod:`hvloc.synthesis`)."""
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
         self.pad = pad if getattr(pad, "texture_rgb", None) is not None else None  # a bare geometry has no texture
         self._texture = None  # its ORB features (hvloc.texture), made when first needed
@@ -409,6 +413,10 @@ class HierarchicalLocalizer:
         if ref_row is not None and not math.isfinite(ref_row):
             raise ValueError(f"ref_row: {ref_row!r} is no row")
         self.shutter = RollingShutter(float(line_s), (camera.height - 1) / 2.0 if ref_row is None else float(ref_row))
+        if not (math.isfinite(exposure_s) and 0.0 <= exposure_s <= 1.0):
+            raise ValueError(f"exposure_s: {exposure_s!r} s is no frame's exposure")
+        self.exposure_s = float(exposure_s)
+        self._synthesis = None  # the pad drawn and smeared (hvloc.synthesis), made when first needed
         # the image work; localizers of one pad and camera that see the same frames may share one
         # (hvloc.work): their estimates are exactly what each would make alone
         self.work = work if work is not None else ImageWork()
@@ -435,6 +443,7 @@ class HierarchicalLocalizer:
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.recent: list = []                   # (t, position in P) of the accepted poses of the last TWIST_WINDOW_S
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one
+        self.policy_h: float | None = None       # the height the switching policy uses this frame (policy_height)
 
     # ------------------------------------------------------------------ public
     def process(self, image, t: float, imu=None) -> Estimate:
@@ -489,6 +498,7 @@ class HierarchicalLocalizer:
         self._update_twist(t, R_W_B is not None)
         cfg = self.config
         h = policy_height(self.last.height if self.last else None, self.last.t if self.last else 0.0, t, cfg)
+        self.policy_h = h
         self._update_phase(h)
         self.unposed += 1
         order = METHOD_ORDER[self.phase]
@@ -630,7 +640,11 @@ class HierarchicalLocalizer:
                 return None, why
             return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"
         if method == "texture":
-            det, why = self.work(lambda: ("texture", id(self._texture)), self._texture.locate, gray, self.camera)
+            det, why = None, ""
+            if self._texture_allowed(self.policy_h, orb=True):
+                det, why = self.work(lambda: ("texture", id(self._texture)), self._texture.locate, gray, self.camera)
+            if det is None:
+                det, why = self._synthesized(gray, t, R_W_B, why)
             return self._posed(det, why, prior, up_C, False)
         roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
         attempts = [roi, None] if roi is not None else [None]
@@ -807,13 +821,14 @@ class HierarchicalLocalizer:
             out[inside & (out < 0)] = i
         return out
 
-    def _texture_allowed(self, h: float | None) -> bool:
-        """The texture is tried near the ground: below the height where ORB's pyramids on the
-        image and on the texture still meet.  With no recent height: every frame past Approaching
-        (a chain broken near the ground), and in Approaching (a start or a reset near the ground,
-        where neither outline nor markers fit in the image) on the first frame without a pose and
-        every ``TEXTURE_COLD_EVERY``-th after, so that high up, where it finds nothing, it costs a
-        fraction of its ~50 ms."""
+    def _texture_allowed(self, h: float | None, orb: bool = False) -> bool:
+        """The texture is tried near the ground: by ORB (``orb``) below the height where ORB's
+        pyramids on the image and on the texture still meet, and drawn at the predicted pose
+        (:meth:`_synthesized`) wherever a recent pose predicts one.  With no recent height: every
+        frame past Approaching (a chain broken near the ground), and in Approaching (a start or a
+        reset near the ground, where neither outline nor markers fit in the image) on the first
+        frame without a pose and every ``TEXTURE_COLD_EVERY``-th after, so that high up, where it
+        finds nothing, it costs a fraction of its ~50 ms."""
         if self._texture is None:
             from .texture import PadTexture
 
@@ -821,8 +836,36 @@ class HierarchicalLocalizer:
         if not self._texture.usable:
             return False
         if h is not None:
-            return h <= self._texture.max_height_m(self.camera)
+            return h <= self._texture.max_height_m(self.camera) or (not orb and self._prediction_age_ok(self.last_t))
         return self.phase != "approaching" or self.unposed % TEXTURE_COLD_EVERY == 1
+
+    def _prediction_age_ok(self, t: float | None) -> bool:
+        return (self.last is not None and t is not None and self.pad is not None
+                and 0.0 < t - self.last.t <= SYNTHESIS_MAX_AGE_S)
+
+    def _synthesized(self, gray, t: float, R_W_B, why: str):
+        """``(Detection | None, reason)``: the pad drawn where the last pose, moved on at its velocity
+        and turned as the AHRS has turned since, puts it, smeared by that velocity and the gyro's
+        rate over the exposure, and aligned to the frame (:mod:`hvloc.synthesis`); only within
+        :data:`SYNTHESIS_MAX_AGE_S` of the last pose."""
+        if not self._prediction_age_ok(t):
+            return None, why or "no recent pose to draw the pad at"
+        if self._synthesis is None:
+            from .synthesis import PadSynthesis
+
+            self._synthesis = PadSynthesis(self.pad)
+        T = self.last.cam2pad.copy()
+        if self.velocity is not None:
+            T[:3, 3] += self.velocity * (t - self.last.t)
+        if R_W_B is not None and self.gates.R_W_P is not None:  # the pad's heading in the world, as last seen
+            T[:3, :3] = self.gates.R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
+        rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+        det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(self.velocity), array_key(rate_C),
+                                       self.exposure_s),
+                              self._synthesis.locate, gray, self.camera, T, self.velocity, rate_C, self.exposure_s)
+        if det is None:
+            return None, f"{why}; drawn at the predicted pose: {why2}" if why else f"drawn at the predicted pose: {why2}"
+        return det, "ok"
 
     def _gate(self, est: Estimate, R_W_B) -> str:
         return self.gates.check(est, R_W_B, self.last)
@@ -839,6 +882,8 @@ class HierarchicalLocalizer:
             self.flow.accept(est.cam2pad, est.rms_px, est.cov)
             return
         f = self.flow
+        if est.extras.get("by") == "synthesis":  # a smeared frame: no keyframe for Lucas-Kanade
+            return
         f.frames_since_kf += 1
         if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):

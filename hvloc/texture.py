@@ -135,8 +135,5 @@ class PadTexture:
     def _undistorted_grid(self, camera: Camera) -> np.ndarray:
         """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (kept per camera)."""
         if self._grid is None or self._grid[0] is not camera:
-            u, v = np.meshgrid(np.arange(camera.width, dtype=np.float64), np.arange(camera.height, dtype=np.float64))
-            px = np.column_stack([u.ravel(), v.ravel()])
-            und = camera.undistort_pixels(px) if camera.has_distortion else px
-            self._grid = (camera, und.reshape(camera.height, camera.width, 2))
+            self._grid = (camera, camera.ideal_pixel_grid())
         return self._grid[1]

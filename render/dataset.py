@@ -493,6 +493,12 @@ class Sequence:
         return float(self.camera_info.get("rolling_shutter_line_s", 0.0))
 
     @property
+    def exposure_s(self) -> float:
+        """How long each frame is exposed (s; 0 where the camera does not say): how far motion smears it."""
+        v = self.camera_info.get("exposure_s", 0.0)
+        return float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v > 0 else 0.0
+
+    @property
     def imu_time_offset_s(self) -> float:
         """The IMU's clock minus the camera's (imu.csv's t is on the IMU's clock)."""
         return float(self.camera_info.get("imu_time_offset_s", 0.0))

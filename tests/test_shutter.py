@@ -83,6 +83,9 @@ def test_a_line_time_no_camera_has_is_refused(pad):
         HierarchicalLocalizer(pad, CAM, line_s=float("nan"))
     with pytest.raises(ValueError, match="ref_row"):
         HierarchicalLocalizer(pad, CAM, line_s=LINE_S, ref_row=float("inf"))
+    for exposure in (-0.01, float("nan"), 2.0):  # an exposure no frame has (hvloc.synthesis reads it)
+        with pytest.raises(ValueError, match="exposure_s"):
+            HierarchicalLocalizer(pad, CAM, exposure_s=exposure)
 
 
 def test_without_an_imu_nothing_is_corrected(pad):

@@ -1,0 +1,195 @@
+"""The pad drawn where it should be and smeared as it should be: a pose under motion blur too
+heavy for any feature.
+
+A gust near the ground smears 40-80 px in a 30 ms exposure: Harris corners, Lucas-Kanade, ORB
+and the markers' contours all fail, and the flow tracker's chain breaks.  Yet what the frame
+should show is known: the pad's printed texture (``pad.png``), the pose a moment ago, the
+camera's velocity (from its last poses), its turn rate (the gyro) and the exposure.  So the
+texture is drawn at the predicted pose, once for each of a few instants of the exposure
+(centred on the frame's time), and the drawings averaged in linear light: the frame as it would
+look had the prediction been right.  The drawing is then aligned to the frame (OpenCV's ECC, an
+affine warp, coarse to fine), and the pad points the warp carries into the frame are the pose's
+correspondences.
+
+Both images are read relative to their local white (a shadow across the pad, the drone's own,
+is no part of the drawing), and only where the whole smear lies on the pad.  A drawing that
+aligns with a correlation under :data:`MIN_CC`, a warp that turns or scales far, or a frame the
+smeared pad fills too little of gives nothing.  Deterministic: ECC's iterations are bounded by a
+count.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from pad_design.texture import texture_to_pad
+
+from .features import srgb_to_linear
+from .geometry import Camera, invert, so3_exp
+from .phases import Detection
+
+WORK_PX = 400        # the alignment runs on the predicted pad's window shrunk to this many px on its longer side (not enlarged)
+MIN_WINDOW_PX = 24   # ... which must be at least this large (frame px), and hold this many squared where the smear is on the pad
+MAX_INSTANTS = 12    # instants of the exposure drawn (fewer when the predicted smear is short)
+INSTANT_PX = 3.0     # ... one per this many px of predicted smear (window px)
+MIN_FILL = 0.3       # share of the predicted pad's part in view where the whole smear lies on the pad
+MIN_CC = 0.85        # the aligned drawing's correlation with the frame (both read relative to their white)
+MAX_TURN_DEG = 8.0   # the warp may turn the drawing this much at most ...
+MAX_SCALE = 1.15     # ... and scale it within 1 / this and this
+MAX_SHIFT = 0.15     # ... and move it this share of the window's longer side
+WHITE_PX = 21        # the local white is the brightest within this many window px (then smoothed)
+GRID = 5             # pad points per side whose images are the correspondences (those in the smear's area)
+ALIGN_SIGMA_PX = 1.0  # a correspondence's noise, in window px: the warp's own error (calibrated on rendered gusts)
+
+
+def _white_relative(img: np.ndarray) -> np.ndarray:
+    """``img`` over its local white (the brightest nearby, smoothed): shading and shadows, which the
+    drawing lacks, divided out; the texture's black on white kept."""
+    env = cv2.GaussianBlur(cv2.dilate(img, np.ones((WHITE_PX, WHITE_PX), np.uint8)), (0, 0), WHITE_PX / 3.0)
+    return cv2.divide(img, np.maximum(env, np.float32(1e-3 * max(float(img.max()), 1e-6))))
+
+
+class PadSynthesis:
+    """The pad's texture in linear light at box-filtered scales; :meth:`locate` aligns it, drawn at
+    a predicted pose and smeared, to a frame."""
+
+    def __init__(self, pad):
+        self.pad = pad
+        gray = cv2.cvtColor(np.ascontiguousarray(pad.texture_rgb), cv2.COLOR_RGB2GRAY)
+        self.levels = [srgb_to_linear(gray)]
+        while min(self.levels[-1].shape) > 64:
+            self.levels.append(cv2.pyrDown(self.levels[-1]))
+        self._ideal = None  # (camera, (H, W, 2) float32 every pixel's place in the ideal pinhole image)
+
+    def _ideal_pixels(self, camera: Camera) -> np.ndarray:
+        """``(H, W, 2)`` float32: every pixel's place in the ideal pinhole image (kept per camera)."""
+        if self._ideal is None or self._ideal[0] is not camera:
+            self._ideal = (camera, camera.ideal_pixel_grid().astype(np.float32))
+        return self._ideal[1]
+
+    def window(self, camera: Camera, box, scale: float) -> np.ndarray:
+        """``(h, w, 2)`` float32: the ideal pinhole place of each pixel of the frame's window ``box``
+        (x0, y0, x1, y1) resampled at ``scale``: pixel ``j`` of the window is the frame's
+        ``x0 + (j + 0.5) / scale - 0.5``."""
+        x0, y0, x1, y1 = box
+        w, h = max(1, int(round((x1 - x0) * scale))), max(1, int(round((y1 - y0) * scale)))
+        u = (x0 + (np.arange(w) + 0.5) / scale - 0.5).astype(np.float32)
+        v = (y0 + (np.arange(h) + 0.5) / scale - 0.5).astype(np.float32)
+        uu, vv = np.meshgrid(u, v)
+        if not camera.has_distortion:
+            return np.dstack([uu, vv])
+        return cv2.remap(self._ideal_pixels(camera), uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+    def draw(self, camera: Camera, grid: np.ndarray, scale: float, cam2pads: list) -> tuple:
+        """``(image, inside)`` on ``grid`` (:meth:`window`): the texture seen from each pose of
+        ``cam2pads``, averaged in linear light (float32), and where every one of them sees the pad
+        (uint8 0/1)."""
+        h, w = grid.shape[:2]
+        K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
+        acc = np.zeros((h, w), np.float32)
+        inside = np.ones((h, w), np.uint8)
+        for T in cam2pads:
+            P2C = invert(T)
+            H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
+            # the texture's level whose texels are as large as a drawn pixel on the pad (at its centre)
+            ends = cv2.perspectiveTransform(np.array([[[-0.5 * self.pad.side_m, 0.0], [0.5 * self.pad.side_m, 0.0]]]), H)[0]
+            span_px = float(np.linalg.norm(ends[1] - ends[0])) * scale
+            level = int(np.clip(np.floor(math.log2(max(self.pad.ppm * self.pad.side_m / max(span_px, 1e-6), 1.0))),
+                                0, len(self.levels) - 1))
+            tex = self.levels[level]
+            M = np.linalg.inv(H @ texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level))  # ideal pixel -> texel
+            uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), M).reshape(h, w, 2)
+            acc += cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+            n = tex.shape[0]
+            inside &= (cv2.inRange(uv, (0.5, 0.5), (n - 1.5, n - 1.5)) > 0).astype(np.uint8)
+        return acc * np.float32(1.0 / len(cam2pads)), inside
+
+    def locate(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, vel_P=None, rate_C=None,
+               exposure_s: float = 0.0) -> tuple:
+        """``(Detection | None, reason)``: the pad's points and their pixels in ``gray`` (uint8),
+        from the texture drawn at the predicted ``cam2pad`` (``T_P_C``) and smeared by the camera's
+        velocity ``vel_P`` (m/s, pad frame) and turn rate ``rate_C`` (rad/s, camera frame) over
+        ``exposure_s`` centred on the frame's time."""
+        half = self.pad.side_m / 2
+        quad = camera.project_from(cam2pad, np.array([[-half, half, 0], [half, half, 0], [half, -half, 0],
+                                                      [-half, -half, 0]]))
+        if not np.isfinite(quad).all():
+            return None, "the predicted pad is not wholly in front of the camera"
+        v = np.zeros(3) if vel_P is None else np.asarray(vel_P, np.float64)
+        r = np.zeros(3) if rate_C is None else np.asarray(rate_C, np.float64)
+        e = max(float(exposure_s), 0.0)
+        # how far the prediction's motion smears the pad's centre over the exposure (frame px)
+        depth = max(float(invert(cam2pad)[2, 3]), 1e-3)
+        smear = min(camera.fx, camera.fy) * e * (float(np.linalg.norm(r)) + float(np.linalg.norm(v)) / depth)
+        # the window: the predicted pad and a margin (the smear, and a tenth of its size), in the frame
+        lo, hi = quad.min(axis=0), quad.max(axis=0)
+        m = max(16.0, smear + 0.1 * float(np.max(hi - lo)))
+        box = (max(0, int(lo[0] - m)), max(0, int(lo[1] - m)),
+               min(camera.width, int(math.ceil(hi[0] + m))), min(camera.height, int(math.ceil(hi[1] + m))))
+        if box[2] - box[0] < MIN_WINDOW_PX or box[3] - box[1] < MIN_WINDOW_PX:
+            return None, "the predicted pad is out of view"
+        scale = min(1.0, WORK_PX / max(box[2] - box[0], box[3] - box[1]))
+        grid = self.window(camera, box, scale)
+        h, w = grid.shape[:2]
+        n = int(np.clip(math.ceil(smear * scale / INSTANT_PX), 1, MAX_INSTANTS))
+        taus = np.linspace(-e / 2, e / 2, n) if n > 1 else [0.0]
+        poses = []
+        for tau in taus:
+            T = cam2pad.copy()
+            T[:3, 3] = cam2pad[:3, 3] + v * tau
+            T[:3, :3] = cam2pad[:3, :3] @ so3_exp(r * tau)
+            poses.append(T)
+        drawn, inside = self.draw(camera, grid, scale, poses)
+        inside = cv2.erode(inside, np.ones((5, 5), np.uint8))
+        frame_rect = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]], np.float32)
+        seen = cv2.intersectConvexConvex(quad.astype(np.float32), frame_rect)[0] * scale * scale  # the pad in view, window px
+        fill = float(inside.sum()) / max(seen, 1.0)
+        if fill < MIN_FILL or inside.sum() < (MIN_WINDOW_PX * scale) ** 2:
+            return None, f"the whole smear lies on the pad over {100 * fill:.0f} % of its part in view (< {100 * MIN_FILL:.0f} %)"
+        x0, y0, x1, y1 = box
+        crop = srgb_to_linear(np.ascontiguousarray(gray[y0:y1, x0:x1]))
+        frame = cv2.resize(crop, (w, h), interpolation=cv2.INTER_AREA) if (w, h) != crop.shape[::-1] else crop
+        a, b = _white_relative(frame), _white_relative(drawn)
+        warp = np.eye(2, 3, dtype=np.float32)
+        cc = -1.0
+        try:  # coarse to fine: half the work size (where it is large enough), then the work size
+            for k in ((0.5, 1.0) if min(w, h) >= 4 * MIN_WINDOW_PX else (1.0,)):
+                ak = cv2.resize(a, None, fx=k, fy=k, interpolation=cv2.INTER_AREA) if k < 1 else a
+                bk = cv2.resize(b, None, fx=k, fy=k, interpolation=cv2.INTER_AREA) if k < 1 else b
+                mk = cv2.resize(inside, (ak.shape[1], ak.shape[0]), interpolation=cv2.INTER_NEAREST) if k < 1 else inside
+                wk = warp.copy()
+                wk[:, 2] *= k
+                cc, wk = cv2.findTransformECC(ak, bk, wk, cv2.MOTION_AFFINE,
+                                              (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-5), mk, 5)
+                warp = wk.copy()
+                warp[:, 2] /= k
+        except cv2.error:
+            return None, "the smeared drawing did not align"
+        A = warp[:, :2].astype(np.float64)
+        turn = math.degrees(math.atan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1]))
+        zoom = math.sqrt(abs(np.linalg.det(A)))
+        shift = float(np.linalg.norm(warp[:, 2] + (A - np.eye(2)) @ np.array([w / 2.0, h / 2.0])))
+        if cc < MIN_CC:
+            return None, f"the smeared drawing aligns with correlation {cc:.2f} (< {MIN_CC})"
+        if abs(turn) > MAX_TURN_DEG or not 1 / MAX_SCALE < zoom < MAX_SCALE or shift > MAX_SHIFT * max(w, h):
+            return None, f"the smeared drawing moved too far to align ({turn:.1f} deg, x{zoom:.2f}, {shift:.0f} px)"
+        # pad points on a grid, where the smear lies on the pad: drawn at the predicted pose (window
+        # px), carried into the frame by the inverse warp (frame(x) ~ drawing(warp x))
+        g = (np.arange(GRID) + 0.5) / GRID - 0.5
+        P = np.array([[x, y, 0.0] for y in g for x in g]) * self.pad.side_m
+        px = camera.project_from(cam2pad, P)
+        ok = np.isfinite(px).all(axis=1)
+        q = (np.nan_to_num(px) - [x0, y0] + 0.5) * scale - 0.5
+        qi = np.round(q).astype(int)
+        ok &= (qi[:, 0] >= 0) & (qi[:, 0] < w) & (qi[:, 1] >= 0) & (qi[:, 1] < h)
+        ok[ok] = inside[qi[ok, 1], qi[ok, 0]] > 0
+        if ok.sum() < 4:
+            return None, f"{int(ok.sum())} pad points where the smear lies on the pad (< 4)"
+        Wi = cv2.invertAffineTransform(warp).astype(np.float64)
+        x = q[ok] @ Wi[:, :2].T + Wi[:, 2]
+        frame_px = (x + 0.5) / scale - 0.5 + [x0, y0]
+        info = {"by": "synthesis", "cc": round(float(cc), 3), "smear_px": round(smear, 1), "instants": n,
+                "fill": round(fill, 2), "px_sigma_blur": ALIGN_SIGMA_PX / scale}
+        return Detection(P[ok], frame_px, "texture", info), "ok"
