@@ -55,16 +55,18 @@ def tilt_rows(results_dir, localizer: str = "hierarchical") -> list:
             if not path.is_file():
                 continue
             est = read_estimates(path)
+            if len(est["frame"]) != len(seq):
+                raise SystemExit(f"{path}: {len(est['frame'])} rows for the dataset's {len(seq)} frames")
             ok = np.asarray(est["status"]) == "ok"
             method = np.asarray(est["method"]) if "method" in est else np.full(len(ok), "")
             imu = seq.imu
             truth = seq.cam2pad
-            for i in np.flatnonzero(ok):
+            for i in np.flatnonzero(ok):  # rows, one per frame of the dataset (its numbers have gaps where frames dropped)
                 k = int(est["frame"][i])
-                T = truth[k]
+                T = truth[i]
                 R_est = matrix_from_quat_xyzw([est[c][i] for c in ("qx", "qy", "qz", "qw")])
                 up_true, up_est = T[:3, :3][2], R_est[2]  # the pad's normal (the world's up) in the camera frame
-                sample = imu_at(imu, float(seq.t[k]), seq.imu_time_offset_s)
+                sample = imu_at(imu, float(seq.t[i]), seq.imu_time_offset_s)
                 ahrs = floor = float("nan")
                 if sample is not None:
                     up_C = up_in_camera(matrix_from_quat_xyzw(sample[7:11]), seq.T_B_C)
