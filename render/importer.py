@@ -209,10 +209,12 @@ def frame_numbers_from_times(t: np.ndarray, fps: float, source) -> np.ndarray:
 def import_recording(out, frames, calibration, *, calibration_name: str | None = None, fps: float | None = None,
                      timestamps=None, groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
                      mount_rpy_deg=None, pad_spec=None, name: str = "imported", line_s: float = 0.0,
-                     ref_row: float | None = None, show_progress: bool = False) -> dict:
+                     ref_row: float | None = None, exposure_s: float | None = None, show_progress: bool = False) -> dict:
     """Write the recording as a one-sequence dataset in ``out`` (a new folder, written whole or not at
     all).  ``line_s``, ``ref_row``: the camera's rolling shutter (``camera.json``): the time between
-    its rows' exposures, and the row a frame's time is (default: the middle one).
+    its rows' exposures, and the row a frame's time is (default: the middle one).  ``exposure_s``:
+    how long each frame is exposed, where the camera says (its metadata; how far motion smears a
+    frame, which the localizer draws: hvloc.synthesis); ``None``: not known.
     Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
     import yaml
 
@@ -241,12 +243,16 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     if stamps is not None:
         index = stamped_index if stamped_index is not None else frame_numbers_from_times(stamps, fps, timestamps)
     shutter = _rolling_shutter(line_s, ref_row, cal.camera.height, fps)
+    if exposure_s is not None and not (math.isfinite(float(exposure_s)) and 0.0 < float(exposure_s) <= 1.0 / fps):
+        raise InputError(f"--exposure-s {exposure_s:g}: an exposure lasts more than 0 s and at most a frame interval "
+                         f"({1.0 / fps:g} s at {fps:g} fps)")
     mount = MountSpec() if mount_rpy_deg is None else validate_model(MountSpec, {"rpy_deg": list(mount_rpy_deg)},
                                                                        "--mount-rpy")
     pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
     spec = validate_model(DatasetSpec, {
         "name": name, "seed": 0, "sequences": 1,
-        "camera": {**cal.spec_fields(), "fps": float(fps), "exposure_s": 0.0, "mount": mount.model_dump(mode="json"),
+        "camera": {**cal.spec_fields(), "fps": float(fps), "exposure_s": float(exposure_s or 0.0),
+                   "mount": mount.model_dump(mode="json"),
                    "rolling_shutter_line_s": shutter[0]},  # (the manifest's spec says what camera.json does)
         "pad": validate_model(PadSpec, pad_doc, str(pad_spec or "pad")).model_dump(mode="json"),
         "trajectory": {"start_height_m": 3.0, "lateral_offset_m": [0.0, 0.0]}}, "the recording's spec")
@@ -351,7 +357,8 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
         if bar:
             bar.close()
         info = camera.to_dict()
-        info.update({"fps": float(fps), "exposure_s": None, "T_B_C": T_B_C.tolist(), "supersample": 1,
+        info.update({"fps": float(fps), "exposure_s": spec.camera.exposure_s or None,  # (None: not known)
+                     "T_B_C": T_B_C.tolist(), "supersample": 1,
                      "frame_time_jitter_s": jitter,
                      "rolling_shutter_line_s": shutter[0],
                      "rolling_shutter_ref_row": (camera.height - 1) / 2 if shutter[1] is None else shutter[1],

@@ -164,6 +164,29 @@ def test_a_rolling_shutter_stated_at_import_reaches_the_localizer(recording, tmp
         assert not out.exists() or not any(out.iterdir()), f"{says}: left {list(out.iterdir())}"
 
 
+def test_an_exposure_stated_at_import_reaches_the_localizer(recording, tmp_path):
+    """A camera's exposure (its metadata) says how far motion smears a frame: the localizer draws the
+    pad smeared over it.  Not stated, camera.json says it is not known; one no frame has is refused
+    naming the option, and nothing is written."""
+    from benchmarks.run import make_localizer
+    from hvloc.config import LocalizerConfig
+
+    base, cam = recording
+    seq = _import(base, tmp_path / "ds", base / "frames", "--fps", "10", "--exposure-s", "0.02")
+    assert json.loads((tmp_path / "ds" / "seq_0000" / "camera.json").read_text())["exposure_s"] == 0.02
+    assert json.loads((tmp_path / "ds" / "manifest.json").read_text())["spec"]["camera"]["exposure_s"] == 0.02
+    assert seq.exposure_s == 0.02 and make_localizer("hierarchical", seq, LocalizerConfig()).exposure_s == 0.02
+    plain = _import(base, tmp_path / "plain", base / "frames", "--fps", "10")
+    assert json.loads((tmp_path / "plain" / "seq_0000" / "camera.json").read_text())["exposure_s"] is None
+    assert plain.exposure_s == 0.0 and make_localizer("hierarchical", plain, LocalizerConfig()).exposure_s == 0.0
+    for i, bad in enumerate(("0", "-0.01", "0.2", "nan")):  # 0.2 s: longer than a frame interval at 10 fps
+        out = tmp_path / f"o{i}"
+        r = run_cli("import", base / "frames", "--fps", "10", "--exposure-s", bad, "--calibration", base / "ost.yaml",
+                    "--out", out, "--quiet")
+        assert_input_error(r, "--exposure-s")
+        assert not out.exists() or not any(out.iterdir())
+
+
 def test_numbered_images_keep_their_frame_numbers_and_times_across_dropped_frames(recording, tmp_path):
     """A recording that dropped frames: the images named by frame number keep it, so each is labelled
     at its own time (not shifted into the gap)."""
