@@ -552,8 +552,9 @@ class HierarchicalLocalizer:
                 self.heading_t = t
                 # the image's own view of the normal, from many points: not the outline's four corners,
                 # whose tilt moves 0.5 degrees for a 0.03 px bias of its corners far away (field1080's
-                # outline tilts were 0.6 degrees off on average: they taught the AHRS a wrong error)
-                if method in ("markers", "texture") and est.n_corr >= 12:
+                # outline tilts were 0.6 degrees off on average: they taught the AHRS a wrong error); nor a
+                # smeared drawing's, whose tilt is an affine warp's (hvloc.synthesis)
+                if method in ("markers", "texture") and est.n_corr >= 12 and est.extras.get("by") != "synthesis":
                     self.ahrs.update(method, R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
                                      est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t)
             self._after_accept(method, est, gray)
