@@ -861,9 +861,11 @@ class HierarchicalLocalizer:
         if R_W_B is not None and self.gates.R_W_P is not None:  # the pad's heading in the world, as last seen
             T[:3, :3] = self.gates.R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
         rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+        sh = self.shutter
         det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(self.velocity), array_key(rate_C),
                                        self.exposure_s),
-                              self._synthesis.locate, gray, self.camera, T, self.velocity, rate_C, self.exposure_s)
+                              self._synthesis.locate, gray, self.camera, T, self.velocity, rate_C, self.exposure_s,
+                              sh.line_s if sh.active else 0.0, sh.ref_row)
         if det is None:
             return None, f"{why}; drawn at the predicted pose: {why2}" if why else f"drawn at the predicted pose: {why2}"
         return det, "ok"

@@ -40,6 +40,7 @@ MAX_TURN_DEG = 8.0   # the warp may turn the drawing this much at most ...
 MAX_SCALE = 1.15     # ... and scale it within 1 / this and this
 MAX_SHIFT = 0.15     # ... and move it this share of the window's longer side
 WHITE_PX = 21        # the local white is the brightest within this many window px (then smoothed)
+SHUTTER_BANDS = 8    # a rolling shutter's frame is drawn in this many bands of rows, each at its own time
 GRID = 5             # pad points per side whose images are the correspondences (those in the smear's area)
 ALIGN_SIGMA_PX = 1.0  # a correspondence's noise, in window px: the warp's own error (calibrated on rendered gusts)
 
@@ -82,36 +83,42 @@ class PadSynthesis:
             return np.dstack([uu, vv])
         return cv2.remap(self._ideal_pixels(camera), uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
-    def draw(self, camera: Camera, grid: np.ndarray, scale: float, cam2pads: list) -> tuple:
-        """``(image, inside)`` on ``grid`` (:meth:`window`): the texture seen from each pose of
-        ``cam2pads``, averaged in linear light (float32), and where every one of them sees the pad
-        (uint8 0/1)."""
+    def draw(self, camera: Camera, grid: np.ndarray, scale: float, pose_at, times, row_dt=None) -> tuple:
+        """``(image, inside)`` on ``grid`` (:meth:`window`): the texture seen from ``pose_at(tau)``
+        (``T_P_C``) at each instant of ``times``, averaged in linear light (float32), and where every
+        one of them sees the pad (uint8 0/1).  ``row_dt``: each grid row's exposure time relative to
+        the frame's (a rolling shutter; drawn in bands of rows, each at its middle row's time)."""
         h, w = grid.shape[:2]
         K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
         acc = np.zeros((h, w), np.float32)
         inside = np.ones((h, w), np.uint8)
-        for T in cam2pads:
-            P2C = invert(T)
-            H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
-            # the texture's level whose texels are as large as a drawn pixel on the pad (at its centre)
-            ends = cv2.perspectiveTransform(np.array([[[-0.5 * self.pad.side_m, 0.0], [0.5 * self.pad.side_m, 0.0]]]), H)[0]
-            span_px = float(np.linalg.norm(ends[1] - ends[0])) * scale
-            level = int(np.clip(np.floor(math.log2(max(self.pad.ppm * self.pad.side_m / max(span_px, 1e-6), 1.0))),
-                                0, len(self.levels) - 1))
-            tex = self.levels[level]
-            M = np.linalg.inv(H @ texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level))  # ideal pixel -> texel
-            uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), M).reshape(h, w, 2)
-            acc += cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-            n = tex.shape[0]
-            inside &= (cv2.inRange(uv, (0.5, 0.5), (n - 1.5, n - 1.5)) > 0).astype(np.uint8)
-        return acc * np.float32(1.0 / len(cam2pads)), inside
+        edges = np.linspace(0, h, (SHUTTER_BANDS if row_dt is not None else 1) + 1).round().astype(int)
+        bands = [(a, b, 0.0 if row_dt is None else float(row_dt[(a + b - 1) // 2])) for a, b in zip(edges, edges[1:]) if b > a]
+        for tau in times:
+            for a, b, dt in bands:
+                P2C = invert(pose_at(tau + dt))
+                H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
+                # the texture's level whose texels are as large as a drawn pixel on the pad (at its centre)
+                ends = cv2.perspectiveTransform(np.array([[[-0.5 * self.pad.side_m, 0.0], [0.5 * self.pad.side_m, 0.0]]]),
+                                                H)[0]
+                span_px = float(np.linalg.norm(ends[1] - ends[0])) * scale
+                level = int(np.clip(np.floor(math.log2(max(self.pad.ppm * self.pad.side_m / max(span_px, 1e-6), 1.0))),
+                                    0, len(self.levels) - 1))
+                tex = self.levels[level]
+                M = np.linalg.inv(H @ texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level))  # ideal pixel -> texel
+                uv = cv2.perspectiveTransform(np.ascontiguousarray(grid[a:b]).reshape(-1, 1, 2), M).reshape(b - a, w, 2)
+                acc[a:b] += cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+                n = tex.shape[0]
+                inside[a:b] &= (cv2.inRange(uv, (0.5, 0.5), (n - 1.5, n - 1.5)) > 0).astype(np.uint8)
+        return acc * np.float32(1.0 / len(times)), inside
 
     def locate(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, vel_P=None, rate_C=None,
-               exposure_s: float = 0.0) -> tuple:
+               exposure_s: float = 0.0, line_s: float = 0.0, ref_row: float | None = None) -> tuple:
         """``(Detection | None, reason)``: the pad's points and their pixels in ``gray`` (uint8),
         from the texture drawn at the predicted ``cam2pad`` (``T_P_C``) and smeared by the camera's
         velocity ``vel_P`` (m/s, pad frame) and turn rate ``rate_C`` (rad/s, camera frame) over
-        ``exposure_s`` centred on the frame's time."""
+        ``exposure_s`` centred on the frame's time; a rolling shutter (``line_s`` between rows,
+        ``ref_row`` the frame time's) draws each band of rows at its own time."""
         half = self.pad.side_m / 2
         quad = camera.project_from(cam2pad, np.array([[-half, half, 0], [half, half, 0], [half, -half, 0],
                                                       [-half, -half, 0]]))
@@ -135,13 +142,17 @@ class PadSynthesis:
         h, w = grid.shape[:2]
         n = int(np.clip(math.ceil(smear * scale / INSTANT_PX), 1, MAX_INSTANTS))
         taus = np.linspace(-e / 2, e / 2, n) if n > 1 else [0.0]
-        poses = []
-        for tau in taus:
+        def pose_at(tau):
             T = cam2pad.copy()
             T[:3, 3] = cam2pad[:3, 3] + v * tau
             T[:3, :3] = cam2pad[:3, :3] @ so3_exp(r * tau)
-            poses.append(T)
-        drawn, inside = self.draw(camera, grid, scale, poses)
+            return T
+
+        row_dt = None
+        if line_s:
+            ref = (camera.height - 1) / 2.0 if ref_row is None else float(ref_row)
+            row_dt = (box[1] + (np.arange(h) + 0.5) / scale - 0.5 - ref) * float(line_s)
+        drawn, inside = self.draw(camera, grid, scale, pose_at, taus, row_dt)
         inside = cv2.erode(inside, np.ones((5, 5), np.uint8))
         frame_rect = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]], np.float32)
         seen = cv2.intersectConvexConvex(quad.astype(np.float32), frame_rect)[0] * scale * scale  # the pad in view, window px

@@ -1953,3 +1953,36 @@ def test_a_far_pad_cut_by_the_edge_and_smeared_is_posed_by_its_drawing(pad):
         if k >= 6 and e.ok:
             x = -4.0 - 0.14 * k
             assert pose_error(e.cam2pad, tilted(x, 0.3, 9.0 - 0.05 * k, 0.2))[0] < 0.02 * 9.0
+
+
+def test_a_smeared_rolling_shutter_frame_is_drawn_band_by_band(pad):
+    """A rolling shutter read in 25 ms exposes the frame's rows a frame's smear apart: drawn as one
+    instant the pad's drawing is skewed against it.  Told the line time, the drawing is made in
+    bands of rows, each at its own time, and the pose (at the middle row's time) comes out as close
+    as a global shutter's."""
+    from hvloc.synthesis import PadSynthesis
+
+    line_s, e = 0.025 / CAM.height, 0.02
+    G = tilted(0.04, -0.06, 0.6, 0.9, 0.02, -0.01)
+    v, w = np.array([0.35, -0.2, -0.3]), np.array([0.5, -0.7, 1.2])
+    ref = (CAM.height - 1) / 2
+    acc = np.zeros((CAM.height, CAM.width, 3))
+    bands = np.linspace(0, CAM.height, 41).round().astype(int)
+    for tau in np.linspace(-e / 2, e / 2, 10):
+        for a, b in zip(bands, bands[1:]):
+            dt = ((a + b - 1) / 2 - ref) * line_s
+            T = G.copy()
+            T[:3, 3] = G[:3, 3] + v * (tau + dt)
+            T[:3, :3] = G[:3, :3] @ so3_exp(w * (tau + dt))
+            acc[a:b] += (warp_pad_view(pad, CAM, T, GROUND, supersample=1)[a:b] / 255.0) ** 2.2
+    gray = cv2.cvtColor(np.clip(255 * (acc / 10) ** (1 / 2.2) + 0.5, 0, 255).astype(np.uint8), cv2.COLOR_RGB2GRAY)
+    pred = G.copy()
+    pred[:3, 3] += [0.012, -0.008, 0.01]
+    up = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    syn = PadSynthesis(pad)
+    told, why = syn.locate(gray, CAM, pred, v, w, e, line_s, ref)
+    assert told is not None, why
+    dp = pose_error(solve_planar_pose(CAM, told.pts_P, told.px, up).cam2pad, G)[0]
+    blind, why = syn.locate(gray, CAM, pred, v, w, e)  # the shutter not told
+    dp_blind = np.inf if blind is None else pose_error(solve_planar_pose(CAM, blind.pts_P, blind.px, up).cam2pad, G)[0]
+    assert dp < 0.004 and dp < 0.5 * dp_blind, (dp, dp_blind, told.info, why)
