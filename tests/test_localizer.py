@@ -1922,10 +1922,11 @@ def test_a_far_pad_cut_by_the_edge_and_smeared_is_posed_by_its_drawing(pad):
     10 px of smear, one marker left.  No outline or marker method poses that (gusty_blur lost such
     frames); the pad drawn where the last pose predicts it, smeared by the gyro's rate and the
     velocity of the last poses over the 30 ms exposure, is.  Without the exposure it is drawn sharp
-    and the same frames are refused rather than posed wrong."""
+    and the same frames are refused rather than posed wrong; without an IMU (no attitude to turn
+    the drawing by) nothing is drawn."""
     results = {}
-    for exposure in (0.03, 0.0):
-        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), exposure_s=exposure)
+    for exposure, with_imu in ((0.03, True), (0.0, True), (None, False)):
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), exposure_s=0.03 if exposure is None else exposure)
         out = []
         for k in range(9):
             x = -4.0 - 0.14 * k  # the camera moves away: the pad slides toward the image's right edge
@@ -1938,9 +1939,12 @@ def test_a_far_pad_cut_by_the_edge_and_smeared_is_posed_by_its_drawing(pad):
             from hvloc.geometry import quat_xyzw_from_matrix
 
             imu[7:] = quat_xyzw_from_matrix(R)
-            e = loc.process(img, 0.1 * k, imu)
+            e = loc.process(img, 0.1 * k, imu if with_imu else None)
             out.append((k, e))
         results[exposure] = out
+    assert not any(e.extras.get("by") == "synthesis" for _, e in results[None])
+    assert any("no attitude to draw the pad at" in e.reason for k, e in results[None] if k >= 6 and not e.ok), \
+        [(k, e.status, e.reason[-160:]) for k, e in results[None]]
     cut = [(k, e) for k, e in results[0.03] if k >= 6]
     posed = [(k, e) for k, e in cut if e.ok]
     assert len(posed) >= 2 and all(e.method == "texture" and e.extras.get("by") == "synthesis" for _, e in posed), \
