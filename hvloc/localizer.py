@@ -438,7 +438,8 @@ class HierarchicalLocalizer:
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s)
-        self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work)
+        self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
+                                   self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.recent: list = []                   # (t, position in P) of the accepted poses of the last TWIST_WINDOW_S

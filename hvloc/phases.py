@@ -1574,6 +1574,25 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
     return None if pts is None else pts[:, 0, :].astype(np.float64)
 
 
+def pad_region_mask(camera: Camera, cam2pad: np.ndarray, region_P: np.ndarray, shape, inset_px: float = 12.0,
+                    step: int = 8) -> np.ndarray | None:
+    """``uint8`` mask (255 inside) of the pixels that see the pad's region (the box of
+    ``region_P``'s x, y on the pad plane) at least ``inset_px`` from its edge, or ``None`` when
+    none does.  Each pixel's ray is met with the plane (lens and all) on a grid of ``step`` px, so
+    a corner far out of view, which a distortion model cannot project, never folds back in."""
+    H, W = shape[:2]
+    u, v = np.meshgrid(np.arange(step / 2, W, step), np.arange(step / 2, H, step))
+    P, ok = _on_pad_plane(camera, cam2pad, np.column_stack([u.ravel(), v.ravel()]))
+    lo, hi = region_P[:, :2].min(axis=0), region_P[:, :2].max(axis=0)
+    inset = inset_px * max(float(cam2pad[2, 3]), 1e-3) / camera.fx
+    with np.errstate(invalid="ignore"):
+        inside = ok & np.all((P[:, :2] >= lo + inset) & (P[:, :2] <= hi - inset), axis=1)
+    if not inside.any():
+        return None
+    coarse = (inside.reshape(u.shape) * 255).astype(np.uint8)
+    return cv2.resize(coarse, (W, H), interpolation=cv2.INTER_NEAREST)
+
+
 def make_keyframe(gray: np.ndarray, cam2pad: np.ndarray, camera: Camera, anchored: bool,
                   max_corners: int = 150, mask: np.ndarray | None = None, cov: np.ndarray | None = None,
                   corners_px: np.ndarray | None = None, unroll=None) -> Keyframe | None:
@@ -1685,8 +1704,11 @@ class FlowTracker:
     """
 
     def __init__(self, camera: Camera, reanchor_scale: float = 1.15, min_tracks: int = 30,
-                 work: ImageWork | None = None):
+                 work: ImageWork | None = None, region_P: np.ndarray | None = None):
         self.camera = camera
+        # the pad's outer corners: keyframe features come from the pad where enough of it is in view
+        # (the ground may not be its plane: a raised pad, a deck), from anywhere else only otherwise
+        self.region_P = None if region_P is None else np.asarray(region_P, np.float64)
         self.reanchor_scale = reanchor_scale
         self.min_tracks = min_tracks
         self.work = work if work is not None else ImageWork()
@@ -1709,7 +1731,15 @@ class FlowTracker:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose."""
         tag = self.work.frame if tag is None else tag
-        corners = self.work(lambda: ("harris", tag), harris_corners, gray)
+        corners = None
+        if self.region_P is not None:
+            mask = pad_region_mask(self.camera, cam2pad, self.region_P, gray.shape)
+            if mask is not None:
+                corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), harris_corners, gray, 150, mask)
+            if corners is not None and len(corners) < self.min_tracks:
+                corners = None
+        if corners is None:
+            corners = self.work(lambda: ("harris", tag), harris_corners, gray)
         kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners,
                            unroll=self.unroll)
         if kf is None:
