@@ -243,7 +243,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             # whose hull's corner lay 35 px from the pad's, taken as it was)
             return None, SIDES_NOT_FOUND
         refined = quad if smeared is None else smeared
-    elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(3.0, 0.1 * side_px):
+    elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(HULL_SLACK_PX, 0.1 * side_px):
         return None, "its sides and its colour hull disagree"
     else:
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
@@ -661,6 +661,11 @@ CENTROID_WIDEN = 2  # a border's centroid is read within 16 px of it, or 32, or 
 EDGE_FIT_SMEAR_PX = 10.0  # px of smear an edge fit holds to (twice its window)
 TOO_SMEARED = "smeared past where its sides can be placed"
 SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are placed by the border's centroid
+# How far a small pad's colour hull may lie from its fitted sides: JPEG keeps chroma at half
+# resolution, so a hull read from colour can be two chroma samples (4 px) off a corner of a 23 px pad
+# whose sides fit within 2 px (bench_v2's v2_wide_jpeg55 at 20 m: 3.1-4.8 px; refused at 3 px, 18 of
+# 239 frames lost).  Larger pads allow a tenth of their side.
+HULL_SLACK_PX = 4.0
 CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px of smear
 
 
