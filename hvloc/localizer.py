@@ -863,7 +863,7 @@ class HierarchicalLocalizer:
         T = self.last.cam2pad.copy()
         if self.velocity is not None:
             T[:3, 3] += self.velocity * (t - self.last.t)
-        if R_W_B is not None and self.gates.R_W_P is not None:  # the pad's heading in the world, as last seen
+        if self.gates.R_W_P is not None:  # the pad's heading in the world, as last seen
             T[:3, :3] = self.gates.R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
         rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         sh = self.shutter

@@ -1737,10 +1737,8 @@ class FlowTracker:
         :class:`ImageWork` is at) and its pose."""
         tag = self.work.frame if tag is None else tag
         corners = None
-        if self.region_P is not None:
-            mask = pad_region_mask(self.camera, cam2pad, self.region_P, gray.shape)
-            if mask is not None:
-                corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), harris_corners, gray, 150, mask)
+        if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
+            corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
             if corners is not None and len(corners) < self.min_tracks:
                 corners = None
         if corners is None:
@@ -1753,6 +1751,11 @@ class FlowTracker:
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
         self.pending = None
         return True
+
+    def _pad_corners(self, gray, cam2pad) -> np.ndarray | None:
+        """Harris corners where the pad is seen (:func:`pad_region_mask`), or ``None``."""
+        mask = pad_region_mask(self.camera, cam2pad, self.region_P, gray.shape)
+        return None if mask is None else harris_corners(gray, 150, mask)
 
     def track(self, gray, prior_cam2pad=None, up_C=None, predicted_cam2pad=None):
         """``(PoseResult | None, n_inliers, reason)`` for ``gray``; ``predicted_cam2pad``: the pose

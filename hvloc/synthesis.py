@@ -157,8 +157,11 @@ class PadSynthesis:
         frame_rect = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]], np.float32)
         seen = cv2.intersectConvexConvex(quad.astype(np.float32), frame_rect)[0] * scale * scale  # the pad in view, window px
         fill = float(inside.sum()) / max(seen, 1.0)
-        if fill < MIN_FILL or inside.sum() < (MIN_WINDOW_PX * scale) ** 2:
+        if fill < MIN_FILL:
             return None, f"the whole smear lies on the pad over {100 * fill:.0f} % of its part in view (< {100 * MIN_FILL:.0f} %)"
+        if inside.sum() < (MIN_WINDOW_PX * scale) ** 2:
+            return None, f"the whole smear lies on the pad over {int(inside.sum())} window px of its part in view " \
+                         f"(< {(MIN_WINDOW_PX * scale) ** 2:.0f})"
         x0, y0, x1, y1 = box
         crop = srgb_to_linear(np.ascontiguousarray(gray[y0:y1, x0:x1]))
         frame = cv2.resize(crop, (w, h), interpolation=cv2.INTER_AREA) if (w, h) != crop.shape[::-1] else crop
