@@ -148,13 +148,13 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
     # the image's own edges are where a pad can be cut off.
     H_img, W_img = rgb.shape[:2]
     cut_edges = (x0 == 0, y0 == 0, x0 + img.shape[1] >= W_img, y0 + img.shape[0] >= H_img)
-    whole = _best_ring(mask, pad_geometry, cut_edges)
+    whole = _best_ring(mask, pad_geometry, cut_edges, scale=scale)
     tries = [] if whole is None else [whole]
     if whole is None or _at_cut(whole, small.shape, cut_edges).any():
         # the pad running out of the image: three corners and the sides toward the fourth (also when a
         # ring read whole touches the image's edge, and its outline is not found: a corner just out of
         # view is read either way, a piece of a cut ring only as cut)
-        other = _best_ring(mask, pad_geometry, cut_edges, cut=True)
+        other = _best_ring(mask, pad_geometry, cut_edges, cut=True, scale=scale)
         if other is None:
             # nothing saturated enough: glare on a glossy pad adds white light, which keeps the hue and
             # the colour's own chroma but takes half the saturation (magenta 198,51,176 -> 232,138,218
@@ -162,7 +162,7 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             # (the checker's dark cells wash out first: the ring may be the solid band alone)
             band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
             other = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
-                               cut_edges, min_share=0.5 * band)
+                               cut_edges, min_share=0.5 * band, scale=scale)
         tries += [] if other is None else [other]
     if not tries:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
@@ -538,13 +538,13 @@ def _chain_quad(chain: np.ndarray, min_seen: float = 0.25) -> np.ndarray | None:
 
 
 def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) * 4, min_share: float | None = None,
-               cut: bool = False) -> np.ndarray | None:
+               cut: bool = False, scale: int = 1) -> np.ndarray | None:
     """The mask's blob most like the pad's border ring (a convex quadrilateral whose area is
     border-coloured in about the ring's share, at least ``min_share``: half the ring's by default),
     by area and share.  ``cut_edges`` flags the mask's sides that are the image's own: a whole
     ring's hull may not touch them (a hull squeezed against the image's edge has corners that are
     not the pad's); with ``cut``, only blobs running into them are read, as a pad cut by the image's
-    edge (:func:`_cut_quad`)."""
+    edge (:func:`_cut_quad`).  ``scale``: image pixels per mask pixel."""
     if cut and not any(cut_edges):
         return None
     full = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
@@ -580,12 +580,31 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
         if qa <= 0 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
             continue
         share = _mask_share(full, quad)
-        if not ((0.5 * ring_share if min_share is None else min_share) <= share <= min(0.95, 1.6 * ring_share)):
+        if not ((0.5 * ring_share if min_share is None else min_share) <= share <= _ring_share_ceiling(pad_geometry, scale * sides.mean())):
             continue  # a solid patch of the colour, or a thin frame: not the pad
         score = qa * (1.0 - abs(share - ring_share))
         if score > best_score:
             best, best_score = quad, score
     return best
+
+
+RING_SWELL_PX = (3.0, 1.0)  # px a ring's colour may spread past its outer edge, and into its hole
+
+
+def _ring_share_ceiling(geo: PadGeometry, hull_side_px: float) -> float:
+    """The largest share of a ring's hull (mean side ``hull_side_px``) its colour may cover and
+    still be the pad's border, not a solid patch of the colour: 1.6 times the ring's own share, or
+    more on a small pad, whose colour JPEG's half-resolution chroma (8 x 8 blocks of it, 16 px)
+    spreads ``RING_SWELL_PX`` out past the pad and into its white field.  On unseen29's 17-20 px
+    pads under JPEG 50 the hull came out 3 px wider on each side and the hole 1 px narrower: 68-74 %
+    of the hull coloured, where the ring is 42 % of the pad, and all were refused as solid.  Never
+    more than 0.9: a solid patch, its corners rounded, covers 95 % of its hull."""
+    out, into = RING_SWELL_PX
+    f = geo.field_side_m / geo.side_m
+    side = max(hull_side_px - 2.0 * out, 1.0)
+    hole = max(f * side - 2.0 * into, 0.0)
+    swollen = 1.0 - (hole / max(hull_side_px, 1.0)) ** 2
+    return float(min(0.9, max(1.6 * (1.0 - f * f), swollen)))
 
 
 def _along_cut(hull: np.ndarray, shape, cut_edges) -> float:
@@ -813,6 +832,9 @@ def _colour_direction(colour_rgb, dtype=np.float64) -> np.ndarray:
     return (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
 
 
+BAND_STRETCH_MIN_PX = 16.0  # px a side's stretch spans at the least (JPEG's chroma block: 8 px at half resolution)
+
+
 def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                   segments: int = 3, per: int = 6, visible=None) -> bool:
     """Whether a stretch of some side of ``quad_px`` lacks the border's solid band just inside it.
@@ -822,10 +844,16 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     put a corner several pixels out: the pose is then off by 10 % of the height and nothing else
     objects.  Through the quad's homography, the border colour's chroma (``(R + B) / 2 - G`` over
     the brightness, for the magenta border) is read half a band inside and half a band outside each
-    side, over ``segments`` stretches between the corner squares.  A stretch fails when its
+    side, over ``segments`` stretches between the corner squares, fewer where a side is short: each
+    at least :data:`BAND_STRETCH_MIN_PX` long.  (JPEG keeps chroma in 8 x 8 blocks at half
+    resolution: a stretch shorter than a block reads one block's colour, and on unseen29's 17-25 px
+    pads under JPEG 50 the labelled outline itself failed the check in 53 of 75 frames, 5 once a
+    stretch spans a block; the quad shifted by 3 px still fails it in all 75, one side moved 3 px out
+    in 60.)  A stretch fails when its
     contrast is under a quarter of the median stretch's both raw and over the brightness (and under
     0.03 there): a shadow across the pad lowers the first but not the second; a box over a corner
     both."""
+    segments = int(np.clip(_mean_side(quad_px) // BAND_STRETCH_MIN_PX, 1, segments))
     got = _band_stretches(rgb, quad_px, geo, camera, segments, per, visible)
     if got is None:
         return False
