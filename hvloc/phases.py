@@ -832,7 +832,7 @@ def _colour_direction(colour_rgb, dtype=np.float64) -> np.ndarray:
     return (c - c.mean()) / (np.abs(c - c.mean()).max() + 1e-6)
 
 
-BAND_STRETCH_MIN_PX = 16.0  # px a side's stretch spans at the least (JPEG's chroma block: 8 px at half resolution)
+BAND_STRETCH_MIN_PX = 11.0  # px a side's stretch spans at the least (:func:`_band_missing`)
 
 
 def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -846,10 +846,12 @@ def _band_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     the brightness, for the magenta border) is read half a band inside and half a band outside each
     side, over ``segments`` stretches between the corner squares, fewer where a side is short: each
     at least :data:`BAND_STRETCH_MIN_PX` long.  (JPEG keeps chroma in 8 x 8 blocks at half
-    resolution: a stretch shorter than a block reads one block's colour, and on unseen29's 17-25 px
-    pads under JPEG 50 the labelled outline itself failed the check in 53 of 75 frames, 5 once a
-    stretch spans a block; the quad shifted by 3 px still fails it in all 75, one side moved 3 px out
-    in 60.)  A stretch fails when its
+    resolution, 16 px: a 3-4 px stretch of a 17-21 px pad reads about one block's colour, and on
+    unseen29's far frames under JPEG 50 the labelled outline itself failed the check in 53 of 75;
+    in 8 with 11 px stretches, one per side below 22 px, while the quad shifted by 3 px still
+    fails in all 75 and one side moved 3 px out in 64.  With 16 px stretches, one per side up to
+    32 px, a 23 px pad's fit 3 px off along part of a side passed: bench_v2's v2_wide_jpeg55, 3
+    frames.)  A stretch fails when its
     contrast is under a quarter of the median stretch's both raw and over the brightness (and under
     0.03 there): a shadow across the pad lowers the first but not the second; a box over a corner
     both."""

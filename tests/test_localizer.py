@@ -2139,9 +2139,10 @@ def test_a_solid_patch_of_the_border_colour_is_no_ring_however_small():
 def test_the_band_check_reads_a_small_pad_in_stretches_a_jpeg_block_long():
     """The band check reads the border's colour just inside and outside each side in three
     stretches; on a 17-21 px pad under JPEG 50 a stretch is 3-4 px, inside one chroma block, and
-    the labelled outline itself failed it in 7 of these 8 views.  Read in stretches at least 16 px
-    long, the labelled outline passes in 7, and the same outline moved 3 px, which puts a side on
-    the platform or the ground, still fails in all 8, whichever way it moves."""
+    the labelled outline itself failed it in 7 of these 8 views.  Read in stretches at least 11 px
+    long (one per side on these pads), the labelled outline passes in 7, and the same outline moved
+    3 px, which puts a side on the platform or the ground, still fails in all 8, whichever way it
+    moves."""
     from hvloc.phases import _band_missing
 
     pad, views = _far_pad_jpeg50()
