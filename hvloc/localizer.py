@@ -71,6 +71,7 @@ MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its 
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
+FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, the mirror pose must fit this many noise units worse
 
 
 def method_allowed(method: str, h: float | None, cfg: LocalizerConfig, markers_seen_below_m: float = 0.0) -> bool:
@@ -310,6 +311,24 @@ class AHRSTiltBias:
         w = 1.0 / sigma**2
         self.S += w * e
         self.W += w
+
+
+def _flip_ambiguous(pose: PoseResult) -> str:
+    """Why ``pose`` cannot be told from its mirror, or ``""``.  A planar pose has two solutions
+    (IPPE's); the IMU's gravity picks one, else the previous pose.  With neither, only the fit
+    does, and on a far pad seen from the side the two fit alike: without an IMU, the first pose
+    of bench_v2's x_wide_oblique_dusk (a 20-23 px pad at 20 m, pitched 40 degrees) fit to 0.33 px
+    and its mirror to 0.40; the mirror was taken, 140 % of the height off, and every later pose
+    followed it as the previous one (126 false accepts).  The chosen pose must fit better than
+    its mirror by ``FLIP_MARGIN_SIGMAS`` times the noise: the corners' floor, or the fit's own
+    residual where larger."""
+    if pose.flip_choice != "rms":
+        return ""
+    margin = FLIP_MARGIN_SIGMAS * max(PIXEL_SIGMA, pose.rms_px)
+    if pose.other_rms_px > pose.rms_px + margin:
+        return ""
+    return (f"the pose and its mirror fit alike (reprojection RMS {pose.rms_px:.2f} and {pose.other_rms_px:.2f} px), "
+            f"and no IMU or previous pose tells them apart")
 
 
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
@@ -745,6 +764,9 @@ class HierarchicalLocalizer:
             pose = pose_of(P, px, sigma, weighed)
             if pose is None:
                 return None, "pose failed"
+        ambiguous = _flip_ambiguous(pose)
+        if ambiguous:
+            return None, ambiguous
         info = dict(det.info)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
