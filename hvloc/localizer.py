@@ -71,7 +71,8 @@ MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its 
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
-FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, the mirror pose must fit this many noise units worse
+FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose within this many noise units ...
+FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
 
 
 def method_allowed(method: str, h: float | None, cfg: LocalizerConfig, markers_seen_below_m: float = 0.0) -> bool:
@@ -319,16 +320,19 @@ def _flip_ambiguous(pose: PoseResult) -> str:
     does, and on a far pad seen from the side the two fit alike: without an IMU, the first pose
     of bench_v2's x_wide_oblique_dusk (a 20-23 px pad at 20 m, pitched 40 degrees) fit to 0.33 px
     and its mirror to 0.40; the mirror was taken, 140 % of the height off, and every later pose
-    followed it as the previous one (126 false accepts).  The chosen pose must fit better than
-    its mirror by ``FLIP_MARGIN_SIGMAS`` times the noise: the corners' floor, or the fit's own
-    residual where larger."""
-    if pose.flip_choice != "rms":
+    followed it as the previous one (126 false accepts).  Refused: a mirror that fits within
+    ``FLIP_MARGIN_SIGMAS`` times the noise (the corners' floor, or the fit's own residual where
+    larger) of the chosen pose and lies further from it than ``FLIP_APART`` of the height.  (Seen
+    square on, the two lie close together and either will do: a nadir view at 3 m, 0.02 and 0.33
+    px.)"""
+    if pose.flip_choice != "rms" or pose.other_cam2pad is None:
         return ""
     margin = FLIP_MARGIN_SIGMAS * max(PIXEL_SIGMA, pose.rms_px)
-    if pose.other_rms_px > pose.rms_px + margin:
+    apart = float(np.linalg.norm(pose.other_cam2pad[:3, 3] - pose.cam2pad[:3, 3]))
+    if pose.other_rms_px > pose.rms_px + margin or apart <= FLIP_APART * abs(float(pose.cam2pad[2, 3])):
         return ""
-    return (f"the pose and its mirror fit alike (reprojection RMS {pose.rms_px:.2f} and {pose.other_rms_px:.2f} px), "
-            f"and no IMU or previous pose tells them apart")
+    return (f"the pose and its mirror, {apart:.2f} m apart, fit alike (reprojection RMS {pose.rms_px:.2f} and "
+            f"{pose.other_rms_px:.2f} px), and no IMU or previous pose tells them apart")
 
 
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:

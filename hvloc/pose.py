@@ -31,6 +31,7 @@ class PoseResult:
     normal_img_C: np.ndarray | None = None  # the image-only pose's pad normal in C (with an IMU)
     image_rms_px: float = float("nan")    # the image-only pose's reprojection RMS (with an IMU)
     sigma_px: object = None               # the pixel noise the refinement and covariance used (scalar or per point)
+    other_cam2pad: np.ndarray | None = None  # the rejected flip solution (None if none)
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -349,6 +350,7 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             choice = "rms"
     T = cands[best]
     other = rms[1 - best] if len(cands) == 2 else float("inf")
+    other_T = cands[1 - best] if len(cands) == 2 else None
     if refine and n >= 4:
         T_C_P = invert(T)
         rv, _ = cv2.Rodrigues(T_C_P[:3, :3])
@@ -376,4 +378,4 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up, shared=shared)
-    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T)

@@ -2089,7 +2089,7 @@ def test_a_far_pad_seen_from_the_side_without_an_imu_is_refused_when_its_mirror_
         img = warp_pad_view(pad, CAM, G, GROUND)
         alone = HierarchicalLocalizer(pad, CAM, LocalizerConfig()).process(img, 0.0, None)
         if far:
-            assert not alone.ok and "the pose and its mirror fit alike" in alone.reason, (h, off, alone.reason)
+            assert not alone.ok and "fit alike" in alone.reason, (h, off, alone.reason)
         else:
             assert alone.ok and pose_error(alone.cam2pad, G)[0] < 0.02 * h, (h, off, alone.status, alone.reason)
         R_W_B = G[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
