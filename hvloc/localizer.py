@@ -73,6 +73,8 @@ MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corner
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
 FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose within this many noise units ...
 FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
+LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
+FLIP_LEVEL_GAP_DEG = 15.0  # ... when its mirror's pad lies this much further off
 
 
 def method_allowed(method: str, h: float | None, cfg: LocalizerConfig, markers_seen_below_m: float = 0.0) -> bool:
@@ -333,6 +335,25 @@ def _flip_ambiguous(pose: PoseResult) -> str:
         return ""
     return (f"the pose and its mirror, {apart:.2f} m apart, fit alike (reprojection RMS {pose.rms_px:.2f} and "
             f"{pose.other_rms_px:.2f} px), and no IMU or previous pose tells them apart")
+
+
+def _level_pick(pose: PoseResult, level_up_C: np.ndarray) -> str | None:
+    """``"pose"`` or ``"mirror"``: which of an ambiguous pose (:func:`_flip_ambiguous`) and its
+    mirror has the pad lying level for a drone that flies level, ``level_up_C`` the body's up in
+    the camera frame (the mount alone); ``None`` when that does not decide: the level one's pad
+    must lie within ``LEVEL_TILT_DEG`` of it (what a multirotor tilts in flight) and the other's
+    ``FLIP_LEVEL_GAP_DEG`` further off.  The mirror's pad is tilted by about twice the angle the
+    pad is seen at from the optical axis: 20-40 degrees for a far pad seen obliquely, where the
+    two fit alike."""
+    if pose.other_cam2pad is None:
+        return None
+    z = np.array([0.0, 0.0, 1.0])
+    a = [math.degrees(math.acos(float(np.clip((T[:3, :3].T @ z) @ level_up_C, -1.0, 1.0))))
+         for T in (pose.cam2pad, pose.other_cam2pad)]
+    for k, name in ((0, "pose"), (1, "mirror")):
+        if a[k] <= LEVEL_TILT_DEG and a[1 - k] >= a[k] + FLIP_LEVEL_GAP_DEG:
+            return name
+    return None
 
 
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
@@ -770,7 +791,14 @@ class HierarchicalLocalizer:
                 return None, "pose failed"
         ambiguous = _flip_ambiguous(pose)
         if ambiguous:
-            return None, ambiguous
+            # no IMU: a drone flies nearly level, so the mount says roughly where up is (only to choose)
+            pick = _level_pick(pose, self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]))
+            if pick is None:
+                return None, ambiguous
+            if pick == "mirror":  # its mirror is the level one: the fit again, from it
+                pose = solve_planar_pose(self.camera, P, px, prev_cam2pad=pose.other_cam2pad, sigma_px=sigma)
+                if pose is None:
+                    return None, "pose failed"
         info = dict(det.info)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
