@@ -71,10 +71,6 @@ MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its 
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
-FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose within this many noise units ...
-FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
-LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
-FLIP_LEVEL_GAP_DEG = 15.0  # ... when its mirror's pad lies this much further off
 
 
 def method_allowed(method: str, h: float | None, cfg: LocalizerConfig, markers_seen_below_m: float = 0.0) -> bool:
@@ -316,44 +312,14 @@ class AHRSTiltBias:
         self.W += w
 
 
-def _flip_ambiguous(pose: PoseResult) -> str:
-    """Why ``pose`` cannot be told from its mirror, or ``""``.  A planar pose has two solutions
-    (IPPE's); the IMU's gravity picks one, else the previous pose.  With neither, only the fit
-    does, and on a far pad seen from the side the two fit alike: without an IMU, the first pose
-    of bench_v2's x_wide_oblique_dusk (a 20-23 px pad at 20 m, pitched 40 degrees) fit to 0.33 px
-    and its mirror to 0.40; the mirror was taken, 140 % of the height off, and every later pose
-    followed it as the previous one (126 false accepts).  Refused: a mirror that fits within
-    ``FLIP_MARGIN_SIGMAS`` times the noise (the corners' floor, or the fit's own residual where
-    larger) of the chosen pose and lies further from it than ``FLIP_APART`` of the height.  (Seen
-    square on, the two lie close together and either will do: a nadir view at 3 m, 0.02 and 0.33
-    px.)"""
-    if pose.flip_choice != "rms" or pose.other_cam2pad is None:
+def _mirror_refusal(pose: PoseResult) -> str:
+    """Why a pose whose flip nothing decided (:func:`hvloc.pose.solve_planar_pose`: no IMU, no
+    previous pose, the mount's level up undecided) is refused, or ``""``."""
+    if pose.flip_choice != "ambiguous":
         return ""
-    margin = FLIP_MARGIN_SIGMAS * max(PIXEL_SIGMA, pose.rms_px)
     apart = float(np.linalg.norm(pose.other_cam2pad[:3, 3] - pose.cam2pad[:3, 3]))
-    if pose.other_rms_px > pose.rms_px + margin or apart <= FLIP_APART * abs(float(pose.cam2pad[2, 3])):
-        return ""
     return (f"the pose and its mirror, {apart:.2f} m apart, fit alike (reprojection RMS {pose.rms_px:.2f} and "
-            f"{pose.other_rms_px:.2f} px), and no IMU or previous pose tells them apart")
-
-
-def _level_pick(pose: PoseResult, level_up_C: np.ndarray) -> str | None:
-    """``"pose"`` or ``"mirror"``: which of an ambiguous pose (:func:`_flip_ambiguous`) and its
-    mirror has the pad lying level for a drone that flies level, ``level_up_C`` the body's up in
-    the camera frame (the mount alone); ``None`` when that does not decide: the level one's pad
-    must lie within ``LEVEL_TILT_DEG`` of it (what a multirotor tilts in flight) and the other's
-    ``FLIP_LEVEL_GAP_DEG`` further off.  The mirror's pad is tilted by about twice the angle the
-    pad is seen at from the optical axis: 20-40 degrees for a far pad seen obliquely, where the
-    two fit alike."""
-    if pose.other_cam2pad is None:
-        return None
-    z = np.array([0.0, 0.0, 1.0])
-    a = [math.degrees(math.acos(float(np.clip((T[:3, :3].T @ z) @ level_up_C, -1.0, 1.0))))
-         for T in (pose.cam2pad, pose.other_cam2pad)]
-    for k, name in ((0, "pose"), (1, "mirror")):
-        if a[k] <= LEVEL_TILT_DEG and a[1 - k] >= a[k] + FLIP_LEVEL_GAP_DEG:
-            return name
-    return None
+            f"{pose.other_rms_px:.2f} px), and no IMU, previous pose or level flight tells them apart")
 
 
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
@@ -767,11 +733,14 @@ class HierarchicalLocalizer:
         def pose_of(P, px, s, weigh=False, share=True):
             w = (MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if weigh else None
             sh = shared_for(P, s, weigh) if share else None
+            # without an IMU a drone flying level has its body's up, seen through the mount, as the
+            # world's: it may choose between a far pad's pose and its mirror (hvloc.pose)
+            level = self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]) if up_C is None else None
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
-                                      array_key(prior) if up_C is None else None, array_key(s), w,
+                                      array_key(prior) if up_C is None else None, array_key(level), array_key(s), w,
                                       None if sh is None else (sh.shift, sh.dilation)),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
-                             sigma_from_fit=w, shared=sh)
+                             sigma_from_fit=w, shared=sh, level_up_C=level)
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
@@ -789,16 +758,9 @@ class HierarchicalLocalizer:
             pose = pose_of(P, px, sigma, weighed)
             if pose is None:
                 return None, "pose failed"
-        ambiguous = _flip_ambiguous(pose)
-        if ambiguous:
-            # no IMU: a drone flies nearly level, so the mount says roughly where up is (only to choose)
-            pick = _level_pick(pose, self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]))
-            if pick is None:
-                return None, ambiguous
-            if pick == "mirror":  # its mirror is the level one: the fit again, from it
-                pose = solve_planar_pose(self.camera, P, px, prev_cam2pad=pose.other_cam2pad, sigma_px=sigma)
-                if pose is None:
-                    return None, "pose failed"
+        refusal = _mirror_refusal(pose)
+        if refusal:
+            return None, refusal
         info = dict(det.info)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out

@@ -25,7 +25,7 @@ class PoseResult:
     n: int                     # correspondences used
     cov: np.ndarray            # 6x6 covariance of (position xyz in P [m], rotation vector [rad])
     other_rms_px: float        # RMS of the rejected flip solution (inf if none)
-    flip_choice: str           # how the flip was resolved: gravity, previous, rms, single
+    flip_choice: str           # how the flip was resolved: gravity, previous, level, rms, ambiguous, single
     tilt_err_deg: float = float("nan")    # image-only pose's pad normal vs the IMU's up (nan: no IMU)
     tilt_sigma_deg: float = float("nan")  # that tilt's standard deviation, from the image-only fit
     normal_img_C: np.ndarray | None = None  # the image-only pose's pad normal in C (with an IMU)
@@ -35,6 +35,44 @@ class PoseResult:
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
+FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose within this many noise units ...
+FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
+LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
+FLIP_LEVEL_GAP_DEG = 15.0  # ... when its mirror's pad lies this much further off
+
+
+def _normals_along(cands, up_C: np.ndarray) -> np.ndarray:
+    """(len(cands),) the cosine between each candidate pose's pad normal (in the camera frame) and ``up_C``."""
+    return np.array([float((c[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C) for c in cands])
+
+
+def _mirror_fits_alike(cands, rms, best: int) -> bool:
+    """Whether the two planar solutions cannot be told apart by their fit, yet lie apart.  On a far
+    pad seen from the side the two fit alike: without an IMU, the first pose of bench_v2's
+    x_wide_oblique_dusk (a 20-23 px pad at 20 m, pitched 40 degrees) fit to 0.33 px and its mirror
+    to 0.40; the mirror was taken, 140 % of the height off, and every later pose followed it as the
+    previous one (126 false accepts).  Alike: the mirror within ``FLIP_MARGIN_SIGMAS`` times the
+    noise (the corners' floor, or the fit's own residual where larger); apart: further than
+    ``FLIP_APART`` of the height.  (Seen square on, the two lie close together and either will do:
+    a nadir view at 3 m, 0.02 and 0.33 px.)"""
+    other = 1 - best
+    alike = rms[other] <= rms[best] + FLIP_MARGIN_SIGMAS * max(PIXEL_SIGMA, rms[best])
+    apart = np.linalg.norm(cands[other][:3, 3] - cands[best][:3, 3]) > FLIP_APART * abs(float(cands[best][2, 3]))
+    return bool(alike and apart)
+
+
+def _level_choice(cands, level_up_C: np.ndarray, best: int) -> tuple:
+    """``(index, "level")``: the candidate whose pad lies level for a drone that flies level
+    (``level_up_C``: the body's up in the camera frame, the mount alone): within ``LEVEL_TILT_DEG``
+    of it (what a multirotor tilts in flight), the other's ``FLIP_LEVEL_GAP_DEG`` further off.  The
+    mirror's pad is tilted by about twice the angle the pad is seen at from the optical axis: 20-40
+    degrees for a far pad seen obliquely, where the two fit alike.  ``(best, "ambiguous")`` when
+    that does not decide."""
+    a = np.degrees(np.arccos(np.clip(_normals_along(cands, level_up_C), -1.0, 1.0)))
+    for k in (0, 1):
+        if a[k] <= LEVEL_TILT_DEG and a[1 - k] >= a[k] + FLIP_LEVEL_GAP_DEG:
+            return k, "level"
+    return best, "ambiguous"
 
 
 def tilt_disagreement(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
@@ -313,7 +351,8 @@ def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy
 def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray | None = None,
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
                       gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
-                      sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None) -> PoseResult | None:
+                      sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None,
+                      level_up_C: np.ndarray | None = None) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
     ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
     scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
@@ -323,7 +362,10 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
 
     ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
     the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
-    the lower reprojection error.
+    the lower reprojection error, unless the two fit alike and lie apart (:func:`_mirror_fits_alike`)
+    and ``level_up_C`` is given: the body's up seen through the mount, where a drone that flies
+    level has the world's (:func:`_level_choice`; ``flip_choice`` "level", or "ambiguous" when it
+    does not decide either, the lower error's pose returned).
     """
     pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
     px = np.asarray(px, np.float64).reshape(-1, 2)
@@ -341,11 +383,12 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     if len(cands) == 2:
         if up_C is not None:
             # the pad's normal (z of P) in the camera frame should point up
-            align = [float((c[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C) for c in cands]
-            best, choice = int(np.argmax(align)), "gravity"
+            best, choice = int(np.argmax(_normals_along(cands, up_C))), "gravity"
         elif prev_cam2pad is not None:
             ang = [rotation_angle(c[:3, :3], prev_cam2pad[:3, :3]) for c in cands]
             best, choice = int(np.argmin(ang)), "previous"
+        elif level_up_C is not None and _mirror_fits_alike(cands, rms, best):
+            best, choice = _level_choice(cands, level_up_C, best)
         else:
             choice = "rms"
     T = cands[best]

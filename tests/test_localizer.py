@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hvloc.config import LocalizerConfig
-from hvloc.geometry import Camera, compose, make_transform, rotation_angle, so3_exp
+from hvloc.geometry import Camera, compose, look_at_cam2world, make_transform, rotation_angle, so3_exp
 from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer
 from hvloc.phases import Detection, FlowTracker, detect_markers, detect_outline, find_outline, name_outline
 from hvloc.pose import planar_pose_candidates, solve_planar_pose
@@ -2075,18 +2075,8 @@ def test_a_far_pad_seen_from_the_side_without_an_imu_is_refused_when_its_mirror_
     says why; with the IMU all three are posed; so they are without one when the camera's mount
     says the view is oblique and the drone level (the pad level for the mount, its mirror 60-70
     degrees off); and near, where the mirror fits far worse, the pad is posed without either."""
-    def look_at(C):
-        C = np.asarray(C, np.float64)
-        z = -C / np.linalg.norm(C)
-        x = np.cross(z, [0.0, 0.0, 1.0])
-        x /= np.linalg.norm(x)
-        G = np.eye(4)
-        G[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-        G[:3, 3] = C
-        return G
-
     for h, off, far in ((20.0, 14.0, True), (20.0, 10.0, True), (16.0, 12.0, True), (4.0, 2.0, False), (6.0, 3.0, False)):
-        G = look_at((-off, 0.3, h))
+        G = look_at_cam2world((-off, 0.3, h), (0.0, 0.0, 0.0), up=(0.0, 0.0, -1.0))
         img = warp_pad_view(pad, CAM, G, GROUND)
         alone = HierarchicalLocalizer(pad, CAM, LocalizerConfig()).process(img, 0.0, None)
         if far:
