@@ -933,7 +933,8 @@ FIELD_SAYS_SWOLLEN_RMS_PX = 0.6
 # outline's prediction) ends between where it started and the field's edge.  With one fit, the
 # worst field corner on 20-25 px JPEG'd pads lay 4.6 % of the field's side off in the median, 8 %
 # or more on 23 of 84 found (a 120 degree fisheye scene at JPEG 40 and jpeg_twins' JPEG tier);
-# with three, 3.7 % and 7 of 81 (25-35 px: 2.9 -> 2.3 %, 9 -> 4 of 84; 35-80 px: 1.7 -> 1.6 %)
+# with three, 3.7 % and 7 of 84 (25-35 px: 2.9 -> 2.3 %, 9 -> 4 of 84; 35-80 px: 1.7 -> 1.6 %).
+# Whether the field is used is still decided by the first fit (:func:`_field_fit`)
 FIELD_FIT_ROUNDS = 3
 
 
@@ -993,6 +994,7 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     start = _moved_sides(guess, rise_offsets(gray, guess, camera, hi=reach_px))
     half = float(np.clip(0.45 * checker_px, 1.0, 2.5))
     fitted, rms = refine_quad(gray, start, half_width=half, camera=camera)
+    first = fitted  # (what the field says of the outline is read off the first fit: below)
     for _ in range(rounds - 1):  # from where the last fit ended: a start far off biases the narrow window
         again, rms_again = (None, rms) if fitted is None else refine_quad(gray, fitted, half_width=half, camera=camera)
         if again is None:
@@ -1002,10 +1004,13 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
             break
     if fitted is None or rms > max(max_rms_px, loose_rms_px):
         return None
-    move = float(np.max(np.linalg.norm(fitted - guess, axis=1)))
+    # how far the field lies from where the outline put it, and whether inside, from the first fit:
+    # the refits place the corners, and on a clean 12-15 px pad, whose checker is a pixel wide,
+    # they wander a few tenths of a pixel further (the outline taken as swollen where it was right)
+    move = float(np.max(np.linalg.norm(first - guess, axis=1)))
     centre = guess.mean(axis=0)
     out = (guess - centre) / np.maximum(np.linalg.norm(guess - centre, axis=1), 1e-9)[:, None]
-    swollen = float(np.mean(np.sum((fitted - guess) * out, axis=1))) < 0.1  # the field smaller than the outline says
+    swollen = float(np.mean(np.sum((first - guess) * out, axis=1))) < 0.1  # the field smaller than the outline says
     # placed in linear light: blur mixes light, and the white field's 50 % crossing in sRGB lies on
     # the dark side of the edge (the field came out 0.3 px too large on JPEG 55 behind a 100 degree
     # lens, 0.8 % of the side, and the height 1.2 % low)
