@@ -39,6 +39,7 @@ FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose wi
 FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
 LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
 FLIP_LEVEL_GAP_DEG = 15.0  # ... when its mirror's pad lies this much further off
+LEVEL_SIGMA_DEG = 10.0  # without an IMU, how far from level a drone's body is tilted (1 sigma), as a soft prior
 
 
 def _normals_along(cands, up_C: np.ndarray) -> np.ndarray:
@@ -410,7 +411,14 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     sigma_up = None
     normal_img = None
     image_rms = float("nan")
-    if up_C is not None:
+    prior_up = up_C
+    if up_C is None and level_up_C is not None and LEVEL_SIGMA_DEG:
+        # without an IMU, a drone that flies nearly level has the body's up, seen through the mount,
+        # as a soft prior: a far pad's four corners fix its tilt to tens of degrees, which moves the
+        # pose sideways by the height times that tilt
+        prior_up, sigma_up = level_up_C, np.radians(LEVEL_SIGMA_DEG)
+        T = refine_with_gravity(camera, T, obj, px, level_up_C, sigma_px, sigma_up, shared=shared)
+    elif up_C is not None:
         image_rms = reprojection_rms(camera, T, obj, px)
         if sigma_from_fit is not None and np.ndim(sigma_px) == 0 and np.isfinite(image_rms):
             sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
@@ -420,5 +428,5 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
-    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=up_C, sigma_up_rad=sigma_up, shared=shared)
+    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T)
