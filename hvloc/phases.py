@@ -961,26 +961,31 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     side_px = _mean_side(quad_px)
     # a field fitted less cleanly still says whether the outline swelled past it (a dark patch of
     # the border's hue beside the pad: its lines fit to 0.42 px, and the swollen outline went on)
+    limit = max(3.0, 0.1 * side_px)
+
+    def used(move, swollen):  # the field's corners replace the outline's
+        return swollen and move_px < move <= limit
+
     got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px,
-                     rounds=FIELD_FIT_ROUNDS, loose_rms_px=FIELD_SAYS_SWOLLEN_RMS_PX)
+                     rounds=FIELD_FIT_ROUNDS, loose_rms_px=FIELD_SAYS_SWOLLEN_RMS_PX, refit_when=used)
     if got is None:
         return None, False, None
     field, move, swollen, rms = got
-    limit = max(3.0, 0.1 * side_px)
     far = bool(swollen and move > limit)
     if rms > max_rms_px:
         return None, far, None
-    return (field if swollen and move_px < move <= limit else None), far, field
+    return (field if used(move, swollen) else None), far, field
 
 
 def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
-               max_rms_px: float = 0.35, rounds: int = 1, loose_rms_px: float = 0.0):
+               max_rms_px: float = 0.35, rounds: int = 1, loose_rms_px: float = 0.0, refit_when=None):
     """``(field corners, largest move from the prediction px, swollen, line rms px)`` or ``None`` (its
     lines fit worse than ``max(max_rms_px, loose_rms_px)``; the linear-light fit is preferred where it
     fits within ``max_rms_px``): the white
     field's square fitted on luma from where the outline ``quad_px`` predicts it, each side first
     moved to the nearest strong rise into the white within ``reach_px`` inward, then fitted up to
-    ``rounds`` times, each from the last; ``swollen`` when the field came out smaller than predicted
+    ``rounds`` times, each from the last (only when ``refit_when(move, swollen)``, if given: the
+    first fit says both); ``swollen`` when the field came out smaller than predicted
     (:func:`_field_quad`)."""
     guess = _through_quad(quad_px, geo, camera, geo.field_corners[:, :2])
     if guess is None:
@@ -994,23 +999,25 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     start = _moved_sides(guess, rise_offsets(gray, guess, camera, hi=reach_px))
     half = float(np.clip(0.45 * checker_px, 1.0, 2.5))
     fitted, rms = refine_quad(gray, start, half_width=half, camera=camera)
-    first = fitted  # (what the field says of the outline is read off the first fit: below)
-    for _ in range(rounds - 1):  # from where the last fit ended: a start far off biases the narrow window
-        again, rms_again = (None, rms) if fitted is None else refine_quad(gray, fitted, half_width=half, camera=camera)
-        if again is None:
-            break
-        start, fitted, rms, shift = fitted, again, rms_again, float(np.abs(again - fitted).max())
-        if shift < 0.05:
-            break
-    if fitted is None or rms > max(max_rms_px, loose_rms_px):
+    if fitted is None:
         return None
     # how far the field lies from where the outline put it, and whether inside, from the first fit:
     # the refits place the corners, and on a clean 12-15 px pad, whose checker is a pixel wide,
     # they wander a few tenths of a pixel further (the outline taken as swollen where it was right)
-    move = float(np.max(np.linalg.norm(first - guess, axis=1)))
+    move = float(np.max(np.linalg.norm(fitted - guess, axis=1)))
     centre = guess.mean(axis=0)
     out = (guess - centre) / np.maximum(np.linalg.norm(guess - centre, axis=1), 1e-9)[:, None]
-    swollen = float(np.mean(np.sum((first - guess) * out, axis=1))) < 0.1  # the field smaller than the outline says
+    swollen = float(np.mean(np.sum((fitted - guess) * out, axis=1))) < 0.1  # the field smaller than the outline says
+    if refit_when is None or refit_when(move, swollen):  # (not for a field that will not be used: per frame)
+        for _ in range(rounds - 1):  # from where the last fit ended: a start far off biases the narrow window
+            again, rms_again = refine_quad(gray, fitted, half_width=half, camera=camera)
+            if again is None:
+                break
+            start, fitted, rms, shift = fitted, again, rms_again, float(np.abs(again - fitted).max())
+            if shift < 0.05:
+                break
+    if rms > max(max_rms_px, loose_rms_px):
+        return None
     # placed in linear light: blur mixes light, and the white field's 50 % crossing in sRGB lies on
     # the dark side of the edge (the field came out 0.3 px too large on JPEG 55 behind a 100 degree
     # lens, 0.8 % of the side, and the height 1.2 % low)
