@@ -67,6 +67,7 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
 
 
 OUTER_AGREE_PX = 0.45  # the pad's outer corners join a markers pose when the markers' own fit puts them this close (RMS)
+DESIGN_FIT_MAX_MOVE = 0.1  # the design's fit may move the outline's corners by this share of its side at most
 MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
@@ -688,11 +689,46 @@ class HierarchicalLocalizer:
                                               array_key(named_by)),
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by)
+            if det is not None and det.kind == "outline" and cfg.design_fit:
+                det = self._design_fitted(det, gray, up_C)
             if det is not None:
                 res, why = self._posed(det, why, prior, up_C, r is not None)
                 if res is not None:
                     return res, why
         return None, why
+
+    def _design_fitted(self, det, gray: np.ndarray, up_C):
+        """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
+        (:func:`hvloc.texfit.fit_pose_to_design`), started from the outline's pose with the IMU's
+        gravity; ``det`` as it is without gravity, without the design, or when the fit fails."""
+        if up_C is None or self.pad is None:
+            return det
+        from .texfit import fit_pose_to_design
+
+        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C)
+        if start is None:
+            return det
+        # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
+        # there would hide what the corners showed
+        side = float(np.mean(np.linalg.norm(det.px - np.roll(det.px, 1, axis=0), axis=1)))
+        scale = np.asarray(det.info.get("px_sigma_scale", [1.0]), np.float64)
+        if start.rms_px / max(side, 1e-6) / math.sqrt(float(np.mean(scale**2))) > self.config.max_outline_rms_share:
+            return det
+        if self._synthesis is None:
+            from .synthesis import PadSynthesis
+
+            self._synthesis = PadSynthesis(self.pad)
+        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C)),
+                                 fit_pose_to_design, gray, self.camera, self._synthesis, start.cam2pad)
+        if fitted is None:
+            return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
+        px = self.camera.project_from(fitted, det.pts_P)
+        if px is None or not np.isfinite(px).all():
+            return det
+        moved = float(np.abs(px - det.px).max())
+        if moved > DESIGN_FIT_MAX_MOVE * side:  # two measures of one pad this far apart: neither is sure
+            return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
+        return replace(det, px=px, info=dict(det.info, design_fit=info))
 
     def _posed(self, det, why: str, prior, up_C, roi: bool):
         """``((pose, n, extras) | None, reason)``: the pose of a detection's correspondences."""

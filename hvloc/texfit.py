@@ -1,0 +1,243 @@
+"""A far pad's pose fitted to the frame's grey through its printed design, the tilt held.
+
+The outline's corners come from colour and luma edges fitted as steps.  On a pad 20-60 px across
+a step fit is biased by what lies a few pixels inside the edge (the border's checker, the white
+field, the markers): the quad comes out ~1 % too large, the height ~0.5-1 % low.  The design
+itself is known exactly (``pad.png``), so the pad can instead be drawn at a pose, blurred as the
+camera blurs it, and compared with the frame pixel by pixel: the pose whose drawing matches the
+frame best places every edge at once, each with its real profile.
+
+With the IMU's gravity the pad's tilt is known to a fraction of a degree, and a far pad's pixels
+say little about it; what they do fix is where the pad lies in the image, how large it is and its
+yaw.  So four pose parameters are fitted (the camera's position in the pad frame and its yaw about
+the pad's normal), and three of the camera's: its blur (a Gaussian's sigma, in px: lens, sensor
+and codec together, which couples with the size: a wider blur spreads the white field outward),
+its tone curve's exponent, and its own sharpening (an unsharp mask's amount).  The drawing's
+brightness is linear in light: the design's red, green and blue (in linear light, or as written
+with ``space="display"``, where a renderer or a scaler mixes texels), the ground's, an offset,
+solved at every step; residuals are weighed by Huber's rule, so a shadow across part of the pad
+counts as little as it fits.  The pad is compared with a ring of ground around it: the border's
+outer edge is seen against the ground, whose texture counts as noise.
+
+Gauss-Newton (Levenberg-Marquardt) with the Jacobian from the drawing's gradients and the image
+motion each pose parameter causes at each pixel's pad point; ~10-20 ms for a 30-60 px pad.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from pad_design.texture import texture_to_pad
+
+from .features import srgb_to_linear
+from .geometry import Camera, invert, so3_exp
+
+MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger ones the step fit places well ...
+MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off)
+MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
+BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
+BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in
+TONE_START = 2.2       # the tone curve's exponent (grey = light ** (1 / it)): its first guess ...
+TONE_RANGE = (1.0, 3.2)  # ... and the range it is kept in
+SHARPEN_SIGMA_PX = 1.0  # a camera's own sharpening (an unsharp mask) subtracts a blur this wide (px) ...
+SHARPEN_RANGE = (0.0, 1.5)  # ... this many times over (fitted; 0: none)
+LIGHT_FLOOR = 1e-3     # light below this (of the brightest) is taken as this: a black marker's grey is noise
+ITERATIONS = 10
+HUBER_K = 2.0          # residuals beyond this many robust sigmas weigh less (shadows, glare, dirt)
+MIN_NCC = 0.8          # the fitted drawing's correlation with the frame, for the fit to be used
+
+
+def _design_levels(synth, space: str = "linear") -> list:
+    """The pad's design as four channels, float32: its red, green and blue (in linear light, or
+    as written: ``space``) and how much of each texel is pad (1), box-filtered to halves, quarters,
+    ... (kept on ``synth``), each with its own texels per metre.  A frame's brightness is linear in
+    the three colours under any light's colour and gain: the magenta border's brightness relative
+    to the white field is not one number.  Each level is the whole pad in a whole number of texels,
+    box-filtered as a pixel averages: a Gaussian pyramid's samples sit on every other texel, half a
+    texel off the box's centres at each level, which moved the fitted pad sideways (0.11 % of the
+    height on bench_v2's wide720 at 23-60 px; 0.03 % with these levels).
+    """
+    cache = getattr(synth, "_design_levels", None)
+    if cache is None:
+        cache = synth._design_levels = {}
+    levels = cache.get(space)
+    if levels is None:
+        rgb = np.ascontiguousarray(synth.pad.texture_rgb)
+        rgb = (srgb_to_linear(rgb) if space == "linear" else rgb).astype(np.float32) / 255.0
+        base = np.dstack([rgb, np.ones(rgb.shape[:2], np.float32)])
+        side = synth.pad.side_m
+        levels = [(base, base.shape[1] / side)]
+        while min(levels[-1][0].shape[:2]) > 16:
+            h, w = levels[-1][0].shape[:2]
+            nw, nh = max(1, round(w / 2)), max(1, round(h / 2))
+            levels.append((cv2.resize(levels[-1][0], (nw, nh), interpolation=cv2.INTER_AREA), nw / side))
+        cache[space] = levels
+    return levels
+
+
+def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.ndarray) -> np.ndarray:
+    """``(h, w, 4)``: the design's channels (:func:`_design_levels`) seen from ``cam2pad`` at the
+    window ``grid`` (each pixel's ideal pinhole place: :meth:`PadSynthesis.window`), 0 off the pad;
+    read from the level whose texels are the finest no smaller than a pixel (as a pixel averages)."""
+    K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
+    P2C = invert(cam2pad)
+    H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
+    side = synth.pad.side_m
+    ends = cv2.perspectiveTransform(np.array([[[-0.5 * side, 0.0], [0.5 * side, 0.0]]]), H)[0]
+    span = float(np.linalg.norm(ends[1] - ends[0]))  # px across the pad
+    k = 0
+    while k + 1 < len(levels) and levels[k + 1][1] * side >= span:
+        k += 1
+    tex, ppm = levels[k]
+    M = np.linalg.inv(H @ texture_to_pad(side, ppm))  # ideal pixel -> texel
+    uv = cv2.perspectiveTransform(np.ascontiguousarray(grid).reshape(-1, 1, 2), M).reshape(grid.shape)
+    return cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+
+
+def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``T`` (``T_P_C``) turned by ``q[3]`` about the pad's normal and moved by ``q[:3]`` (pad frame)."""
+    Rz = so3_exp(np.array([0.0, 0.0, q[3]]))
+    out = T.copy()
+    out[:3, :3] = Rz @ T[:3, :3]
+    out[:3, 3] = Rz @ T[:3, 3] + q[:3]
+    return out
+
+
+def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, space: str = "linear") -> tuple:
+    """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
+    the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
+    best matches ``gray`` (the frame's grey as the camera wrote it, 0-255).  ``info``: the blur (px),
+    tone and sharpening fitted, the drawing's correlation with the frame, the residual's RMS, the
+    pixels compared, iterations.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - :data:`MAX_SIDE_PX` across,
+    too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`)."""
+    info: dict = {}
+    half = synth.pad.side_m / 2.0
+    outer = np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
+    quad = camera.project_from(cam2pad, outer)
+    if quad is None or not np.isfinite(quad).all():
+        return None, {"why": "pad not in front of the camera"}
+    side_px = float(np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1)))
+    m = 3.0 * BLUR_RANGE_PX[1]
+    lo, hi = quad.min(axis=0) - m, quad.max(axis=0) + m
+    box = (max(0, int(math.floor(lo[0]))), max(0, int(math.floor(lo[1]))),
+           min(camera.width, int(math.ceil(hi[0]))), min(camera.height, int(math.ceil(hi[1]))))
+    if box[2] - box[0] < 8 or box[3] - box[1] < 8:
+        return None, {"why": "pad out of view"}
+    if not MIN_SIDE_PX <= side_px <= MAX_SIDE_PX:
+        return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{MAX_SIDE_PX:.0f})"}
+    grid = synth.window(camera, box, 1.0)
+    img = np.asarray(gray[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
+    levels = _design_levels(synth, space)
+    inside = (_draw(levels, synth, camera, grid, cam2pad)[..., 3] > 0.5).astype(np.uint8)
+    # compared: the pad and a ring of ground around it (the border's outer edge is seen against
+    # the ground, whose mean brightness is fitted with the pad's), within the window
+    ring = int(math.ceil(3.0 * BLUR_START_PX)) + 1
+    mask = cv2.dilate(inside, np.ones((2 * ring + 1, 2 * ring + 1), np.uint8)) > 0
+    n = int(mask.sum())
+    if n < MIN_PIXELS:
+        return None, {"why": f"{n} pixels near the pad (< {MIN_PIXELS})"}
+    target = img[mask]
+    depth = max(float(invert(cam2pad)[2, 3]), 1e-3)
+    m_per_px = depth / camera.fx
+    # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
+    steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6)])
+    K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
+    ideal = np.column_stack([grid[mask].astype(np.float64), np.ones(n)])  # the compared pixels' ideal places
+
+    def drawn(q):
+        """``(D, B1, B2)``, each ``(h, w, 4)``: the design's channels at q's pose blurred as the camera
+        does, ``D = B1 + a (B1 - B2)``: ``B1`` by q's blur, ``B2`` by that and the sharpening's own
+        width (:data:`SHARPEN_SIGMA_PX`), ``a = q[6]`` the sharpening's amount."""
+        d = _draw(levels, synth, camera, grid, _posed(cam2pad, q))
+        sig = max(q[4], 0.05)
+        b1 = cv2.GaussianBlur(d, (0, 0), sig)
+        b2 = cv2.GaussianBlur(d, (0, 0), math.hypot(sig, SHARPEN_SIGMA_PX))
+        return b1 + np.float32(q[6]) * (b1 - b2), b1, b2
+
+    def toned(d, tone):
+        """The frame's grey less the drawing's, both as the camera wrote them: the drawing's
+        brightness is linear in light (the design's colours, the ground's, an offset: solved on
+        the frame's grey taken to light through the tone curve's exponent), then toned."""
+        A = np.column_stack([d[:, 0], d[:, 1], d[:, 2], 1.0 - d[:, 3], np.ones(len(d))])
+        g, *_ = np.linalg.lstsq(A, target ** tone, rcond=None)
+        light = np.maximum(A @ g, LIGHT_FLOOR)  # (the tone curve's slope is unbounded at black)
+        return target - light ** (1.0 / tone), A, g, light
+
+    def jacobian(q, DB, r, g, light):
+        """``(n, 7)``: the residuals' derivatives.  The pose's four from the drawing's gradient and
+        the image motion each parameter causes at each pixel's pad point; the blur's from the
+        drawings' Laplacians (a Gaussian's width grows as the heat equation says); the tone's by a
+        difference (it moves no pixel); the sharpening's from the two blurs' difference."""
+        D, B1, B2 = DB
+        T = _posed(cam2pad, q)
+        P2C = invert(T)
+        H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])
+        X = np.linalg.solve(H, ideal.T).T
+        X = np.column_stack([X[:, :2] / X[:, 2:3], np.zeros(n)])  # each compared pixel's pad point
+        u0 = camera.project_from(T, X)
+        gy, gx = np.gradient(D, axis=(0, 1))
+        gx, gy = gx[mask].astype(np.float64), gy[mask].astype(np.float64)
+        sig = max(q[4], 0.05)
+        lap = sig * ((1.0 + q[6]) * cv2.Laplacian(B1, cv2.CV_32F, ksize=1)[mask].astype(np.float64)
+                     - q[6] * cv2.Laplacian(B2, cv2.CV_32F, ksize=1)[mask].astype(np.float64))
+        slope = light ** (1.0 / q[5] - 1.0) / q[5]
+
+        def of(dd):  # the residuals' change for a change ``dd`` (n, 4) of the drawn channels
+            return -slope * (dd[:, :3] @ g[:3] - dd[:, 3] * g[3])
+
+        J = np.empty((n, 7))
+        for k in range(4):
+            dq = np.zeros(7)
+            dq[k] = steps[k]
+            flow = (camera.project_from(_posed(cam2pad, q + dq), X) - u0) / steps[k]
+            J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
+        J[:, 4] = of(lap)
+        J[:, 5] = (toned(D[mask].astype(np.float64), q[5] + 0.01)[0] - r) / 0.01
+        J[:, 6] = of((B1 - B2)[mask].astype(np.float64))
+        return J
+
+    q = np.array([0.0, 0.0, 0.0, 0.0, BLUR_START_PX, TONE_START, 0.0])
+    DB = drawn(q)
+    r, _, g, light = toned(DB[0][mask].astype(np.float64), q[5])
+    lam = 1e-3
+    it = 0
+    for it in range(1, ITERATIONS + 1):
+        s = 1.4826 * float(np.median(np.abs(r))) + 1e-9
+        w = np.where(np.abs(r) <= HUBER_K * s, 1.0, HUBER_K * s / np.maximum(np.abs(r), 1e-12))
+        J = jacobian(q, DB, r, g, light)
+        A = J.T @ (J * w[:, None])
+        b = J.T @ (w * r)
+        cost = float(np.sum(w * r * r))
+        moved = False
+        for _ in range(8):
+            try:
+                dq = -np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), b)
+            except np.linalg.LinAlgError:
+                break
+            qn = q + dq
+            qn[4] = float(np.clip(qn[4], *BLUR_RANGE_PX))
+            qn[5] = float(np.clip(qn[5], *TONE_RANGE))
+            qn[6] = float(np.clip(qn[6], *SHARPEN_RANGE))
+            DBn = drawn(qn)
+            rn, _, gn, ln = toned(DBn[0][mask].astype(np.float64), qn[5])
+            if float(np.sum(w * rn * rn)) < cost:
+                q, DB, r, g, light, moved = qn, DBn, rn, gn, ln, True
+                lam = max(lam / 10.0, 1e-9)
+                break
+            lam *= 10.0
+        if not moved or (np.all(np.abs(dq[:4]) < 0.1 * steps) and np.all(np.abs(dq[4:]) < 0.02)):  # settled
+            break
+    r, A, g, _ = toned(DB[0][mask].astype(np.float64), q[5])
+    d = A[:, :3] @ g[:3]
+    d = d[inside[mask] > 0]  # the correlation on the pad alone
+    t = target[inside[mask] > 0]
+    a = d - d.mean()
+    t = t - t.mean()
+    ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
+    info = {"blur_px": round(float(q[4]), 3), "tone": round(float(q[5]), 3), "sharpen": round(float(q[6]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it}
+    if not np.isfinite(q).all() or ncc < MIN_NCC:
+        info["why"] = f"the drawing matches the frame poorly (correlation {ncc:.2f} < {MIN_NCC})"
+        return None, info
+    return _posed(cam2pad, q), info
