@@ -22,6 +22,7 @@ def generate_main(argv: list) -> int:
     p.add_quiet()
     a = p.parse_args(argv)
     from .generate import generate
+    from .plan import check_flyable
     from .spec import DatasetSpec, load_dataset_spec
 
     spec = load_dataset_spec(a.spec)
@@ -32,6 +33,7 @@ def generate_main(argv: list) -> int:
         over["seed"] = a.seed
     if over:
         spec = validate_model(DatasetSpec, {**spec.model_dump(mode="json"), **over}, "command line")
+    check_flyable(spec)  # a flight no multirotor flies is refused before --out is made
     prepare_out_dir(a.out)
     res = generate(spec, a.out, workers=a.workers, overwrite=a.overwrite, show_progress=not a.quiet,
                    executor=a.executor, ray_address=a.ray_address)

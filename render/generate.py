@@ -17,7 +17,7 @@ from pad_design.errors import InputError, progress_bar
 
 from . import dataset as ds
 from .executor import report_progress, run_units
-from .plan import camera_from_spec, mount_from_spec, pad_for, plan_sequence  # noqa: F401  (re-exported)
+from .plan import camera_from_spec, check_flyable, mount_from_spec, pad_for, plan_sequence  # noqa: F401  (re-exported)
 from .spec import DatasetSpec
 
 
@@ -102,6 +102,7 @@ def generate(spec: DatasetSpec, out, workers: int = 1, overwrite: bool = False, 
              only: list | None = None, executor: str = "local", ray_address: str | None = None) -> GenerateResult:
     """Render every sequence of ``spec`` into ``out``, resuming a previous run of the same spec."""
     root = Path(out)
+    check_flyable(spec, only)  # before anything is written
     with ds.FolderLock(root, "writing"):
         try:
             existing = ds.load_manifest(root)

@@ -93,14 +93,12 @@ def drawn_ground_kinds(spec: DatasetSpec) -> set:
     return kinds
 
 
-def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
-    from .imaging import ImagingParams
-    from .imu import synthesize_imu
+def _sequence_trajectory(spec: DatasetSpec, index: int) -> tuple:
+    """``(rng, family, trajectory)`` of sequence ``index``: its generator after the trajectory's draw."""
     from .scene import PAD_THICKNESS_M
     from .trajectory import make_trajectory
 
-    seed = sequence_seed(spec.seed, index)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(sequence_seed(spec.seed, index))
     fams = spec.trajectory.families
     family = fams[index % len(fams)]
     T_B_C = mount_from_spec(spec.camera.mount)
@@ -108,6 +106,37 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     pad_surface = spec.platform.height_m + PAD_THICKNESS_M
     traj = make_trajectory(spec.trajectory, np.random.default_rng(rng.integers(2**63)), family, body_above_cam,
                            pad_surface, spec.platform.velocity_mps, optical_axis_B=T_B_C[:3, 2])
+    return rng, family, traj
+
+
+def check_flyable(spec: DatasetSpec, indices=None) -> None:
+    """Raise InputError when a sequence's planned flight would tilt the body past
+    :data:`render.trajectory.MAX_TILT_DEG`: a descent from ``start_height_m`` in too short a
+    ``duration_s``, or gusts too strong, asks for accelerations a multirotor cannot fly (downward
+    faster than gravity turns it upside down), and its labels and IMU would describe that flight."""
+    from pad_design.errors import InputError
+
+    from .trajectory import MAX_TILT_DEG, steepest_tilt
+
+    for i in range(spec.sequences) if indices is None else indices:
+        _, family, traj = _sequence_trajectory(spec, i)
+        tilt, t = steepest_tilt(traj)
+        if tilt > MAX_TILT_DEG:
+            tr = spec.trajectory
+            raise InputError(
+                f"{spec.name}: sequence {i} ({family}) would tilt the drone {tilt:.0f} degrees at t = {t:.1f} s "
+                f"(at most {MAX_TILT_DEG:g}; past 90 it flies upside down, accelerating downward faster than "
+                f"gravity): lengthen trajectory.duration_s (now {list(tr.duration_s)}) or lower "
+                f"trajectory.start_height_m ({tr.start_height_m}), gust_accel_mps2 ({list(tr.gust_accel_mps2)}) "
+                f"or lateral_offset_m ({list(tr.lateral_offset_m)})")
+
+
+def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
+    from .imaging import ImagingParams
+    from .imu import synthesize_imu
+
+    seed = sequence_seed(spec.seed, index)
+    rng, family, traj = _sequence_trajectory(spec, index)
     cam = spec.camera
     draw = _scene_draw(spec, rng)
     d = spec.degradations

@@ -16,6 +16,7 @@ import numpy as np
 from hvloc.geometry import make_transform, so3_log
 
 GRAVITY = 9.80665
+MAX_TILT_DEG = 60.0  # how far a planned flight may tilt the body (PX4 and ArduPilot allow 30-45 degrees by default)
 
 
 def min_jerk(tau):
@@ -258,6 +259,16 @@ def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam:
     aim = optical_axis_B if (spec.aim_camera and optical_axis_B is not None
                              and np.hypot(optical_axis_B[0], optical_axis_B[1]) > 1e-9) else None
     return Trajectory(path, duration, gusts, pad_height, pad_vel, family, aim, body_above_cam)
+
+
+def steepest_tilt(traj: Trajectory, dt: float = 0.01) -> tuple:
+    """``(degrees, t)``: the body's largest tilt from level over the flight (sampled every ``dt``),
+    and when.  A descent that has to accelerate downward faster than gravity turns the thrust axis
+    over (180 degrees: the drone flies upside down), which no multirotor does."""
+    ts = np.linspace(0.0, traj.duration, int(math.ceil(traj.duration / dt)) + 1)
+    up = traj.state(ts).R_W_B[:, 2, 2]
+    k = int(np.argmin(up))
+    return float(np.degrees(np.arccos(np.clip(up[k], -1.0, 1.0)))), float(ts[k])
 
 
 def angular_rate_check(traj: Trajectory, t0: float, t1: float, n: int = 2000) -> float:

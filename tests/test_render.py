@@ -285,6 +285,8 @@ BAD = [
     ("trajectory: {lateral_offset_m: [0, 30]}\n", "lateral_offset_m"),
     ("camera: {fps: 30, exposure_s: 0.5}\n", "exposure_s"),
     ("environment: {ground: [lava]}\n", "environment.ground.0"),
+    # 20 m in 3 s: downward faster than gravity, the drone upside down (its labels and IMU would say so)
+    ("trajectory: {start_height_m: 20.0, duration_s: [3.0, 3.0]}\n", "trajectory.duration_s"),
 ]
 
 
@@ -517,3 +519,22 @@ def test_ground_detail_levels_blend_in_place():
     # past the last level worth reading (over 16 texels: here the 32-texel one) the blend fades to 0
     level, tile = g._blended(0, texel * 2 ** (1.5 - GroundDetail.LOD_BIAS), texel, mip)
     assert level == 1 and np.allclose(tile, 0.5 * mip[1])
+
+
+def test_every_shipped_flight_is_one_a_multirotor_can_fly():
+    """Every sequence of every shipped spec and suite keeps the body within MAX_TILT_DEG of level
+    (the steepest, a manoeuvre under gusts, tilts 42 degrees); a descent that must fall faster than
+    gravity turns the thrust axis over, and is refused before anything is rendered."""
+    from benchmarks.suite import load_suite
+    from render.plan import check_flyable, _sequence_trajectory
+    from render.trajectory import MAX_TILT_DEG, steepest_tilt
+
+    specs = [load_dataset_spec(p) for p in sorted((REPO / "data_specs").glob("*.yaml"))]
+    for p in sorted((REPO / "data_specs" / "suites").glob("*.yaml")):
+        specs += load_suite(p)[1]
+    for spec in specs:
+        check_flyable(spec)
+    steep = spec_from(REPO / "data_specs" / "tiny.yaml", **{"trajectory.start_height_m": 20.0,
+                                                          "trajectory.duration_s": [3.0, 3.0]})
+    tilt, t = steepest_tilt(_sequence_trajectory(steep, 0)[2])
+    assert tilt > 90.0 > MAX_TILT_DEG, (tilt, t)
