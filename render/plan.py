@@ -110,10 +110,11 @@ def _sequence_trajectory(spec: DatasetSpec, index: int) -> tuple:
 
 
 def check_flyable(spec: DatasetSpec, indices=None) -> None:
-    """Raise InputError when a sequence's planned flight would tilt the body past
-    :data:`render.trajectory.MAX_TILT_DEG`: a descent from ``start_height_m`` in too short a
-    ``duration_s``, or gusts too strong, asks for accelerations a multirotor cannot fly (downward
-    faster than gravity turns it upside down), and its labels and IMU would describe that flight."""
+    """Raise InputError when a sequence's planned flight would turn the body over (tilt it past
+    :data:`render.trajectory.MAX_TILT_DEG`): a descent from ``start_height_m`` in too short a
+    ``duration_s``, or gusts too strong, asks to accelerate downward faster than gravity, which the
+    thrust-follows-acceleration model flies upside down (a flip, not a landing), and its labels and
+    IMU would describe that flight."""
     from pad_design.errors import InputError
 
     from .trajectory import MAX_TILT_DEG, steepest_tilt
@@ -125,7 +126,7 @@ def check_flyable(spec: DatasetSpec, indices=None) -> None:
             tr = spec.trajectory
             raise InputError(
                 f"{spec.name}: sequence {i} ({family}) would tilt the drone {tilt:.0f} degrees at t = {t:.1f} s "
-                f"(at most {MAX_TILT_DEG:g}; past 90 it flies upside down, accelerating downward faster than "
+                f"(past {MAX_TILT_DEG:g} it flies upside down: the flight accelerates downward faster than "
                 f"gravity): lengthen trajectory.duration_s (now {list(tr.duration_s)}) or lower "
                 f"trajectory.start_height_m ({tr.start_height_m}), gust_accel_mps2 ({list(tr.gust_accel_mps2)}) "
                 f"or lateral_offset_m ({list(tr.lateral_offset_m)})")

@@ -255,8 +255,8 @@ class TrajectorySpec(_Model):
     start_height_m: float = Field(20.0, gt=0.2, description="camera height above the pad at t = 0")
     touchdown_height_m: float = Field(0.15, gt=0.01, description="camera height above the pad at contact")
     duration_s: Range = Field((30.0, 40.0), description="descent duration (manoeuvres add their own time); a "
-                                "flight that would tilt the drone past 60 degrees (a descent that falls faster "
-                                "than gravity turns it over) is refused before anything is rendered")
+                                "flight that would turn the drone over (a descent that falls faster than gravity) "
+                                "is refused before anything is rendered")
     lateral_offset_m: NonNegRange = Field((0.0, 3.0), description="horizontal start offset from the pad")
     yaw_deg: Range = Field((-180.0, 180.0), description="initial heading")
     yaw_change_deg: Range = Field((-90.0, 90.0), description="heading change over the descent")

@@ -16,7 +16,7 @@ import numpy as np
 from hvloc.geometry import make_transform, so3_log
 
 GRAVITY = 9.80665
-MAX_TILT_DEG = 60.0  # how far a planned flight may tilt the body (PX4 and ArduPilot allow 30-45 degrees by default)
+MAX_TILT_DEG = 90.0  # how far a planned flight may tilt the body: past it the thrust points down, the drone upside down
 
 
 def min_jerk(tau):
