@@ -79,6 +79,13 @@ def invert(T) -> np.ndarray:
     return make_transform(R.T, -R.T @ t)
 
 
+def pad_plane_homography(camera, cam2pad) -> np.ndarray:
+    """3x3 homography: pad-plane (x, y) metres -> undistorted (ideal pinhole) image pixels of
+    ``camera`` posed at ``cam2pad`` (``T_P_C``)."""
+    T = invert(cam2pad)
+    return camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])
+
+
 def compose(*Ts) -> np.ndarray:
     """``compose(T_A_B, T_B_C) == T_A_C``."""
     out = np.eye(4)

@@ -334,11 +334,17 @@ def outline_rms_share(est: "Estimate") -> float:
     degrees of freedom with two to spare, so a corner a tenth of the side off (a shadow or JPEG
     smear swelling one corner) leaves a residual of only a few percent of the side, and the
     height is off by about as much as the corner."""
-    side = est.extras.get("side_px") if est.method == "outline" else None
-    if not side or not np.isfinite(est.rms_px):
+    return _rms_share(est.rms_px, est.extras) if est.method == "outline" else 0.0
+
+
+def _rms_share(rms_px: float, info: dict) -> float:
+    """:func:`outline_rms_share` of a reprojection RMS, with an outline's ``side_px`` and
+    ``px_sigma_scale`` from ``info`` (its detection's, or its estimate's extras)."""
+    side = info.get("side_px")
+    if not side or not np.isfinite(rms_px):
         return 0.0
-    scale = np.asarray(est.extras.get("px_sigma_scale", [1.0]), np.float64)
-    return float(est.rms_px / side / math.sqrt(float(np.mean(scale**2))))
+    scale = np.asarray(info.get("px_sigma_scale", [1.0]), np.float64)
+    return float(rms_px / side / math.sqrt(float(np.mean(scale**2))))
 
 
 class FalsePoseGates:
@@ -710,9 +716,7 @@ class HierarchicalLocalizer:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
         # there would hide what the corners showed
-        side = float(np.mean(np.linalg.norm(det.px - np.roll(det.px, 1, axis=0), axis=1)))
-        scale = np.asarray(det.info.get("px_sigma_scale", [1.0]), np.float64)
-        if start.rms_px / max(side, 1e-6) / math.sqrt(float(np.mean(scale**2))) > self.config.max_outline_rms_share:
+        if _rms_share(start.rms_px, det.info) > self.config.max_outline_rms_share:
             return det
         if self._synthesis is None:
             from .synthesis import PadSynthesis
@@ -726,7 +730,7 @@ class HierarchicalLocalizer:
         if px is None or not np.isfinite(px).all():
             return det
         moved = float(np.abs(px - det.px).max())
-        if moved > DESIGN_FIT_MAX_MOVE * side:  # two measures of one pad this far apart: neither is sure
+        if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
         return replace(det, px=px, info=dict(det.info, design_fit=info))
 

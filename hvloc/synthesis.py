@@ -27,7 +27,7 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .features import srgb_to_linear
-from .geometry import Camera, invert, so3_exp
+from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .phases import Detection
 
 WORK_PX = 400        # the alignment runs on the predicted pad's window shrunk to this many px on its longer side (not enlarged)
@@ -89,15 +89,13 @@ class PadSynthesis:
         one of them sees the pad (uint8 0/1).  ``row_dt``: each grid row's exposure time relative to
         the frame's (a rolling shutter; drawn in bands of rows, each at its middle row's time)."""
         h, w = grid.shape[:2]
-        K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
         acc = np.zeros((h, w), np.float32)
         inside = np.ones((h, w), np.uint8)
         edges = np.linspace(0, h, (SHUTTER_BANDS if row_dt is not None else 1) + 1).round().astype(int)
         bands = [(a, b, 0.0 if row_dt is None else float(row_dt[(a + b - 1) // 2])) for a, b in zip(edges, edges[1:]) if b > a]
         for tau in times:
             for a, b, dt in bands:
-                P2C = invert(pose_at(tau + dt))
-                H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
+                H = pad_plane_homography(camera, pose_at(tau + dt))  # pad (x, y) m -> ideal pixel
                 # the texture's level whose texels are as large as a drawn pixel on the pad (at its centre)
                 ends = cv2.perspectiveTransform(np.array([[[-0.5 * self.pad.side_m, 0.0], [0.5 * self.pad.side_m, 0.0]]]),
                                                 H)[0]

@@ -13,10 +13,9 @@ yaw.  So four pose parameters are fitted (the camera's position in the pad frame
 the pad's normal), and three of the camera's: its blur (a Gaussian's sigma, in px: lens, sensor
 and codec together, which couples with the size: a wider blur spreads the white field outward),
 its tone curve's exponent, and its own sharpening (an unsharp mask's amount).  The drawing's
-brightness is linear in light: the design's red, green and blue (in linear light, or as written
-with ``space="display"``, where a renderer or a scaler mixes texels), the ground's, an offset,
-solved at every step; residuals are weighed by Huber's rule, so a shadow across part of the pad
-counts as little as it fits.  The pad is compared with a ring of ground around it: the border's
+brightness is linear in light (the design's red, green and blue, the ground's, an offset), solved
+at every step; residuals are weighed by Huber's rule, so a shadow across part of the pad counts
+as little as it fits.  The pad is compared with a ring of ground around it: the border's
 outer edge is seen against the ground, whose texture counts as noise.
 
 Gauss-Newton (Levenberg-Marquardt) with the Jacobian from the drawing's gradients and the image
@@ -32,7 +31,7 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .features import srgb_to_linear
-from .geometry import Camera, invert, so3_exp
+from .geometry import Camera, invert, pad_plane_homography, so3_exp
 
 MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger ones the step fit places well ...
 MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off)
@@ -49,9 +48,9 @@ HUBER_K = 2.0          # residuals beyond this many robust sigmas weigh less (sh
 MIN_NCC = 0.8          # the fitted drawing's correlation with the frame, for the fit to be used
 
 
-def _design_levels(synth, space: str = "linear") -> list:
-    """The pad's design as four channels, float32: its red, green and blue (in linear light, or
-    as written: ``space``) and how much of each texel is pad (1), box-filtered to halves, quarters,
+def _design_levels(synth) -> list:
+    """The pad's design as four channels, float32: its red, green and blue in linear light and how
+    much of each texel is pad (1), box-filtered to halves, quarters,
     ... (kept on ``synth``), each with its own texels per metre.  A frame's brightness is linear in
     the three colours under any light's colour and gain: the magenta border's brightness relative
     to the white field is not one number.  Each level is the whole pad in a whole number of texels,
@@ -59,13 +58,9 @@ def _design_levels(synth, space: str = "linear") -> list:
     texel off the box's centres at each level, which moved the fitted pad sideways (0.11 % of the
     height on bench_v2's wide720 at 23-60 px; 0.03 % with these levels).
     """
-    cache = getattr(synth, "_design_levels", None)
-    if cache is None:
-        cache = synth._design_levels = {}
-    levels = cache.get(space)
+    levels = getattr(synth, "_design_levels", None)
     if levels is None:
-        rgb = np.ascontiguousarray(synth.pad.texture_rgb)
-        rgb = (srgb_to_linear(rgb) if space == "linear" else rgb).astype(np.float32) / 255.0
+        rgb = srgb_to_linear(np.ascontiguousarray(synth.pad.texture_rgb)).astype(np.float32) / 255.0
         base = np.dstack([rgb, np.ones(rgb.shape[:2], np.float32)])
         side = synth.pad.side_m
         levels = [(base, base.shape[1] / side)]
@@ -73,7 +68,7 @@ def _design_levels(synth, space: str = "linear") -> list:
             h, w = levels[-1][0].shape[:2]
             nw, nh = max(1, round(w / 2)), max(1, round(h / 2))
             levels.append((cv2.resize(levels[-1][0], (nw, nh), interpolation=cv2.INTER_AREA), nw / side))
-        cache[space] = levels
+        synth._design_levels = levels
     return levels
 
 
@@ -81,9 +76,7 @@ def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.nda
     """``(h, w, 4)``: the design's channels (:func:`_design_levels`) seen from ``cam2pad`` at the
     window ``grid`` (each pixel's ideal pinhole place: :meth:`PadSynthesis.window`), 0 off the pad;
     read from the level whose texels are the finest no smaller than a pixel (as a pixel averages)."""
-    K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
-    P2C = invert(cam2pad)
-    H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])  # pad (x, y) m -> ideal pixel
+    H = pad_plane_homography(camera, cam2pad)  # pad (x, y) m -> ideal pixel
     side = synth.pad.side_m
     ends = cv2.perspectiveTransform(np.array([[[-0.5 * side, 0.0], [0.5 * side, 0.0]]]), H)[0]
     span = float(np.linalg.norm(ends[1] - ends[0]))  # px across the pad
@@ -105,7 +98,7 @@ def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, space: str = "linear") -> tuple:
+def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``gray`` (the frame's grey as the camera wrote it, 0-255).  ``info``: the blur (px),
@@ -129,7 +122,7 @@ def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndar
         return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{MAX_SIDE_PX:.0f})"}
     grid = synth.window(camera, box, 1.0)
     img = np.asarray(gray[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
-    levels = _design_levels(synth, space)
+    levels = _design_levels(synth)
     inside = (_draw(levels, synth, camera, grid, cam2pad)[..., 3] > 0.5).astype(np.uint8)
     # compared: the pad and a ring of ground around it (the border's outer edge is seen against
     # the ground, whose mean brightness is fitted with the pad's), within the window
@@ -143,7 +136,6 @@ def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndar
     m_per_px = depth / camera.fx
     # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
     steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6)])
-    K = np.array([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy], [0.0, 0.0, 1.0]])
     ideal = np.column_stack([grid[mask].astype(np.float64), np.ones(n)])  # the compared pixels' ideal places
 
     def drawn(q):
@@ -172,9 +164,7 @@ def fit_pose_to_design(gray: np.ndarray, camera: Camera, synth, cam2pad: np.ndar
         difference (it moves no pixel); the sharpening's from the two blurs' difference."""
         D, B1, B2 = DB
         T = _posed(cam2pad, q)
-        P2C = invert(T)
-        H = K @ np.column_stack([P2C[:3, 0], P2C[:3, 1], P2C[:3, 3]])
-        X = np.linalg.solve(H, ideal.T).T
+        X = np.linalg.solve(pad_plane_homography(camera, T), ideal.T).T
         X = np.column_stack([X[:, :2] / X[:, 2:3], np.zeros(n)])  # each compared pixel's pad point
         u0 = camera.project_from(T, X)
         gy, gx = np.gradient(D, axis=(0, 1))

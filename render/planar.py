@@ -10,14 +10,8 @@ import math
 import cv2
 import numpy as np
 
-from hvloc.geometry import Camera, invert
+from hvloc.geometry import Camera, invert, pad_plane_homography  # noqa: F401  (re-exported)
 from pad_design.texture import texture_to_pad
-
-
-def pad_plane_homography(camera: Camera, cam2pad: np.ndarray) -> np.ndarray:
-    """3x3 homography: pad-plane (x, y) metres -> undistorted image pixels."""
-    T = invert(cam2pad)
-    return camera.K @ np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]])
 
 
 def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110, 70),
