@@ -52,6 +52,34 @@ def _white_relative(img: np.ndarray) -> np.ndarray:
     return cv2.divide(img, np.maximum(env, np.float32(1e-3 * max(float(img.max()), 1e-6))))
 
 
+def box_levels(image: np.ndarray, side_m: float, smallest_px: int) -> list:
+    """``[(texture, texels per metre), ...]``: ``image`` (the whole pad, ``side_m`` across) and its
+    halves, quarters, ... down to ``smallest_px``, each box-filtered as a pixel averages and each
+    the whole pad in a whole number of texels (its own texels per metre).  Not a Gaussian pyramid:
+    ``cv2.pyrDown``'s samples sit on every other texel, half a texel off the box's centre at each
+    level, and a pad drawn from its levels moved by up to 0.75 px (49 px across, 12 m;
+    ``PadSynthesis.draw`` against the finest level drawn 4 x 4 per pixel and averaged)."""
+    levels = [(image, image.shape[1] / side_m)]
+    while min(levels[-1][0].shape[:2]) > smallest_px:
+        h, w = levels[-1][0].shape[:2]
+        nw, nh = max(1, round(w / 2)), max(1, round(h / 2))
+        levels.append((cv2.resize(levels[-1][0], (nw, nh), interpolation=cv2.INTER_AREA), nw / side_m))
+    return levels
+
+
+def level_for(levels: list, side_m: float, H: np.ndarray, scale: float = 1.0) -> tuple:
+    """``(texture, texels per metre)``: the coarsest of ``levels`` (:func:`box_levels`) with at least
+    as many texels across the pad as the pad spans pixels at its centre (``H``: pad (x, y) m ->
+    ideal pixel, drawn ``scale`` times enlarged): texels no larger than a drawn pixel, so the
+    drawing's bilinear reads lose no detail the pixel keeps."""
+    ends = cv2.perspectiveTransform(np.array([[[-0.5 * side_m, 0.0], [0.5 * side_m, 0.0]]]), H)[0]
+    span = float(np.linalg.norm(ends[1] - ends[0])) * scale
+    k = 0
+    while k + 1 < len(levels) and levels[k + 1][1] * side_m >= span:
+        k += 1
+    return levels[k]
+
+
 class PadSynthesis:
     """The pad's texture in linear light at box-filtered scales; :meth:`locate` aligns it, drawn at
     a predicted pose and smeared, to a frame."""
@@ -59,9 +87,7 @@ class PadSynthesis:
     def __init__(self, pad):
         self.pad = pad
         gray = cv2.cvtColor(np.ascontiguousarray(pad.texture_rgb), cv2.COLOR_RGB2GRAY)
-        self.levels = [srgb_to_linear(gray)]
-        while min(self.levels[-1].shape) > 64:
-            self.levels.append(cv2.pyrDown(self.levels[-1]))
+        self.levels = box_levels(srgb_to_linear(gray), pad.side_m, 64)
         self._ideal = None  # (camera, (H, W, 2) float32 every pixel's place in the ideal pinhole image)
 
     def _ideal_pixels(self, camera: Camera) -> np.ndarray:
@@ -96,14 +122,8 @@ class PadSynthesis:
         for tau in times:
             for a, b, dt in bands:
                 H = pad_plane_homography(camera, pose_at(tau + dt))  # pad (x, y) m -> ideal pixel
-                # the texture's level whose texels are as large as a drawn pixel on the pad (at its centre)
-                ends = cv2.perspectiveTransform(np.array([[[-0.5 * self.pad.side_m, 0.0], [0.5 * self.pad.side_m, 0.0]]]),
-                                                H)[0]
-                span_px = float(np.linalg.norm(ends[1] - ends[0])) * scale
-                level = int(np.clip(np.floor(math.log2(max(self.pad.ppm * self.pad.side_m / max(span_px, 1e-6), 1.0))),
-                                    0, len(self.levels) - 1))
-                tex = self.levels[level]
-                M = np.linalg.inv(H @ texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level))  # ideal pixel -> texel
+                tex, ppm = level_for(self.levels, self.pad.side_m, H, scale)
+                M = np.linalg.inv(H @ texture_to_pad(self.pad.side_m, ppm))  # ideal pixel -> texel
                 uv = cv2.perspectiveTransform(np.ascontiguousarray(grid[a:b]).reshape(-1, 1, 2), M).reshape(b - a, w, 2)
                 acc[a:b] += cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
                 n = tex.shape[0]

@@ -32,6 +32,7 @@ from pad_design.texture import texture_to_pad
 
 from .features import srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
+from .synthesis import box_levels, level_for
 
 MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger ones the step fit places well ...
 MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off)
@@ -54,20 +55,14 @@ def _design_levels(synth) -> list:
     ... (kept on ``synth``), each with its own texels per metre.  A frame's brightness is linear in
     the three colours under any light's colour and gain: the magenta border's brightness relative
     to the white field is not one number.  Each level is the whole pad in a whole number of texels,
-    box-filtered as a pixel averages: a Gaussian pyramid's samples sit on every other texel, half a
-    texel off the box's centres at each level, which moved the fitted pad sideways (0.11 % of the
-    height on bench_v2's wide720 at 23-60 px; 0.03 % with these levels).
+    box-filtered as a pixel averages (:func:`hvloc.synthesis.box_levels`): with a Gaussian pyramid's
+    levels the fitted pad moved sideways by 0.11 % of the height on bench_v2's wide720 at 23-60 px
+    (0.03 % with these).
     """
     levels = getattr(synth, "_design_levels", None)
     if levels is None:
         rgb = srgb_to_linear(np.ascontiguousarray(synth.pad.texture_rgb)).astype(np.float32) / 255.0
-        base = np.dstack([rgb, np.ones(rgb.shape[:2], np.float32)])
-        side = synth.pad.side_m
-        levels = [(base, base.shape[1] / side)]
-        while min(levels[-1][0].shape[:2]) > 16:
-            h, w = levels[-1][0].shape[:2]
-            nw, nh = max(1, round(w / 2)), max(1, round(h / 2))
-            levels.append((cv2.resize(levels[-1][0], (nw, nh), interpolation=cv2.INTER_AREA), nw / side))
+        levels = box_levels(np.dstack([rgb, np.ones(rgb.shape[:2], np.float32)]), synth.pad.side_m, 16)
         synth._design_levels = levels
     return levels
 
@@ -77,14 +72,8 @@ def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.nda
     window ``grid`` (each pixel's ideal pinhole place: :meth:`PadSynthesis.window`), 0 off the pad;
     read from the level whose texels are the finest no smaller than a pixel (as a pixel averages)."""
     H = pad_plane_homography(camera, cam2pad)  # pad (x, y) m -> ideal pixel
-    side = synth.pad.side_m
-    ends = cv2.perspectiveTransform(np.array([[[-0.5 * side, 0.0], [0.5 * side, 0.0]]]), H)[0]
-    span = float(np.linalg.norm(ends[1] - ends[0]))  # px across the pad
-    k = 0
-    while k + 1 < len(levels) and levels[k + 1][1] * side >= span:
-        k += 1
-    tex, ppm = levels[k]
-    M = np.linalg.inv(H @ texture_to_pad(side, ppm))  # ideal pixel -> texel
+    tex, ppm = level_for(levels, synth.pad.side_m, H)
+    M = np.linalg.inv(H @ texture_to_pad(synth.pad.side_m, ppm))  # ideal pixel -> texel
     uv = cv2.perspectiveTransform(np.ascontiguousarray(grid).reshape(-1, 1, 2), M).reshape(grid.shape)
     return cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
