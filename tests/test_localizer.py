@@ -2032,6 +2032,50 @@ def test_the_pads_drawing_from_a_coarser_level_sits_where_the_finest_one_does(pa
     assert response > 0.9 and math.hypot(dx, dy) < 0.08, (h, dx, dy, response)
 
 
+def test_a_coarse_alignment_that_does_not_converge_leaves_the_fine_one_to_try(pad, monkeypatch):
+    """The smear's drawing is aligned at half size first, as a start for the full size.  A 25-30 px
+    pad halved is a few features, and there ECC can fail to converge, or converge where the drawing
+    does not match (bench_v2's x_field_rs_oblique at 13 m: correlation 0.17, and the frame was lost).
+    Such a start is dropped: the full-size pass starts from the prediction and still places the pad."""
+    from hvloc.synthesis import PadSynthesis
+
+    G = tilted(0.03, -0.02, 0.8, 0.4)
+    v, w = np.array([0.2, -0.1, -0.2]), np.array([0.3, -0.2, 1.0])
+    gray = cv2.cvtColor(_smeared(pad, G, v, w, 0.02), cv2.COLOR_RGB2GRAY)
+    pred = G.copy()
+    pred[:3, 3] += [0.01, -0.008, 0.006]
+    up = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    real = cv2.findTransformECC
+    sizes = []
+
+    def coarse_fails(a, b, warp, *args):
+        sizes.append(a.shape)
+        if len(sizes) == 1:
+            raise cv2.error("The algorithm stopped before its convergence")
+        return real(a, b, warp, *args)
+
+    monkeypatch.setattr(cv2, "findTransformECC", coarse_fails)
+    det, why = PadSynthesis(pad).locate(gray, CAM, pred, v, w, 0.02)
+    assert len(sizes) == 2 and sizes[0][0] < sizes[1][0], sizes  # the coarse pass was tried, then the fine one
+    assert det is not None, why
+    dp = pose_error(solve_planar_pose(CAM, det.pts_P, det.px, up).cam2pad, G)[0]
+    assert dp < 0.004, dp
+
+    def coarse_wanders(a, b, warp, *args):  # converges, but somewhere the drawing does not match
+        sizes.append(a.shape)
+        cc, wk = real(a, b, warp, *args)
+        if len(sizes) == 3:
+            wk = wk.copy()
+            wk[:, 2] += 0.15 * a.shape[1]
+            return 0.2, wk
+        return cc, wk
+
+    monkeypatch.setattr(cv2, "findTransformECC", coarse_wanders)
+    det, why = PadSynthesis(pad).locate(gray, CAM, pred, v, w, 0.02)
+    assert len(sizes) == 4 and det is not None, why
+    assert pose_error(solve_planar_pose(CAM, det.pts_P, det.px, up).cam2pad, G)[0] < 0.004
+
+
 def test_a_smeared_rolling_shutter_frame_is_drawn_band_by_band(pad):
     """A rolling shutter read in 25 ms exposes the frame's rows a frame's smear apart: drawn as one
     instant the pad's drawing is skewed against it.  Told the line time, the drawing is made in
