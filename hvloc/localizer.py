@@ -696,14 +696,14 @@ class HierarchicalLocalizer:
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by)
             if det is not None and det.kind == "outline" and cfg.design_fit:
-                det = self._design_fitted(det, gray, up_C)
+                det = self._design_fitted(det, rgb, up_C)
             if det is not None:
                 res, why = self._posed(det, why, prior, up_C, r is not None)
                 if res is not None:
                     return res, why
         return None, why
 
-    def _design_fitted(self, det, gray: np.ndarray, up_C):
+    def _design_fitted(self, det, rgb: np.ndarray, up_C):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
         (:func:`hvloc.texfit.fit_pose_to_design`), started from the outline's pose with the IMU's
         gravity; ``det`` as it is without gravity, without the design, or when the fit fails."""
@@ -723,7 +723,7 @@ class HierarchicalLocalizer:
 
             self._synthesis = PadSynthesis(self.pad)
         fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C)),
-                                 fit_pose_to_design, gray, self.camera, self._synthesis, start.cam2pad)
+                                 fit_pose_to_design, rgb, self.camera, self._synthesis, start.cam2pad)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)

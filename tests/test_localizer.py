@@ -2355,8 +2355,8 @@ def _far_pad_clean():
 def test_a_far_pad_fitted_by_its_drawn_design_loses_the_outlines_height_bias():
     """A step-edge fit of a 28-45 px pad's outline is biased by what lies a few px inside its edges:
     with the AHRS's up these views' heights come out 0.43 % low on average (0.62 % off).  The
-    design drawn at the pose and blurred as the camera blurs it, fitted to the frame's grey, places
-    them 0.1-0.2 % off; a crop of ground alone is not taken for the pad."""
+    design drawn at the pose and blurred as the camera blurs it, fitted to the frame's luma, places
+    them 0.1 % low on average, each within 0.3 %; a crop of ground alone is not taken for the pad."""
     from hvloc.synthesis import PadSynthesis
     from hvloc.texfit import fit_pose_to_design
 
@@ -2366,7 +2366,7 @@ def test_a_far_pad_fitted_by_its_drawn_design_loses_the_outlines_height_bias():
         det, why = detect_outline(crop, pad.geometry, cam, yaw_hint_corner0=np.array(fr["corners_px"][0]))
         assert det is not None, (fr["source"], fr["frame"], why)
         start = solve_planar_pose(cam, det.pts_P, det.px, up_in_camera(G)).cam2pad
-        fitted, info = fit_pose_to_design(cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY), cam, PadSynthesis(pad), start)
+        fitted, info = fit_pose_to_design(crop, cam, PadSynthesis(pad), start)
         assert fitted is not None, (fr["source"], fr["frame"], info)
         step.append((start[2, 3] - G[2, 3]) / fr["height_m"])
         drawn.append((fitted[2, 3] - G[2, 3]) / fr["height_m"])
@@ -2374,14 +2374,44 @@ def test_a_far_pad_fitted_by_its_drawn_design_loses_the_outlines_height_bias():
         assert math.degrees(rotation_angle(fitted[:3, :3], G[:3, :3])) < 1.0, info
     step, drawn = np.array(step), np.array(drawn)
     assert np.mean(step) < -0.003 and np.mean(np.abs(step)) > 0.004, step  # the bias the outline has
-    assert abs(np.mean(drawn)) < 0.0025 and np.max(np.abs(drawn)) < 0.005, drawn
+    assert abs(np.mean(drawn)) < 0.0015 and np.max(np.abs(drawn)) < 0.0035, drawn
     assert np.mean(np.abs(drawn)) < 0.5 * np.mean(np.abs(step)), (step, drawn)
-    # ground with no pad in it (the first view's corner, tiled) is not fitted as one
+    # ground with no pad in it (the first view's corner, tiled) is not fitted as one, in colour or
+    # as a grey camera's frame
     pad, crop, cam, fr = _far_pad_clean()[0]
     ground = np.tile(crop[:16, :16], (5, 5, 1))
-    got, info = fit_pose_to_design(cv2.cvtColor(ground, cv2.COLOR_RGB2GRAY), cam, PadSynthesis(pad),
-                                   np.array(fr["cam2pad"]))
-    assert got is None, info
+    for frame in (ground, cv2.cvtColor(ground, cv2.COLOR_RGB2GRAY)):
+        got, info = fit_pose_to_design(frame, cam, PadSynthesis(pad), np.array(fr["cam2pad"]))
+        assert got is None, info
+
+
+@pytest.mark.parametrize("blur", [0.0, 0.6, 1.0, 1.5])
+def test_a_far_pad_fitted_by_its_design_is_as_far_as_it_is_under_any_blur(pad, blur):
+    """A camera integrates light over each pixel and blurs it, channel by channel, then writes each
+    channel through its tone curve (here: a 4x finer view averaged in light, a Gaussian blur, sRGB).
+    The design fit as it was (the frame's grey taken to light as one channel, the tone's exponent
+    fitted, the Jacobian's columns 0.2-0.5 correlated with the residual's change) put 15-19 m pads
+    0.24-0.62 % too near under 0-1 px of blur.  Each channel drawn in light and written as sRGB, the
+    luma compared, the Jacobian right: within 0.2 %, and the blur found within 0.15 px."""
+    from hvloc.synthesis import PadSynthesis
+    from hvloc.texfit import fit_pose_to_design
+
+    syn, rng = PadSynthesis(pad), np.random.default_rng(int(10 * blur))
+    errs = []
+    for trial in range(3):
+        h = rng.uniform(14.0, 19.0)
+        G = tilted(rng.uniform(-1, 1), rng.uniform(-1, 1), h, rng.uniform(0, 2 * np.pi), 0.02, -0.01)
+        fine = (warp_pad_view(pad, CAM.scaled(4), G, (120, 90, 60), supersample=1).astype(np.float32) / 255.0) ** 2.2
+        light = cv2.resize(fine, (CAM.width, CAM.height), interpolation=cv2.INTER_AREA)
+        if blur:
+            light = cv2.GaussianBlur(light, (0, 0), blur)
+        light += rng.normal(0.0, 0.003, light.shape).astype(np.float32)
+        frame = (255.0 * np.clip(light, 0, 1) ** (1 / 2.2) + 0.5).astype(np.uint8)
+        fitted, info = fit_pose_to_design(frame, CAM, syn, G)
+        assert fitted is not None, info
+        assert abs(info["blur_px"] - max(blur, 0.25)) < 0.15, info
+        errs.append((fitted[2, 3] - G[2, 3]) / h)
+    assert np.max(np.abs(errs)) < 0.002, (blur, errs)
 
 
 def test_the_localizer_fits_a_far_pads_design_when_asked():
