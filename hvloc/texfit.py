@@ -17,11 +17,13 @@ light (the design's red, green and blue, the ground's, an offset), solved at eve
 written through sRGB's tone curve (:data:`TONE`); the fit compares the frame's luma.  Residuals
 are weighed by Huber's rule, so a shadow across part of the pad counts as little as it fits.
 
-Where the bias went (fitted from the true pose, bench_v2 at 20-30 px across): a grey frame taken to
-light as one channel, with the tone's exponent fitted, was 0.2-0.9 % low in height (the exponent
-came out 1.0-1.4, standing in for the model's error, and the blur's coupling with size did the
-rest); per channel with sRGB's tone, 0.0-0.2 % (wide_jpeg55 at 20-30 px and dusk_noise stay 1.1
-and 0.55 % low).  The pad is compared with a ring of ground around it: the border's
+Where the bias went: on frames made as a camera makes them (light averaged over each pixel, blurred,
+written through sRGB), a grey frame taken to light as one channel, with the tone's exponent fitted,
+put 15-19 m pads 0.24-0.62 % too near under 0-1 px of blur (the exponent came out 1.0-1.4,
+standing in for the model's error, and the blur's coupling with size did the rest); per channel
+with sRGB's tone, within 0.07 %.  On bench_v2's renders, fitted from the true pose at 20-30 px:
+-0.9 to -0.2 % before, -0.0 to +0.4 % now, except the wide lens under JPEG 55 (-1.1 %) and
+dusk_noise (-0.6 %); the renderer mixes texels in display space (README).  The pad is compared with a ring of ground around it: the border's
 outer edge is seen against the ground, whose texture counts as noise.
 
 Gauss-Newton (Levenberg-Marquardt) with the Jacobian from the drawing's gradients and the image
@@ -121,7 +123,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     grid = synth.window(camera, box, 1.0)
     img = np.asarray(image[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
     img = img.reshape(img.shape[0], img.shape[1], -1)
-    luma = np.array(LUMA if img.shape[2] == 3 else [1.0] * img.shape[2]) / (1.0 if img.shape[2] == 3 else img.shape[2])
+    luma = np.array(LUMA) if img.shape[2] == 3 else np.full(img.shape[2], 1.0 / img.shape[2])  # a grey camera: its one channel
     levels = _design_levels(synth)
     inside = (_draw(levels, synth, camera, grid, cam2pad)[..., 3] > 0.5).astype(np.uint8)
     # compared: the pad and a ring of ground around it (the border's outer edge is seen against
@@ -139,12 +141,15 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6)])
     ideal = np.column_stack([grid[mask].astype(np.float64), np.ones(n)])  # the compared pixels' ideal places
 
-    def drawn(q, shift=None):
+    def drawn(q):
         """``(D, B1, B2)``, each ``(h, w, 4)``: the design's channels at q's pose blurred as the camera
-        does, ``D = B1 + a (B1 - B2)``: ``B1`` by q's blur, ``B2`` by that and the sharpening's own
-        width (:data:`SHARPEN_SIGMA_PX`), ``a = q[5]`` the sharpening's amount; ``shift``: each pixel
-        read that far off its ideal place (px)."""
-        d = _draw(levels, synth, camera, grid if shift is None else grid + np.float32(shift), _posed(cam2pad, q))
+        does (:func:`blurred`)."""
+        return blurred(_draw(levels, synth, camera, grid, _posed(cam2pad, q)), q)
+
+    def blurred(d, q):
+        """``(D, B1, B2)``: drawn channels ``d`` blurred as the camera does, ``D = B1 + a (B1 - B2)``:
+        ``B1`` by q's blur, ``B2`` by that and the sharpening's own width (:data:`SHARPEN_SIGMA_PX`),
+        ``a = q[5]`` the sharpening's amount.  Linear in ``d``."""
         sig = max(q[4], 0.05)
         b1 = cv2.GaussianBlur(d, (0, 0), sig)
         b2 = cv2.GaussianBlur(d, (0, 0), math.hypot(sig, SHARPEN_SIGMA_PX))
@@ -169,13 +174,16 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         from the two blurs' difference.  Each carries the change of the brightness solved with it
         (the gains are least squares in light, not in the residual's terms: held fixed, the
         Jacobian's columns correlated 0.2-0.5 with the residual's true change)."""
-        D, B1, B2 = DB
-        X = np.linalg.solve(pad_plane_homography(camera, _posed(cam2pad, q)), ideal.T).T  # each compared pixel's pad point
-        # the drawing's gradient in the ideal image, by drawing it a quarter px off each way: the
-        # grid's own differences of a drawing blurred by under a px are not its derivative (the pose's
-        # columns correlated 0.6-0.7 with the residual's true change)
-        gx, gy = ((drawn(q, (GRAD_PX, 0.0))[0] - drawn(q, (-GRAD_PX, 0.0))[0])[mask].astype(np.float64) / (2 * GRAD_PX),
-                  (drawn(q, (0.0, GRAD_PX))[0] - drawn(q, (0.0, -GRAD_PX))[0])[mask].astype(np.float64) / (2 * GRAD_PX))
+        _, B1, B2 = DB
+        T = _posed(cam2pad, q)
+        X = np.linalg.solve(pad_plane_homography(camera, T), ideal.T).T  # each compared pixel's pad point
+        # the drawing's gradient in the ideal image, from drawings a quarter px off each way, blurred
+        # once (the blur is linear): the grid's own differences of a drawing blurred by under a px are
+        # not its derivative (the pose's columns correlated 0.6-0.7 with the residual's true change)
+        off = [_draw(levels, synth, camera, grid + np.float32(o), T)
+               for o in ((GRAD_PX, 0.0), (-GRAD_PX, 0.0), (0.0, GRAD_PX), (0.0, -GRAD_PX))]
+        grad = blurred(np.concatenate([off[0] - off[1], off[2] - off[3]], axis=2) / np.float32(2 * GRAD_PX), q)[0]
+        gx, gy = grad[..., :4][mask].astype(np.float64), grad[..., 4:][mask].astype(np.float64)
         sig = max(q[4], 0.05)
         lap = sig * ((1.0 + q[5]) * cv2.Laplacian(B1, cv2.CV_32F, ksize=1)[mask].astype(np.float64)
                      - q[5] * cv2.Laplacian(B2, cv2.CV_32F, ksize=1)[mask].astype(np.float64))
@@ -240,7 +248,6 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             lam *= 10.0
         if not moved or (np.all(np.abs(dq[:4]) < 0.1 * steps) and np.all(np.abs(dq[4:]) < 0.02)):  # settled
             break
-    r, A, g, _ = toned(DB[0][mask].astype(np.float64))
     on = inside[mask] > 0  # the correlation on the pad alone
     d = (seen - r)[on]  # the drawing's luma
     t = seen[on]
