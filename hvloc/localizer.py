@@ -564,7 +564,9 @@ class HierarchicalLocalizer:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
             if self.shutter.active:  # (only the rolling shutter's correction reads them)
-                self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, est.cam2pad[:3, 3].copy())]
+                still = est.extras.get("still_p")
+                p = est.cam2pad[:3, 3] if still is None else np.asarray(still, np.float64)
+                self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, p.copy())]
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
@@ -615,6 +617,24 @@ class HierarchicalLocalizer:
         """``px`` as the rolling shutter's reference row would have seen them (:mod:`hvloc.shutter`)."""
         return self.shutter.unrolled(self.camera, cam2pad, pts_P, px, self.twist)
 
+    def _velocity_free(self, cam2pad, pts_P, px, solve) -> list | None:
+        """The position (P) of the pose ``solve`` gives for the unrolled pixels ``px`` with the
+        velocity's share of the unrolling put back (the gyro's kept), or ``None`` where no velocity
+        moved them.  The shutter's velocity is read from these positions, never from poses that
+        were themselves corrected with it: that was a loop.  A pose off by e moves the next
+        velocity by ~e / dt, whose correction moves the next pose by ~fx * line_s * e / dt, the
+        other way (the rows' skew read as a tilt).  On a 1280x960 camera at 5 Hz read in 29 ms
+        (fx 1545 px), poses at 1.7 m swung +-60 mm from frame to frame, growing, with markers
+        fitting to 0.2 px.  Poses solved without the velocity carry its rows' skew (~fx * line_s
+        * v, a constant while the velocity is), so their slope is off by ~fx * line_s times the
+        acceleration (there: 1-2 cm/s while the drone slowed for touchdown)."""
+        tw = self.twist
+        if not self.shutter.active or tw is None or tw.v_P is None or cam2pad is None:
+            return None
+        d = self.shutter.shift(self.camera, cam2pad, pts_P, px, Twist(tw.v_P, None))
+        still = solve(np.where(np.isfinite(d), px + d, px))
+        return None if still is None else [float(x) for x in still.cam2pad[:3, 3]]
+
     def _update_phase(self, h) -> None:
         self.phase = next_phase(self.phase, h, self.last.method if self.last is not None else "", self.config)
 
@@ -657,7 +677,14 @@ class HierarchicalLocalizer:
             res, n, why = self.flow.track(gray, prior, up_C, self._predicted(t))
             if res is None:
                 return None, why
-            return (res, n, {"keyframe_anchored": self.flow.kf.anchored}), "ok"
+            extras = {"keyframe_anchored": self.flow.kf.anchored}
+            if self.flow.fitted is not None:
+                P, seen = self.flow.fitted
+                still = self._velocity_free(res.cam2pad, P, seen, lambda px: solve_planar_pose(
+                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior))
+                if still is not None:
+                    extras["still_p"] = still
+            return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""
             if self._texture_allowed(self.policy_h, orb=True):
@@ -868,6 +895,9 @@ class HierarchicalLocalizer:
             cov = pose.cov.copy()
             cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
             pose = replace(pose, cov=cov)
+        still = self._velocity_free(pose.cam2pad, P, px, lambda seen: pose_of(P, seen, sigma, weighed))
+        if still is not None:
+            info["still_p"] = still
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 

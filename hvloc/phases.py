@@ -1775,6 +1775,7 @@ class FlowTracker:
         self.prev_tag = None
         self.tracks = None
         self.pending = None
+        self.fitted = None
         self.frames_since_kf = 0
 
     @property
@@ -1809,6 +1810,7 @@ class FlowTracker:
     def track(self, gray, prior_cam2pad=None, up_C=None, predicted_cam2pad=None):
         """``(PoseResult | None, n_inliers, reason)`` for ``gray``; ``predicted_cam2pad``: the pose
         expected in ``gray`` (given after a gap in time), from which each feature's pixel is guessed."""
+        self.fitted = None
         if not self.ready:
             return None, 0, "no keyframe"
         w, kf = self.work, self.kf
@@ -1828,6 +1830,7 @@ class FlowTracker:
         res, inl, why = w(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(seen), array_key(up_C),
                                    array_key(prior_cam2pad) if up_C is None else None),
                           pose_from_tracks, self.camera, kf, seen, prior_cam2pad, up_C)
+        self.fitted = (kf.pts_P[inl], seen[inl]) if res is not None else None  # what the pose was fitted to
         if res is not None and kf.cov is not None:
             # the pad points were placed with the keyframe's pose: its error is in every tracked pose
             # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
