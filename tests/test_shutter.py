@@ -164,3 +164,48 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
     assert res is not None, why
     err = np.abs(res.cam2pad[:3, 3] - pose_at(0.2)[:3, 3])
     assert err.max() < 0.001, np.round(err * 1000, 2)
+
+
+def test_what_the_shutters_velocity_moved_a_pose_by_is_in_its_covariance(pad):
+    """The velocity is a line through the last 0.45 s of poses, as old as half that window: a drone
+    that accelerates has moved on, and the correction it drives is off by as much.  Each pose the
+    velocity moved carries half of that move as a standard deviation along it (a global shutter's
+    poses are not touched)."""
+    cam = Camera.from_hfov(400, 400, math.radians(50))
+    v0, acc = np.array([0.1, -0.05, -0.6]), np.array([0.0, 1.2, 0.9])
+    T0 = nadir_cam2pad(0.02, 0.01, 2.2, 0.3)
+
+    def pose_at(t):
+        T = T0.copy()
+        T[:3, 3] = T0[:3, 3] + v0 * t + 0.5 * acc * t * t
+        return T
+
+    line_s = 30e-3 / cam.height
+    R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
+    frames = []
+    for k in range(6):
+        t = k / 5.0
+        img = np.zeros((cam.height, cam.width, 3), np.uint8)
+        for r0 in range(0, cam.height, 8):
+            when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
+            img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
+        frames.append((t, img))
+    moved = 0
+    for line in (line_s, 0.0):
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=line)
+        for t, img in frames:
+            e = loc.process(img, t, np.r_[t, 0.0, 0.0, 0.0, 0.0, 0.0, 9.81, quat_xyzw_from_matrix(R_W_B)])
+            assert e.status == "ok", f"t {t}: {e.reason}"
+            still = e.extras.get("still_p")
+            if line == 0.0:
+                assert still is None
+                continue
+            if still is None:  # no velocity yet (the first two frames)
+                continue
+            d = e.cam2pad[:3, 3] - np.asarray(still)
+            if np.linalg.norm(d) < 1e-4:
+                continue
+            moved += 1
+            u = d / np.linalg.norm(d)
+            assert u @ e.cov[:3, :3] @ u >= 0.25 * (d @ d) - 1e-12, (d, e.cov[:3, :3])
+    assert moved >= 3
