@@ -565,8 +565,7 @@ class HierarchicalLocalizer:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
             if self.shutter.active:  # (only the rolling shutter's correction reads them)
-                still = est.extras.get("still_p")
-                p = est.cam2pad[:3, 3] if still is None else np.asarray(still, np.float64)
+                p = est.extras.get("still_p", est.cam2pad[:3, 3])
                 self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, p.copy())]
             self.unposed = 0
             if R_W_B is not None:
@@ -618,37 +617,39 @@ class HierarchicalLocalizer:
         """``px`` as the rolling shutter's reference row would have seen them (:mod:`hvloc.shutter`)."""
         return self.shutter.unrolled(self.camera, cam2pad, pts_P, px, self.twist)
 
-    def _velocity_free(self, cam2pad, pts_P, px, solve) -> list | None:
-        """The position (P) of the pose ``solve`` gives for the unrolled pixels ``px`` with the
-        velocity's share of the unrolling put back (the gyro's kept), or ``None`` where no velocity
-        moved them.  The shutter's velocity is read from these positions, never from poses that
-        were themselves corrected with it: that was a loop.  A pose off by e moves the next
-        velocity by ~e / dt, whose correction moves the next pose by ~fx * line_s * e / dt, the
-        other way (the rows' skew read as a tilt).  On a 1280x960 camera at 5 Hz read in 29 ms
+    def _velocity_free(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
+        """``pose`` (of the unrolled pixels ``px``) as the shutter's velocity leaves it.  Solved again
+        (``solve(pixels)``) with the velocity's share of the unrolling put back (the gyro's kept), its
+        position goes to ``extras["still_p"]``: the shutter's velocity is read from these, never
+        from poses that were themselves corrected with it.  That was a loop: a pose off by e moves
+        the next velocity by ~e / dt, whose correction moves the next pose by ~fx * line_s * e / dt,
+        the other way (the rows' skew read as a tilt); on a 1280x960 camera at 5 Hz read in 29 ms
         (fx 1545 px), poses at 1.7 m swung +-60 mm from frame to frame, growing, with markers
-        fitting to 0.2 px.  Poses solved without the velocity carry its rows' skew (~fx * line_s
-        * v, a constant while the velocity is), so their slope is off by ~fx * line_s times the
-        acceleration (there: 1-2 cm/s while the drone slowed for touchdown)."""
-        tw = self.twist
-        if not self.shutter.active or tw is None or tw.v_P is None or cam2pad is None:
-            return None
-        d = self.shutter.shift(self.camera, cam2pad, pts_P, px, Twist(tw.v_P, None))
-        still = solve(np.where(np.isfinite(d), px + d, px))
-        return None if still is None else [float(x) for x in still.cam2pad[:3, 3]]
+        fitting to 0.2 px.  Poses solved without the velocity carry its rows' skew (~fx * line_s *
+        v, a constant while the velocity is), so their slope is off by ~fx * line_s times the
+        acceleration (there: 1-2 cm/s while the drone slowed for touchdown).
 
-    @staticmethod
-    def _velocity_doubt(pose: PoseResult, still: list) -> PoseResult:
-        """``pose`` with what the shutter's velocity moved it by (from ``still``, its position without
-        that share) counted uncertain by :data:`SHUTTER_VELOCITY_DOUBT`: the velocity is a line
-        through the last 0.45 s of poses, as old as half that window, and a drone that accelerates
-        (a gust, a deck, the flare before touchdown) has moved on.  unseen28's texture poses at 0.3 m
-        (a deck, 1.4 m/s^2 of relative acceleration) were 4.3 mm off with 0.1-0.2 mm stated, and
-        within 0.2 mm with the true velocity; the velocity's share had moved them 9 mm."""
+        And what the velocity moved the pose by is counted uncertain by
+        :data:`SHUTTER_VELOCITY_DOUBT` in its covariance: the velocity is a line through the last
+        0.45 s of poses, as old as half that window, and a drone that accelerates (a gust, a deck,
+        the flare before touchdown) has moved on.  unseen28's texture poses at 0.3 m (a deck, 1.4
+        m/s^2 of relative acceleration) were 4.3 mm off with 0.1-0.2 mm stated, and within 0.2 mm
+        with the true velocity; the velocity's share had moved them 9 mm.
+
+        ``pose`` as it is where no velocity moved it (none known, a global shutter)."""
+        tw = self.twist
+        if not self.shutter.active or tw is None or tw.v_P is None:
+            return pose
+        d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(tw.v_P, None))
+        still = solve(np.where(np.isfinite(d), px + d, px))
+        if still is None:
+            return pose
+        extras["still_p"] = still.cam2pad[:3, 3].copy()
         if pose.cov is None:
             return pose
-        d = pose.cam2pad[:3, 3] - np.asarray(still, np.float64)
+        moved = pose.cam2pad[:3, 3] - extras["still_p"]
         cov = pose.cov.copy()
-        cov[:3, :3] += SHUTTER_VELOCITY_DOUBT**2 * np.outer(d, d)
+        cov[:3, :3] += SHUTTER_VELOCITY_DOUBT**2 * np.outer(moved, moved)
         return replace(pose, cov=cov)
 
     def _update_phase(self, h) -> None:
@@ -696,11 +697,8 @@ class HierarchicalLocalizer:
             extras = {"keyframe_anchored": self.flow.kf.anchored}
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
-                still = self._velocity_free(res.cam2pad, P, seen, lambda px: solve_planar_pose(
-                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior))
-                if still is not None:
-                    extras["still_p"] = still
-                    res = self._velocity_doubt(res, still)
+                res = self._velocity_free(res, P, seen, lambda px: solve_planar_pose(
+                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior), extras)
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""
@@ -912,10 +910,7 @@ class HierarchicalLocalizer:
             cov = pose.cov.copy()
             cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
             pose = replace(pose, cov=cov)
-        still = self._velocity_free(pose.cam2pad, P, px, lambda seen: pose_of(P, seen, sigma, weighed))
-        if still is not None:
-            info["still_p"] = still
-            pose = self._velocity_doubt(pose, still)
+        pose = self._velocity_free(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed), info)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C)), "ok"
 

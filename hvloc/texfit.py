@@ -23,8 +23,10 @@ put 15-19 m pads 0.24-0.62 % too near under 0-1 px of blur (the exponent came ou
 standing in for the model's error, and the blur's coupling with size did the rest); per channel
 with sRGB's tone, within 0.07 %.  On bench_v2's renders, fitted from the true pose at 20-30 px:
 -0.9 to -0.2 % before, -0.0 to +0.4 % now, except the wide lens under JPEG 55 (-1.1 %) and
-dusk_noise (-0.6 %); the renderer mixes texels in display space (README).  The pad is compared with a ring of ground around it: the border's
-outer edge is seen against the ground, whose texture counts as noise.
+dusk_noise (-0.6 %); the renderer mixes texels in display space (README).
+
+The pad is compared with a ring of ground around it: the border's outer edge is seen against the
+ground, whose texture counts as noise.
 
 Gauss-Newton (Levenberg-Marquardt) with the Jacobian from the drawing's gradients and the image
 motion each pose parameter causes at each pixel's pad point; ~10-20 ms for a 30-60 px pad.
@@ -135,6 +137,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         return None, {"why": f"{n} pixels near the pad (< {MIN_PIXELS})"}
     target = img[mask]  # (n, channels) as written
     seen = target @ luma  # the luma compared
+    target_light = target ** TONE  # ... and each channel in light
     depth = max(float(invert(cam2pad)[2, 3]), 1e-3)
     m_per_px = depth / camera.fx
     # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
@@ -163,7 +166,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         design's colours: blurred, the magenta border's edges were drawn where the camera does not
         put them (synthetic 35 px pads under 0.6-1.5 px of blur: 0.4-1.0 % too near)."""
         A = np.column_stack([d[:, 0], d[:, 1], d[:, 2], 1.0 - d[:, 3], np.ones(len(d))])
-        g, *_ = np.linalg.lstsq(A, target ** TONE, rcond=None)  # (5, channels)
+        g, *_ = np.linalg.lstsq(A, target_light, rcond=None)  # (5, channels)
         light = np.maximum(A @ g, LIGHT_FLOOR)  # (the tone curve's slope is unbounded at black)
         return seen - light ** (1.0 / TONE) @ luma, A, g, light
 
@@ -191,7 +194,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         # move there: the slope at the floor, ~20, made the Jacobian's columns 2-4 times too long)
         slope = np.where(light > LIGHT_FLOOR, light ** (1.0 / TONE - 1.0) / TONE, 0.0)
 
-        lit = target ** TONE - A @ g  # (n, channels): what the gains leave of each channel in light
+        lit = target_light - A @ g  # (n, channels): what the gains leave of each channel in light
         AtA_inv = np.linalg.pinv(A.T @ A)
 
         def of(dd):  # the residuals' change for a change ``dd`` (n, 4) of the drawn channels
