@@ -62,12 +62,16 @@ def _fresh(path: Path) -> Path:
 
 def imu_noise_model(imu_spec: dict) -> dict:
     """Continuous-time noise densities and random walks (Kalibr / EuRoC ``sensor.yaml`` units)
-    from the spec's per-sample white noise and per-sqrt(s) bias walks."""
+    from the spec's per-sample white noise and per-sqrt(s) bias walks.  The airframe's vibration
+    (``vibration_*``) is counted in the densities as white noise of its rms, as a filter's tuning
+    for a flying airframe counts it (its rotors' tone is not white: see :func:`render.imu.vibration`)."""
     rate = float(imu_spec["rate_hz"])
+    gyro = math.hypot(imu_spec["gyro_noise_rad_s"], imu_spec.get("vibration_gyro_rad_s", 0.0))
+    accel = math.hypot(imu_spec["accel_noise_mps2"], imu_spec.get("vibration_accel_mps2", 0.0))
     return {"rate_hz": rate,
-            "gyroscope_noise_density": imu_spec["gyro_noise_rad_s"] / math.sqrt(rate),      # rad/s/sqrt(Hz)
+            "gyroscope_noise_density": gyro / math.sqrt(rate),                               # rad/s/sqrt(Hz)
             "gyroscope_random_walk": imu_spec["gyro_bias_walk_rad_s2"],                      # rad/s^2/sqrt(Hz)
-            "accelerometer_noise_density": imu_spec["accel_noise_mps2"] / math.sqrt(rate),  # m/s^2/sqrt(Hz)
+            "accelerometer_noise_density": accel / math.sqrt(rate),                         # m/s^2/sqrt(Hz)
             "accelerometer_random_walk": imu_spec["accel_bias_walk_mps3"]}                   # m/s^3/sqrt(Hz)
 
 

@@ -52,7 +52,31 @@ def synthesize_imu(traj: Trajectory, spec, rng: np.random.Generator, duration: f
     sig = np.radians([spec.ahrs_roll_pitch_deg, spec.ahrs_roll_pitch_deg, spec.ahrs_yaw_deg])
     err = _ou(rng, n, dt, sig * 0.95, spec.ahrs_drift_time_s) + rng.normal(0, sig * 0.3, (n, 3))
     q = np.stack([quat_xyzw_from_matrix(R @ so3_exp(e)) for R, e in zip(s.R_W_B, err)])
+    if spec.vibration_accel_mps2 > 0 or spec.vibration_gyro_rad_s > 0:  # drawn last: a spec without it is unchanged
+        vib = vibration(rng, t, spec.vibration_hz)
+        gyro = gyro + spec.vibration_gyro_rad_s * vib[:, :3]
+        accel = accel + spec.vibration_accel_mps2 * vib[:, 3:]
     return np.column_stack([t, gyro, accel, q, gyro_bias, accel_bias])
+
+
+VIBRATION_TONE_SHARE = 0.7  # of the vibration's variance in the rotors' tone; the rest is broadband
+
+
+def vibration(rng: np.random.Generator, t: np.ndarray, hz_range) -> np.ndarray:
+    """``(N, 6)``: an airframe's vibration at the sample times ``t``, unit rms per column (gyro xyz,
+    accelerometer xyz).  Most of it is the rotors' tone, at a frequency drawn from ``hz_range`` for
+    the sequence that wanders 5 % with the thrust (1 s correlation), each column at its own phase;
+    the rest is broadband.  The tone is read at the sample times as an IMU without an anti-alias
+    filter reads it, so above half the rate it aliases to a lower frequency, as on a real
+    airframe.  The AHRS's attitude does not see it (its own filter takes it out)."""
+    n = len(t)
+    f0 = rng.uniform(*hz_range)
+    dt = np.diff(t, prepend=t[0] - (t[1] - t[0] if n > 1 else 0.0))
+    f = f0 * (1.0 + _ou(rng, n, float(np.median(dt)) if n > 1 else 1.0, [0.05], 1.0)[:, 0])
+    phase = 2.0 * math.pi * np.cumsum(f * dt)
+    offsets = rng.uniform(0.0, 2.0 * math.pi, 6)
+    tone = math.sqrt(2.0 * VIBRATION_TONE_SHARE) * np.sin(phase[:, None] + offsets)
+    return tone + rng.normal(0.0, math.sqrt(1.0 - VIBRATION_TONE_SHARE), (n, 6))
 
 
 def ahrs_rotation(row) -> np.ndarray:

@@ -83,6 +83,15 @@ def _nonneg_range(v):
 
 
 NonNegRange = Annotated[Range, AfterValidator(_nonneg_range)]
+
+
+def _positive_range(v):
+    if v[0] <= 0:
+        raise ValueError(f"range must be positive, got {list(v)}")
+    return v
+
+
+PositiveRange = Annotated[Range, AfterValidator(_positive_range)]
 IntRange = Annotated[tuple[int, int], AfterValidator(lambda v: tuple(int(x) for x in _range_ok(v)))]
 
 
@@ -353,6 +362,13 @@ class ImuSpec(_Model):
     ahrs_drift_time_s: float = Field(20.0, gt=0.0, description="correlation time of the AHRS error (slow drift)")
     time_offset_s: float = Field(0.0, ge=-0.5, le=0.5, description="the IMU's clock minus the camera's: imu.csv's "
                                  "t is the sample's true time plus this (camera.json says it, as a calibration would)")
+    vibration_accel_mps2: float = Field(0.0, ge=0.0, le=50.0, description="the airframe's vibration in each "
+                                        "accelerometer sample, rms per axis (a multirotor's, after its flight "
+                                        "computer's filter: 0.5-3)")
+    vibration_gyro_rad_s: float = Field(0.0, ge=0.0, le=5.0, description="the same in each gyro sample, rms per "
+                                        "axis (0.02-0.2)")
+    vibration_hz: PositiveRange = Field((80.0, 160.0), description="the rotors' frequency, drawn per sequence; it wanders "
+                                "5 % with the thrust and is sampled at rate_hz with no anti-alias filter")
 
 
 class PhaseRuleSpec(_Model):

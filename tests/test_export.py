@@ -72,6 +72,21 @@ def test_euroc_layout_values_and_frames(ds, tmp_path):
     assert np.all(np.isfinite(gt[:, 11:17])) and np.abs(gt[:, 11:14]).max() < 0.05
 
 
+def test_the_imu_noise_densities_count_the_airframes_vibration():
+    """A filter tuned from sensor.yaml for a vibrating airframe must not trust each sample more than
+    its vibration allows: the densities carry the vibration's rms with the sensor's white noise."""
+    from render.export import imu_noise_model
+    from render.spec import ImuSpec
+
+    quiet = imu_noise_model(ImuSpec().model_dump())
+    shaken = imu_noise_model(ImuSpec(vibration_accel_mps2=2.0, vibration_gyro_rad_s=0.1).model_dump())
+    rate = math.sqrt(200.0)
+    assert quiet["accelerometer_noise_density"] == pytest.approx(0.03 / rate)
+    assert shaken["accelerometer_noise_density"] == pytest.approx(math.hypot(0.03, 2.0) / rate)
+    assert shaken["gyroscope_noise_density"] == pytest.approx(math.hypot(0.003, 0.1) / rate)
+    assert shaken["accelerometer_random_walk"] == quiet["accelerometer_random_walk"]
+
+
 def test_rosbag2_reads_back_with_rosbags(ds, tmp_path):
     from rosbags.interfaces import QosDurability
     from rosbags.rosbag2 import Reader
