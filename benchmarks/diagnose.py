@@ -18,7 +18,7 @@ from pad_design.errors import ArgumentParser
 from hvloc.geometry import rotation_angle
 
 from .metrics import FALSE_ACCEPT_DEG, FALSE_ACCEPT_REL
-from .run import imu_at, make_localizer
+from .run import imu_since, make_localizer
 
 
 def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None = None, use_imu: bool = True):
@@ -32,7 +32,8 @@ def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None
         G_all = seq.cam2pad
         for k in range(len(seq) if max_frames is None else min(len(seq), max_frames)):
             t = float(seq.t[k])
-            e = loc.process(seq.image(k), t, imu_at(seq.imu, t, seq.imu_time_offset_s) if use_imu else None)
+            t_last = float(seq.t[k - 1]) if k else None
+            e = loc.process(seq.image(k), t, imu_since(seq.imu, t_last, t, seq.imu_time_offset_s) if use_imu else None)
             G = G_all[k]
             pe = re = dh = float("nan")
             h = float(G[2, 3])

@@ -36,6 +36,7 @@ class _FiducialPeer:
 
     METHOD = ""
     PEER = ""  # its name in messages
+    IMU_BLOCK = True  # it reads the attitude of a block's last row (imu_check)
 
     gravity_prior = False  # with an IMU: its gravity as a prior in the pose solve (hvloc's, see the module doc)
 

@@ -52,6 +52,23 @@ def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
     return imu[max(j, 0)]
 
 
+IMU_BLOCK_MAX_S = 1.0  # a block holds at most this much: no localizer reasons from older samples
+
+
+def imu_since(imu: np.ndarray, t_from: float | None, t: float, offset_s: float = 0.0):
+    """The IMU's rows after camera time ``t_from`` (the last frame's) up to ``t``, oldest first, as
+    the localizer takes them (``process(image, t, imu)``: a block, the last row the one
+    :func:`imu_at` gives); at most :data:`IMU_BLOCK_MAX_S` of them, at least that last row.
+    ``None`` for a recording without an IMU."""
+    if len(imu) == 0:
+        return None
+    stamps = imu[:, 0] - offset_s
+    j = max(int(np.searchsorted(stamps, t + 1e-9)) - 1, 0)
+    start = t - IMU_BLOCK_MAX_S if t_from is None else max(t_from, t - IMU_BLOCK_MAX_S)
+    i = min(int(np.searchsorted(stamps, start + 1e-9)), j)
+    return imu[i:j + 1]
+
+
 KINDS = ("hierarchical", "aruco", "apriltag")  # built in; any other localizer by entry point or import path
 PAD_VARIANTS = {"hierarchical": ("paper", "nested"), "aruco": ("aruco", "aruco_nested"),
                 "apriltag": ("apriltag",)}  # what each runs on by default
@@ -138,10 +155,12 @@ class _Guarded:
         if hasattr(self.inner, "reset"):
             self.inner.reset()
 
-    def process(self, image, t, imu=None):
-        from hvloc.localizer import guarded_process
+    IMU_BLOCK = True  # the inner localizer gets what it takes (hvloc.localizer.imu_for)
 
-        return guarded_process(self.inner.process, image, t, imu, "")
+    def process(self, image, t, imu=None):
+        from hvloc.localizer import guarded_process, imu_for
+
+        return guarded_process(self.inner.process, image, t, imu_for(self.inner, imu), "")
 
 
 def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None,
@@ -160,12 +179,14 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
     locs = [make_localizer(s[2], seq, s[0], bool(s[3]) if len(s) > 3 else False, work=work) for s in setups]
     imu = seq.imu
     out = [[] for _ in setups]
+    t_last = None
     for k in range(len(seq)):
         t = float(seq.t[k])
         img = seq.image(k)
         if work is not None:
             work.begin(k)
-        sample = imu_at(imu, t, seq.imu_time_offset_s)
+        sample = imu_since(imu, t_last, t, seq.imu_time_offset_s)
+        t_last = t
         for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
             out[i].append(loc.process(img, t, sample if use_imu else None))
         if on_estimate is not None:

@@ -187,18 +187,27 @@ def imu_rotation(imu) -> np.ndarray | None:
     return imu_check(imu)[0]
 
 
+IMU_ROW = 11  # an imu.csv row: t, gyro xyz, accel xyz, AHRS quaternion (xyzw)
+
+
 def imu_check(imu) -> tuple:
-    """``(R_W_B or None, why)``: what :func:`imu_rotation` gives, with the reason when it is unusable."""
+    """``(R_W_B or None, why)``: what :func:`imu_rotation` gives, with the reason when it is unusable.
+    A block of rows (the IMU's samples since the last frame, oldest first) gives its last row's."""
     if imu is None:
         return None, ""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
         return None, f"imu sample of type {type(imu).__name__} is not numeric"
-    if a.shape == (11,):
+    if a.ndim == 2 and a.shape[1] == IMU_ROW:
+        if len(a) == 0:
+            return None, "imu block has no rows"
+        a = a[-1]
+    if a.shape == (IMU_ROW,):
         a = a[7:11]
     if a.shape not in ((3, 3), (4,)):
-        return None, f"imu sample has shape {a.shape} (a 3x3 rotation, an (x, y, z, w) quaternion or an imu.csv row)"
+        return None, (f"imu sample has shape {a.shape} (a 3x3 rotation, an (x, y, z, w) quaternion, an imu.csv "
+                      "row or a block of them)")
     if not np.isfinite(a).all():
         return None, "imu attitude is not finite"
     if a.shape == (4,):
@@ -210,16 +219,43 @@ def imu_check(imu) -> tuple:
     return a, ""
 
 
-def imu_rate(imu) -> np.ndarray | None:
+def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
     """The body's angular rate (rad/s, FLU) of an imu.csv row (its gyro), or ``None`` for a bare
-    attitude or a row whose gyro is not finite or past any gyro's range (:data:`GYRO_MAX_RAD_S`)."""
+    attitude or a row whose gyro is not finite or past any gyro's range (:data:`GYRO_MAX_RAD_S`).
+    Of a block of rows: the mean of its usable rows within ``span_s`` before its last one (the
+    frame's readout; ``0``: the last row alone).  One sample carries the airframe's
+    vibration (0.02-0.2 rad/s on a multirotor, as much as the turn the rolling shutter corrects for);
+    the mean over the rows the frame was exposed in is the turn the image shows."""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
         return None
-    if a.shape != (11,) or not np.isfinite(a[1:4]).all() or np.linalg.norm(a[1:4]) > GYRO_MAX_RAD_S:
+    if a.ndim == 1:
+        a = a[None]
+    if a.ndim != 2 or a.shape[1] != IMU_ROW:
         return None
-    return a[1:4].copy()
+    g = a[:, 1:4]
+    good = np.isfinite(g).all(axis=1) & (a[:, 0] >= a[-1, 0] - span_s - 1e-9)  # NaN times are not within
+    good[good] = np.linalg.norm(g[good], axis=1) <= GYRO_MAX_RAD_S
+    if not good.any():
+        return None
+    return g[good].mean(axis=0)
+
+
+def imu_for(localizer, imu):
+    """What ``localizer.process`` is given of the IMU: a block of rows as is where the localizer
+    says it takes blocks (``IMU_BLOCK = True``, as hvloc's own do), else the block's last row, as
+    the protocol gave before blocks (one row, a quaternion or a rotation), so that a localizer
+    written for a single row keeps working."""
+    if imu is None or getattr(localizer, "IMU_BLOCK", False):
+        return imu
+    try:
+        a = np.asarray(imu)
+    except (TypeError, ValueError):
+        return imu
+    if a.ndim == 2 and a.shape[1] == IMU_ROW and len(a):
+        return a[-1]
+    return imu
 
 
 GYRO_MAX_RAD_S = 40.0  # a MEMS gyro's full scale is 2000 deg/s (35 rad/s): a rate past it is a corrupt sample
@@ -407,7 +443,14 @@ class FalsePoseGates:
 
 
 class HierarchicalLocalizer:
-    """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``."""
+    """``HierarchicalLocalizer(pad, camera, config).process(image, t, imu=None) -> Estimate``.
+
+    ``imu``: the IMU's rows since the last frame, ``(N, 11)`` in imu.csv's columns and oldest first,
+    the last at or before ``t`` (its attitude is the frame's); or one such row, an ``(x, y, z, w)``
+    quaternion or a 3x3 ``R_W_B``.  Of a block, the gyro's rate is the mean over the rows the frame
+    was read in (:func:`imu_rate`)."""
+
+    IMU_BLOCK = True
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
                  work: ImageWork | None = None, line_s: float = 0.0, ref_row: float | None = None,
@@ -434,6 +477,8 @@ class HierarchicalLocalizer:
         if not (math.isfinite(exposure_s) and 0.0 <= exposure_s <= 1.0):
             raise ValueError(f"exposure_s: {exposure_s!r} s is no frame's exposure")
         self.exposure_s = float(exposure_s)
+        # the IMU's rows a frame's gyro rate is the mean of (imu_rate): those its rows were read in
+        self.rate_span_s = abs(self.shutter.line_s) * (camera.height - 1)
         self._synthesis = None  # the pad drawn and smeared (hvloc.synthesis), made when first needed
         # the image work; localizers of one pad and camera that see the same frames may share one
         # (hvloc.work): their estimates are exactly what each would make alone
@@ -496,7 +541,7 @@ class HierarchicalLocalizer:
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
         R_W_B, imu_why = imu_check(imu)
-        self.rate_B = imu_rate(imu) if R_W_B is not None else None
+        self.rate_B = imu_rate(imu, self.rate_span_s) if R_W_B is not None else None
         est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
         if clock:
             est.extras["clock"] = clock
@@ -1017,9 +1062,11 @@ class GatedLocalizer:
         self.gates.reset()
         self.last, self.last_t = None, None
 
+    IMU_BLOCK = True  # its gates read the block's last row; the inner localizer gets what it takes (imu_for)
+
     def process(self, image, t: float, imu=None) -> Estimate:
         t0 = time.perf_counter()
-        est = guarded_process(self.inner.process, image, t, imu, "")
+        est = guarded_process(self.inner.process, image, t, imu_for(self.inner, imu), "")
         tf, bad_time = frame_time(est.t)
         if not bad_time:
             event, _ = clock_event(self.last_t, self.last, tf, self.config.prior_timeout_s)

@@ -462,7 +462,7 @@ def test_real_timing_jitter_dropped_frames_and_imu_clock_offset_are_rendered_and
     (frames.csv's t is the true time), dropped frames leave gaps in k (rows and images missing), and
     imu.csv runs on the IMU's clock, offset as camera.json says.  Labels still agree with the images
     (verify, image check included), and the localizer's harness reads the IMU at the right time."""
-    from benchmarks.run import imu_at, localize_dataset, read_estimates
+    from benchmarks.run import imu_at, imu_since, localize_dataset, read_estimates
     from hvloc.geometry import matrix_from_quat_xyzw, rotation_angle
 
     base = {"name": "timing", "seed": 3, "sequences": 1, "pad_ppm": 500,
@@ -491,6 +491,14 @@ def test_real_timing_jitter_dropped_frames_and_imu_clock_offset_are_rendered_and
     R_true = ideal.imu[int(np.searchsorted(ideal.imu[:, 0], t[5] + 1e-9)) - 1, 7:]
     assert rotation_angle(matrix_from_quat_xyzw(imu_at(seq.imu, float(t[5]), seq.imu_time_offset_s)[7:]),
                           matrix_from_quat_xyzw(R_true)) < 1e-9
+    # the rows since the last frame (what the localizer is given): on the camera's clock after the
+    # frame before, up to this one, the last the row imu_at reads; a gap's rows included
+    for i in (5, int(np.argmax(np.diff(k) > 1)) + 1):
+        blk = imu_since(seq.imu, float(t[i - 1]), float(t[i]), seq.imu_time_offset_s)
+        on_cam = seq.imu[:, 0] - seq.imu_time_offset_s
+        assert np.array_equal(blk, seq.imu[(on_cam > t[i - 1] + 1e-9) & (on_cam < t[i] + 1e-9)])
+        assert np.array_equal(blk[-1], imu_at(seq.imu, float(t[i]), seq.imu_time_offset_s))
+        assert len(blk) >= round((t[i] - t[i - 1]) * 200) - 1
     # the localizer's output names the dataset's frames, gaps and all
     localize_dataset(tmp_path / "real", tmp_path / "est", show_progress=False)
     est = read_estimates(tmp_path / "est" / "seq_0000" / "estimates.csv")
