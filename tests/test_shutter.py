@@ -6,7 +6,7 @@ import pytest
 
 from hvloc.config import LocalizerConfig
 from hvloc.geometry import Camera, invert, quat_xyzw_from_matrix, so3_exp, transform_points
-from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer, imu_check, imu_for, imu_rate
+from hvloc.localizer import DEFAULT_T_B_C, HierarchicalLocalizer, imu_accel, imu_check, imu_for, imu_rate
 from hvloc.shutter import RollingShutter, Twist
 from render.planar import nadir_cam2pad, warp_pad_view
 
@@ -38,9 +38,10 @@ def rolling_view(pad, t, rows=8):
 
 
 def imu_row(t):
-    """An imu.csv row: the gyro's body rate and the attitude (the pad level, its yaw the world's)."""
+    """An imu.csv row: the gyro's body rate, the specific force of a constant velocity (gravity's
+    reaction in the body) and the attitude (the pad level, its yaw the world's)."""
     R_W_B = pose(t)[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
-    return np.r_[t, DEFAULT_T_B_C[:3, :3] @ W_C, 0.0, 0.0, 9.81, quat_xyzw_from_matrix(R_W_B)]
+    return np.r_[t, DEFAULT_T_B_C[:3, :3] @ W_C, R_W_B.T @ [0.0, 0.0, 9.80665], quat_xyzw_from_matrix(R_W_B)]
 
 
 def test_unrolled_pixels_are_where_the_reference_row_saw_them():
@@ -148,6 +149,11 @@ def test_an_imu_block_is_read_row_by_row_and_a_single_row_localizer_gets_its_las
     assert imu_rate(rows[:, :7]) is None and imu_rate(rows[1:3], 1.0) is None
     assert np.allclose(imu_check(rows)[0], imu_check(rows[-1])[0])  # the attitude: the last row's
     assert imu_check(rows[:0]) == (None, "imu block has no rows")
+    rows[3, 5] = np.inf      # an accelerometer sample that is not finite
+    acc = imu_accel(rows, 7.0)  # the rows after the first whose values are all finite, on the camera's clock
+    assert [round(a[0], 6) for a in acc] == [6.99, 7.0] and all(abs(a[2] - 0.005) < 1e-9 for a in acc)
+    assert np.allclose(acc[-1][1], 0.0, atol=1e-9)  # a constant velocity: no acceleration
+    assert imu_accel(rows[-1], 7.0) == [] and imu_accel(rows[:1], 7.0) == []  # one row: nothing to integrate
 
     class OneRow:  # a localizer written for one row
         pass
@@ -261,3 +267,43 @@ def test_what_the_shutters_velocity_moved_a_pose_by_is_in_its_covariance(pad):
             u = d / np.linalg.norm(d)
             assert u @ e.cov[:3, :3] @ u >= 0.25 * (d @ d) - 1e-12, (d, e.cov[:3, :3])
     assert moved >= 3
+
+
+def test_the_shutters_velocity_is_carried_to_the_frame_by_the_imus_rows(pad):
+    """The line through the last poses gives the velocity at its mean time, 0.1-0.2 s before the
+    frame at 5 Hz: a drone that accelerates has moved on.  Given the IMU's rows since the last
+    frame, their accelerations since that mean time carry it to the frame's time."""
+    cam = Camera.from_hfov(400, 400, math.radians(50))
+    v0, acc = np.array([0.1, -0.05, -0.6]), np.array([0.0, 1.2, 0.9])
+    T0 = nadir_cam2pad(0.02, 0.01, 2.2, 0.3)
+    line_s = 30e-3 / cam.height
+
+    def pose_at(t):
+        T = T0.copy()
+        T[:3, 3] = T0[:3, 3] + v0 * t + 0.5 * acc * t * t
+        return T
+
+    R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T  # the pad frame is the world's here
+    ts = np.arange(0.0, 1.2, 0.005)
+    rows = np.array([np.r_[t, 0.0, 0.0, 0.0, R_W_B.T @ (acc + [0.0, 0.0, 9.80665]), quat_xyzw_from_matrix(R_W_B)]
+                     for t in ts])
+    errs, v_errs = {}, {}
+    for mode in ("row", "block"):
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=line_s)
+        errs[mode], v_errs[mode], last = [], [], None
+        for k in range(6):
+            t = k / 5.0
+            img = np.zeros((cam.height, cam.width, 3), np.uint8)
+            for r0 in range(0, cam.height, 8):
+                when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
+                img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
+            j = int(np.searchsorted(ts, t + 1e-9)) - 1
+            i = 0 if last is None else int(np.searchsorted(ts, last + 1e-9))
+            e = loc.process(img, t, rows[j] if mode == "row" else rows[i:j + 1])
+            last = t
+            assert e.status == "ok", f"{mode}, t {t}: {e.reason}"
+            if k >= 3:  # a velocity from two poses at least, and a heading for the pad
+                errs[mode].append(float(np.linalg.norm(e.cam2pad[:3, 3] - pose_at(t)[:3, 3])))
+                v_errs[mode].append(float(np.linalg.norm(loc.twist.v_P - (v0 + acc * t))))
+    assert max(v_errs["row"]) > 0.3 and max(v_errs["block"]) < 0.05, v_errs  # 0.45-0.5 m/s; 0.02-0.03
+    assert np.mean(errs["block"]) < 0.7 * np.mean(errs["row"]), {m: np.round(np.array(e) * 1000, 1) for m, e in errs.items()}
