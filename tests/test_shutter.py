@@ -307,3 +307,40 @@ def test_the_shutters_velocity_is_carried_to_the_frame_by_the_imus_rows(pad):
                 v_errs[mode].append(float(np.linalg.norm(loc.twist.v_P - (v0 + acc * t))))
     assert max(v_errs["row"]) > 0.3 and max(v_errs["block"]) < 0.05, v_errs  # 0.45-0.5 m/s; 0.02-0.03
     assert np.mean(errs["block"]) < 0.7 * np.mean(errs["row"]), {m: np.round(np.array(e) * 1000, 1) for m, e in errs.items()}
+
+
+def test_a_pose_made_before_any_velocity_is_known_counts_the_velocity_it_could_have(pad):
+    """A track's first poses under a rolling shutter have no velocity to unroll the rows with: the
+    skew stays in the pose.  Their covariance counts what a relative speed of 0.5 m/s along each
+    axis would move them (they stated a still camera's: a 5 Hz descent's first frames were 15-25
+    mm off with NEES 31-43)."""
+    cam = Camera.from_hfov(400, 400, math.radians(50))
+    v = np.array([0.3, -0.2, -0.7])
+    T0 = nadir_cam2pad(0.02, 0.01, 1.6, 0.3)
+    line_s = 30e-3 / cam.height
+
+    def pose_at(t):
+        T = T0.copy()
+        T[:3, 3] = T0[:3, 3] + v * t
+        return T
+
+    R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
+    imu = np.r_[0.0, 0.0, 0.0, 0.0, R_W_B.T @ [0.0, 0.0, 9.80665], quat_xyzw_from_matrix(R_W_B)]
+    rolled, still = (HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=s) for s in (line_s, 0.0))
+    still_nees = []
+    for k in range(2):
+        t = k / 5.0
+        img = np.zeros((cam.height, cam.width, 3), np.uint8)
+        for r0 in range(0, cam.height, 8):
+            when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
+            img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
+        imu[0] = t
+        e, g = rolled.process(img, t, imu), still.process(img, t, imu)  # told the shutter, and not
+        assert e.status == "ok" and g.status == "ok" and rolled.twist.v_P is None
+        err = e.cam2pad[:3, 3] - pose_at(t)[:3, 3]
+        assert np.linalg.norm(err) > 0.005  # the rows' skew, left in
+        assert err @ np.linalg.solve(e.cov[:3, :3], err) < 9.0, (err, e.cov[:3, :3])
+        still_nees.append(float(err @ np.linalg.solve(g.cov[:3, :3], err)))
+        assert np.linalg.eigvalsh(e.cov[:3, :3] - g.cov[:3, :3]).min() > -1e-12  # only added to
+        assert np.trace(e.cov[:3, :3] - g.cov[:3, :3]) > 0.003**2
+    assert max(still_nees) > 14.16, still_nees  # as a still camera's covariance: overconfident
