@@ -30,11 +30,29 @@ def pose(t):
 def rolling_view(pad, t, rows=8):
     """A frame stamped ``t`` whose row ``r`` is the view at ``t + (r - REF_ROW) * LINE_S`` (taken
     ``rows`` rows at a time, each band at its middle row's time)."""
-    img = np.zeros((CAM.height, CAM.width, 3), np.uint8)
-    for r0 in range(0, CAM.height, rows):
-        mid = r0 + (rows - 1) / 2.0
-        img[r0:r0 + rows] = warp_pad_view(pad, CAM, pose(t + (mid - REF_ROW) * LINE_S), GROUND, supersample=1)[r0:r0 + rows]
+    return rolled(pad, CAM, pose, t, LINE_S, rows)
+
+
+def rolled(pad, cam, pose_at, t, line_s, rows=8):
+    """A frame of ``cam`` stamped ``t`` whose rows are seen at their own times (the middle row at
+    ``t``, ``line_s`` apart), the camera at ``pose_at(time)``: ``rows`` rows at a time."""
+    img = np.zeros((cam.height, cam.width, 3), np.uint8)
+    for r0 in range(0, cam.height, rows):
+        when = t + (r0 + (rows - 1) / 2.0 - (cam.height - 1) / 2.0) * line_s
+        img[r0:r0 + rows] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + rows]
     return img
+
+
+def moving(T0, v, acc=(0.0, 0.0, 0.0)):
+    """``pose_at(t)``: ``T0`` moved at velocity ``v`` with acceleration ``acc`` (pad frame), not turning."""
+    v, acc = np.asarray(v, np.float64), np.asarray(acc, np.float64)
+
+    def pose_at(t):
+        T = T0.copy()
+        T[:3, 3] = T0[:3, 3] + v * t + 0.5 * acc * t * t
+        return T
+
+    return pose_at
 
 
 def imu_row(t):
@@ -199,19 +217,10 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
 
     cam = Camera.from_hfov(400, 400, math.radians(50))
     line_s, v = 40e-3 / cam.height, np.array([0.05, -0.03, -0.7])
-    T0 = nadir_cam2pad(0.03, 0.02, 0.9, 0.3)
-
-    def pose_at(t):
-        T = T0.copy()
-        T[:3, 3] = T0[:3, 3] + v * t
-        return T
+    pose_at = moving(nadir_cam2pad(0.03, 0.02, 0.9, 0.3), v)
 
     def view(t):
-        img = np.zeros((cam.height, cam.width, 3), np.uint8)
-        for r0 in range(0, cam.height, 4):
-            when = t + (r0 + 1.5 - (cam.height - 1) / 2.0) * line_s
-            img[r0:r0 + 4] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 4]
-        return img[..., 1]
+        return rolled(pad, cam, pose_at, t, line_s, rows=4)[..., 1]
 
     shutter = RollingShutter(line_s, (cam.height - 1) / 2.0)
     tracker = FlowTracker(cam)
@@ -230,24 +239,11 @@ def test_what_the_shutters_velocity_moved_a_pose_by_is_in_its_covariance(pad):
     velocity moved carries half of that move as a standard deviation along it (a global shutter's
     poses are not touched)."""
     cam = Camera.from_hfov(400, 400, math.radians(50))
-    v0, acc = np.array([0.1, -0.05, -0.6]), np.array([0.0, 1.2, 0.9])
     T0 = nadir_cam2pad(0.02, 0.01, 2.2, 0.3)
-
-    def pose_at(t):
-        T = T0.copy()
-        T[:3, 3] = T0[:3, 3] + v0 * t + 0.5 * acc * t * t
-        return T
-
+    pose_at = moving(T0, [0.1, -0.05, -0.6], [0.0, 1.2, 0.9])
     line_s = 30e-3 / cam.height
     R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
-    frames = []
-    for k in range(6):
-        t = k / 5.0
-        img = np.zeros((cam.height, cam.width, 3), np.uint8)
-        for r0 in range(0, cam.height, 8):
-            when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
-            img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
-        frames.append((t, img))
+    frames = [(k / 5.0, rolled(pad, cam, pose_at, k / 5.0, line_s)) for k in range(6)]
     moved = 0
     for line in (line_s, 0.0):
         loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=line)
@@ -277,12 +273,7 @@ def test_the_shutters_velocity_is_carried_to_the_frame_by_the_imus_rows(pad):
     v0, acc = np.array([0.1, -0.05, -0.6]), np.array([0.0, 1.2, 0.9])
     T0 = nadir_cam2pad(0.02, 0.01, 2.2, 0.3)
     line_s = 30e-3 / cam.height
-
-    def pose_at(t):
-        T = T0.copy()
-        T[:3, 3] = T0[:3, 3] + v0 * t + 0.5 * acc * t * t
-        return T
-
+    pose_at = moving(T0, v0, acc)
     R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T  # the pad frame is the world's here
     ts = np.arange(0.0, 1.2, 0.005)
     rows = np.array([np.r_[t, 0.0, 0.0, 0.0, R_W_B.T @ (acc + [0.0, 0.0, 9.80665]), quat_xyzw_from_matrix(R_W_B)]
@@ -293,10 +284,7 @@ def test_the_shutters_velocity_is_carried_to_the_frame_by_the_imus_rows(pad):
         errs[mode], v_errs[mode], last = [], [], None
         for k in range(6):
             t = k / 5.0
-            img = np.zeros((cam.height, cam.width, 3), np.uint8)
-            for r0 in range(0, cam.height, 8):
-                when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
-                img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
+            img = rolled(pad, cam, pose_at, t, line_s)
             j = int(np.searchsorted(ts, t + 1e-9)) - 1
             i = 0 if last is None else int(np.searchsorted(ts, last + 1e-9))
             e = loc.process(img, t, rows[j] if mode == "row" else rows[i:j + 1])
@@ -315,28 +303,19 @@ def test_a_pose_made_before_any_velocity_is_known_counts_the_velocity_it_could_h
     axis would move them (they stated a still camera's: a 5 Hz descent's first frames were 15-25
     mm off with NEES 31-43)."""
     cam = Camera.from_hfov(400, 400, math.radians(50))
-    v = np.array([0.3, -0.2, -0.7])
     T0 = nadir_cam2pad(0.02, 0.01, 1.6, 0.3)
     line_s = 30e-3 / cam.height
-
-    def pose_at(t):
-        T = T0.copy()
-        T[:3, 3] = T0[:3, 3] + v * t
-        return T
-
+    pose_at = moving(T0, [0.3, -0.2, -0.7])
     R_W_B = T0[:3, :3] @ DEFAULT_T_B_C[:3, :3].T
     imu = np.r_[0.0, 0.0, 0.0, 0.0, R_W_B.T @ [0.0, 0.0, 9.80665], quat_xyzw_from_matrix(R_W_B)]
-    rolled, still = (HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=s) for s in (line_s, 0.0))
+    told, blind = (HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=s) for s in (line_s, 0.0))
     still_nees = []
     for k in range(2):
         t = k / 5.0
-        img = np.zeros((cam.height, cam.width, 3), np.uint8)
-        for r0 in range(0, cam.height, 8):
-            when = t + (r0 + 3.5 - (cam.height - 1) / 2.0) * line_s
-            img[r0:r0 + 8] = warp_pad_view(pad, cam, pose_at(when), GROUND, supersample=1)[r0:r0 + 8]
+        img = rolled(pad, cam, pose_at, t, line_s)
         imu[0] = t
-        e, g = rolled.process(img, t, imu), still.process(img, t, imu)  # told the shutter, and not
-        assert e.status == "ok" and g.status == "ok" and rolled.twist.v_P is None
+        e, g = told.process(img, t, imu), blind.process(img, t, imu)  # told the shutter, and not
+        assert e.status == "ok" and g.status == "ok" and told.twist.v_P is None
         err = e.cam2pad[:3, 3] - pose_at(t)[:3, 3]
         assert np.linalg.norm(err) > 0.005  # the rows' skew, left in
         assert err @ np.linalg.solve(e.cov[:3, :3], err) < 9.0, (err, e.cov[:3, :3])
