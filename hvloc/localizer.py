@@ -725,12 +725,18 @@ class HierarchicalLocalizer:
         v, a constant while the velocity is), so their slope is off by ~fx * line_s times the
         acceleration (there: 1-2 cm/s while the drone slowed for touchdown).
 
-        And what the velocity moved the pose by is counted uncertain by
-        :data:`SHUTTER_VELOCITY_DOUBT` in its covariance: the velocity is a line through the last
-        0.45 s of poses, as old as half that window, and a drone that accelerates (a gust, a deck,
-        the flare before touchdown) has moved on.  unseen28's texture poses at 0.3 m (a deck, 1.4
-        m/s^2 of relative acceleration) were 4.3 mm off with 0.1-0.2 mm stated, and within 0.2 mm
-        with the true velocity; the velocity's share had moved them 9 mm.
+        And the velocity is counted uncertain in the pose's covariance: by
+        :data:`SHUTTER_VELOCITY_DOUBT` of its speed, spread over every direction (each axis a third
+        of the variance).  The velocity is read from past poses and carried by the IMU; a drone that
+        accelerates (a gust, a deck, the flare before touchdown) has moved on.  unseen28's texture
+        poses at 0.3 m (a deck, 1.4 m/s^2 of relative acceleration) were 4.3 mm off with 0.1-0.2 mm
+        stated, within 0.2 mm with the true velocity.  Counted along the velocity alone (stop 40) the
+        covariance was a needle: poses whose velocity was off across its direction (a lateral gust)
+        were 1-3 mm off across it with 0.05-0.2 mm stated (unseen38's texture at 0.25-0.6 m, NEES
+        116-208).  Over six rolling-shutter scenes (unseen27/28/34/36/37/38, 16 descents) poses
+        beyond 3 sigma went 1.7 -> 0.2 % in Adjustment and 4.0 -> 0 % in touchdown; the flow's
+        NEES median fell 0.59 -> 0.14 (conservative: its keyframe's doubt is carried too).  Cost:
+        two more solves a frame where the shutter rolls (~4 ms on 720p).
 
         ``pose`` as it is where no velocity moved it: a global shutter; or none known yet, where its
         covariance counts the velocity it could have (:meth:`_velocity_unknown`)."""
@@ -744,12 +750,12 @@ class HierarchicalLocalizer:
         if still is None:
             return pose
         extras["still_p"] = still.cam2pad[:3, 3].copy()
-        if pose.cov is None:
+        speed = float(np.linalg.norm(tw.v_P))
+        if pose.cov is None or speed == 0.0:
             return pose
-        moved = pose.cam2pad[:3, 3] - extras["still_p"]
-        cov = pose.cov.copy()
-        cov[:3, :3] += SHUTTER_VELOCITY_DOUBT**2 * np.outer(moved, moved)
-        return replace(pose, cov=cov)
+        sigma = SHUTTER_VELOCITY_DOUBT * speed / math.sqrt(3.0)  # per axis: SHUTTER_VELOCITY_DOUBT of it in all
+        moved = pose.cam2pad[:3, 3] - extras["still_p"]  # what the velocity itself moved it by: its own axis's share
+        return self._velocity_spread(pose, pts_P, px, solve, sigma, (tw.v_P / speed, moved * sigma / speed))
 
     def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
@@ -759,11 +765,25 @@ class HierarchicalLocalizer:
         poses stated the covariance of a still camera: on unseen38 (read in 32 ms) two texture poses
         at 0.28 m, the track lost for 0.4 s and the drone at 0.65 m/s, were 6-8 mm off with 1 mm
         stated (NEES 59 and 158)."""
-        if pose.cov is None:
+        return self._velocity_spread(pose, pts_P, px, solve, SHUTTER_UNKNOWN_SPEED_MPS)
+
+    def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None) -> PoseResult:
+        """``pose`` with what an error of ``sigma_mps`` along each of three orthogonal directions in
+        the shutter's velocity would move it in its covariance: the pad's axes, each solved again
+        (three solves); or, given ``along`` = (a unit direction, the move along it, already known),
+        that direction and two across it (two solves)."""
+        if pose.cov is None or sigma_mps <= 0:
             return pose
         cov = pose.cov.copy()
-        for axis in np.eye(3):
-            d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(SHUTTER_UNKNOWN_SPEED_MPS * axis, None))
+        axes = np.eye(3)
+        if along is not None:
+            u, moved = along
+            cov[:3, :3] += np.outer(moved, moved)
+            a = np.cross(u, np.eye(3)[int(np.argmin(np.abs(u)))])
+            a /= np.linalg.norm(a)
+            axes = (a, np.cross(u, a))
+        for axis in axes:
+            d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(sigma_mps * axis, None))
             moved = solve(np.where(np.isfinite(d), px - d, px))
             if moved is not None:
                 delta = moved.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
