@@ -39,6 +39,7 @@ HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines 
 SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at most this old (hvloc.synthesis)
 SHUTTER_VELOCITY_DOUBT = 0.5  # the share of a pose that the shutter's velocity moved, counted uncertain (its lag)
 SHUTTER_UNKNOWN_SPEED_MPS = 0.5  # per axis: the speed relative to the pad a pose is counted uncertain by while no velocity is known
+SHUTTER_MIN_SPEED_MPS = 0.1  # ... and at least this speed, spread over the axes, where two poses give one
 TWIST_WINDOW_S = 0.45  # the rolling shutter's correction takes the camera's velocity from the poses of this long (4 at 10 Hz)
 
 
@@ -764,7 +765,12 @@ class HierarchicalLocalizer:
         moved it (solved again with each one's unrolling: three solves, on these poses only).  Those
         poses stated the covariance of a still camera: on unseen38 (read in 32 ms) two texture poses
         at 0.28 m, the track lost for 0.4 s and the drone at 0.65 m/s, were 6-8 mm off with 1 mm
-        stated (NEES 59 and 158)."""
+        stated (NEES 59 and 158).  Where the last two accepted poses give a speed (without an IMU:
+        too loose to unroll with, bench_v2's no_imu ablation), that speed spread over the three
+        axes is counted instead: a descent at 0.2 m/s is not doubted as one at 0.9."""
+        if self.velocity is not None:
+            speed = max(float(np.linalg.norm(self.velocity)), SHUTTER_MIN_SPEED_MPS)
+            return self._velocity_spread(pose, pts_P, px, solve, speed / math.sqrt(3.0))
         return self._velocity_spread(pose, pts_P, px, solve, SHUTTER_UNKNOWN_SPEED_MPS)
 
     def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None) -> PoseResult:
