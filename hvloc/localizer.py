@@ -227,7 +227,7 @@ def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
     Of a block of rows: the mean of its usable rows within ``span_s`` before its last one (the
     frame's readout; ``0``: the last row alone).  One sample carries the airframe's
     vibration (0.02-0.2 rad/s on a multirotor, as much as the turn the rolling shutter corrects for);
-    the mean over the rows the frame was exposed in is the turn the image shows."""
+    the mean over the rows the frame was read in is the turn the image shows."""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
@@ -260,6 +260,11 @@ def imu_for(localizer, imu):
     return imu
 
 
+ACCEL_MAX_MPS2 = 200.0  # an accelerometer's 16 g (157 m/s^2): past it, a corrupt sample
+GRAVITY_MPS2 = 9.80665
+IMU_DENSE_S = 0.02  # rows further apart than this (under 50 Hz) are not integrated
+
+
 def imu_accel(imu, t: float, R_corr=None) -> list:
     """``[(time, a_W, dt), ...]``: each usable row of an IMU block (every value finite, the
     accelerometer within its range; the first row only starts the clock) as the body's acceleration in the
@@ -285,11 +290,6 @@ def imu_accel(imu, t: float, R_corr=None) -> list:
             R = R_corr(R)
         out.append((t - (a[-1, 0] - row[0]), R @ f - np.array([0.0, 0.0, GRAVITY_MPS2]), dt))
     return out
-
-
-ACCEL_MAX_MPS2 = 200.0  # an accelerometer's 16 g (157 m/s^2): past it, a corrupt sample
-GRAVITY_MPS2 = 9.80665
-IMU_DENSE_S = 0.02  # rows further apart than this (under 50 Hz) are not integrated
 
 
 GYRO_MAX_RAD_S = 40.0  # a MEMS gyro's full scale is 2000 deg/s (35 rad/s): a rate past it is a corrupt sample
@@ -790,9 +790,9 @@ class HierarchicalLocalizer:
             axes = (a, np.cross(u, a))
         for axis in axes:
             d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(sigma_mps * axis, None))
-            moved = solve(np.where(np.isfinite(d), px - d, px))
-            if moved is not None:
-                delta = moved.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
+            other = solve(np.where(np.isfinite(d), px - d, px))
+            if other is not None:
+                delta = other.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
                 cov[:3, :3] += np.outer(delta, delta)
         return replace(pose, cov=cov)
 
