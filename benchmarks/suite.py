@@ -119,7 +119,7 @@ def load_suite(path) -> tuple:
 
 # LocalizerConfig fields added after suites were first hashed, with the default that behaves as before
 # the field existed: left out of the hash at that default, so adding one leaves every suite as it was
-CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0}
+CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0, "imu_rows": True}  # fields added after suites were frozen, at their defaults
 
 
 def _config_identity(c: LocalizerConfig) -> str:

@@ -27,6 +27,10 @@ class LocalizerConfig(BaseModel):
     anchor_once: bool = Field(False, description="the flow-only ablation: the pad detectors run only until "
                               "the flow tracker has its first keyframe (from a pad pose); from then on only "
                               "the flow tracker, at every height, never re-anchored")
+    imu_rows: bool = Field(True, description="read the IMU's rows since the last frame when the caller gives "
+                           "them (the gyro's mean over the readout, the accelerations since the shutter's velocity "
+                           "was read); false: the block's last row alone, as a flight stack that forwards one "
+                           "sample a frame gives it (the one_imu_row ablation)")
     # detection
     binarization: Literal["otsu", "adaptive"] = "otsu"
     roi_margin: float = Field(0.6, ge=0.0, description="ROI around the predicted pad, relative to its size")

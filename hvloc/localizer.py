@@ -251,6 +251,11 @@ def imu_for(localizer, imu):
     written for a single row keeps working."""
     if imu is None or getattr(localizer, "IMU_BLOCK", False):
         return imu
+    return imu_last_row(imu)
+
+
+def imu_last_row(imu):
+    """A block's last row; anything else as it is."""
     try:
         a = np.asarray(imu)
     except (TypeError, ValueError):
@@ -575,6 +580,8 @@ class HierarchicalLocalizer:
 
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
+        if not self.config.imu_rows:
+            imu = imu_last_row(imu)
         R_W_B, imu_why = imu_check(imu)
         self.rate_B = imu_rate(imu, self.rate_span_s) if R_W_B is not None else None
         if self.shutter.active:  # the accelerations since the shutter's velocity was last read (_update_twist)

@@ -153,6 +153,9 @@ def test_a_vibrating_gyro_is_read_over_the_rows_the_frame_was_read_in(pad):
             errs[mode].append(float(np.linalg.norm(e.cam2pad[:3, 3] - pose(t)[:3, 3])))
         if mode == "block":  # the mean of the rows of the 30 ms readout before the frame's time
             assert np.allclose(loc.rate_B, rows[j - 5:j + 1, 1:4].mean(axis=0))  # 6 rows in 29.9 ms
+    one = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False, imu_rows=False), line_s=LINE_S)
+    one.process(frames[-1][1], frames[-1][0], rows[i:j + 1])  # the ablation: the block's last row alone
+    assert np.allclose(one.rate_B, rows[j, 1:4])
     row, block = np.array(errs["row"][2:]), np.array(errs["block"][2:])  # from the third frame: a velocity
     assert block.mean() < 0.6 * row.mean(), (np.round(row * 1000, 1), np.round(block * 1000, 1))
     assert block.max() < 0.010, np.round(block * 1000, 1)
