@@ -194,6 +194,9 @@ FIELDS = {
     "imu.ahrs_yaw_deg": (_uniform(0.5, 2.0), 3.0, {}),
     "imu.ahrs_drift_time_s": (_uniform(10.0, 30.0), 5.0, {}),
     "imu.time_offset_s": (_choice([0.0, -0.01, 0.02]), 0.05, {}),
+    "imu.vibration_accel_mps2": (_choice([0.0, 0.0, 1.0]), 2.0, {}),
+    "imu.vibration_gyro_rad_s": (_choice([0.0, 0.0, 0.1]), 0.15, {}),
+    "imu.vibration_hz": (_rng_range(60.0, 180.0), [30.0, 40.0], {"imu.vibration_accel_mps2": 1.0}),
     # adjustment frames need a camera that resolves the markers
     "phase_rule.min_module_px": (_uniform(1.5, 3.0), 40.0, {"camera.width": 200, "camera.height": 200}),
 }
