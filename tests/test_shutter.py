@@ -337,22 +337,27 @@ def test_a_pose_made_before_any_velocity_is_known_counts_the_velocity_it_could_h
 
 def test_without_an_imu_the_doubt_is_the_speed_the_poses_show(pad, monkeypatch):
     """Without an IMU no velocity unrolls the rows, and every pose counts one it could have: the
-    speed its last two poses show, once they show one (not the assumed 0.5 m/s per axis of a
-    track's first poses), so a slow descent is not doubted as a fast one."""
+    speed its last two poses show, once they show one and were the last frames' (not the assumed
+    0.5 m/s per axis of a track's first poses, or of the first after a loss), so a slow descent is
+    not doubted as a fast one."""
     cam = Camera.from_hfov(400, 400, math.radians(50))
     line_s = 30e-3 / cam.height
     pose_at = moving(nadir_cam2pad(0.02, 0.01, 1.4, 0.3), [0.1, 0.0, -0.25])
-    frames = [(k / 10.0, rolled(pad, cam, pose_at, k / 10.0, line_s)) for k in range(5)]
+    frames = [(k / 10.0, rolled(pad, cam, pose_at, k / 10.0, line_s)) for k in range(7)]
+    frames[4] = (0.4, np.zeros_like(frames[4][1]))  # a frame with nothing in it: after it, the speed is not known
     runs = {}
     for assumed in (0.5, 5.0):
         monkeypatch.setattr(L, "SHUTTER_UNKNOWN_SPEED_MPS", assumed)
         loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False), line_s=line_s)
         runs[assumed] = [loc.process(img, t, None) for t, img in frames]
     for k, (a, b) in enumerate(zip(runs[0.5], runs[5.0])):
+        if k == 4:
+            assert a.status == "lost" and b.status == "lost"
+            continue
         assert a.status == "ok" and np.array_equal(a.cam2pad, b.cam2pad), a.reason
         err = a.cam2pad[:3, 3] - pose_at(k / 10.0)[:3, 3]
         assert err @ np.linalg.solve(a.cov[:3, :3], err) < 9.0
-        if k < 2:  # no speed yet: the assumed one
-            assert np.trace(b.cov[:3, :3]) > 10.0 * np.trace(a.cov[:3, :3])
-        else:  # the poses' own
-            assert np.allclose(a.cov, b.cov)
+        if k in (0, 1, 5):  # no speed yet, or none since the lost frame: the assumed one
+            assert np.trace(b.cov[:3, :3]) > 10.0 * np.trace(a.cov[:3, :3]), k
+        else:  # the last two poses' own
+            assert np.allclose(a.cov, b.cov), k
