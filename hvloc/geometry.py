@@ -40,7 +40,10 @@ __all__ = [
     "focal_from_hfov",
     "focal_from_hfov_equidistant",
     "continuous_quaternions",
+    "GRAVITY_MPS2",
 ]
+
+GRAVITY_MPS2 = 9.80665  # standard gravity (m/s^2): the world's z is up, so gravity is (0, 0, -GRAVITY_MPS2)
 
 
 # ----------------------------------------------------------------------------- validation

@@ -17,7 +17,8 @@ import numpy as np
 
 from . import phases as ph
 from .config import LocalizerConfig
-from .geometry import Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp, so3_log
+from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp,
+                       so3_log)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist
@@ -266,7 +267,6 @@ def imu_last_row(imu):
 
 
 ACCEL_MAX_MPS2 = 200.0  # an accelerometer's 16 g (157 m/s^2): past it, a corrupt sample
-GRAVITY_MPS2 = 9.80665
 IMU_DENSE_S = 0.02  # rows further apart than this (under 50 Hz) are not integrated
 
 

@@ -13,9 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hvloc.geometry import make_transform, so3_log
-
-GRAVITY = 9.80665
+from hvloc.geometry import GRAVITY_MPS2 as GRAVITY, make_transform, so3_log
 MAX_TILT_DEG = 90.0  # how far a planned flight may tilt the body: past it the thrust points down, the drone upside down
 
 
