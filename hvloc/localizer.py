@@ -988,7 +988,11 @@ class HierarchicalLocalizer:
         pose = pose_of(P, px, sigma, weighed)
         if pose is None:
             return None, "pose failed"
-        if self.shutter.active and self.twist is not None:  # each row seen at its own time: all at the reference row's
+        # each row seen at its own time: all at the reference row's.  Not the smeared drawing's points
+        # (hvloc.synthesis): it draws every band of rows at its own time and gives each point where
+        # the reference row's projection lands, so they are unrolled already (unrolled again, a
+        # spiral's turn at 0.35 m under 50-260 px of smear fitted at 3-5 px and was refused)
+        if self.shutter.active and self.twist is not None and det.info.get("by") != "synthesis":
             px = self._unrolled(px, pose.cam2pad, P)
             pose = pose_of(P, px, sigma, weighed)
             if pose is None:
