@@ -1219,7 +1219,18 @@ class HierarchicalLocalizer:
         f.frames_since_kf += 1
         if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
+            if not _surer(f.kf, est.cov):
+                return
             f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+
+
+def _surer(kf, cov) -> bool:
+    """Whether a pose of covariance ``cov`` would make a surer keyframe than ``kf`` (whose error the
+    tracker's poses carry): its position's doubt no larger.  A keyframe with no covariance, or a
+    pose with none, is no comparison (the pose is taken)."""
+    if kf is None or kf.cov is None or cov is None:
+        return True
+    return float(np.trace(cov[:3, :3])) <= float(np.trace(kf.cov[:3, :3]))
 
 
 class GatedLocalizer:

@@ -348,6 +348,34 @@ def test_flow_only_ablation_anchors_once_then_tracks_at_any_height(pad):
         assert dp < 0.02 and da < 0.5, f"frame {k}: {dp * 1000:.1f} mm, {da:.2f} deg"
 
 
+def test_the_flow_keeps_its_keyframe_over_a_pose_less_sure_than_it(pad):
+    """A markers pose renews the flow's keyframe (its chain may have drifted) only when it is at
+    least as sure as the keyframe: a marginal markers fit under blur (bench_v2's
+    x_field_rs_oblique at 0.5 m: 2.6 px RMS, 6.6 mm off, 3 mm stated) became the keyframe of a
+    chain that was within 0.3 mm (2.5 mm stated), and every later touchdown pose carried its 4-6 mm."""
+    from hvloc.localizer import Estimate
+
+    img, G = _views(pad, 1)[0]
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    h = float(G[2, 3])
+    loc.config = loc.config.model_copy(update={"touchdown_height_m": h})  # the flow runs at this height
+
+    def est(sd_m, method="markers"):
+        cov = np.eye(6) * 1e-6
+        cov[:3, :3] = np.eye(3) * sd_m ** 2
+        return Estimate(0.0, "touchdown", "ok", G.copy(), 30, 0.2, cov, method=method)
+
+    loc._after_accept("markers", est(0.002), gray)  # no keyframe yet: this one
+    first = loc.flow.kf
+    assert first is not None and np.isclose(first.cov[0, 0], 0.002 ** 2)
+    first.anchored = False  # a chained keyframe: the tracker's own, which an anchored pose renews
+    loc._after_accept("markers", est(0.003), gray)
+    assert loc.flow.kf is first  # less sure: kept
+    loc._after_accept("markers", est(0.001), gray)
+    assert loc.flow.kf is not first and loc.flow.kf.anchored
+
+
 def test_flow_only_needs_flow():
     with pytest.raises(ValueError, match="anchor_once"):
         LocalizerConfig(anchor_once=True, use_flow=False)
