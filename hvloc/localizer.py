@@ -21,7 +21,7 @@ from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from
                        so3_log)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
-from .shutter import RollingShutter, Twist
+from .shutter import RollingShutter, Twist, VelocityFilter
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
@@ -42,7 +42,7 @@ SHUTTER_VELOCITY_DOUBT = 0.5  # the share of a pose that the shutter's velocity 
 SHUTTER_UNKNOWN_SPEED_MPS = 0.5  # per axis: the speed relative to the pad a pose is counted uncertain by while no velocity is known
 SHUTTER_MIN_SPEED_MPS = 0.1  # ... and at least this speed, spread over the axes, where two poses give one
 RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by this much is not solved for
-TWIST_WINDOW_S = 0.45  # the rolling shutter's correction takes the camera's velocity from the poses of this long (4 at 10 Hz)
+TWIST_WINDOW_S = 0.45  # the shutter's velocity filter forgets after this long without a pose (the IMU's rows are kept as long)
 
 
 def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
@@ -577,7 +577,7 @@ class HierarchicalLocalizer:
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
-        self.recent: list = []                   # (t, position in P) of the accepted poses of the last TWIST_WINDOW_S
+        self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one
         self.rate_doubt: np.ndarray | None = None  # ... and its standard deviation per body axis (imu_rate_doubt)
         self.accels: list = []                   # the IMU's rows of the last TWIST_WINDOW_S (imu_accel)
@@ -594,7 +594,7 @@ class HierarchicalLocalizer:
             self.reset()
         elif event == "drop":
             self.last, self.velocity = None, None
-            self.recent = []
+            self.vfilter.reset()
             self.flow.reset()
         dt = t - self.last_t if self.last_t is not None else None
         self.gap = bool(dt is not None and self.frame_dt is not None and dt > 1.5 * self.frame_dt)
@@ -689,9 +689,12 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
-            if self.shutter.active:  # (only the rolling shutter's correction reads them)
-                p = est.extras.get("still_p", est.cam2pad[:3, 3])
-                self.recent = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S] + [(t, p.copy())]
+            if self.shutter.active:  # (only the rolling shutter's correction reads it)
+                cov = est.extras.get("still_cov")
+                if cov is None:  # a pose with no covariance: counted 1 % of its height off
+                    cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
+                self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
+                                    est.extras.get("still_shared", (None, None)))
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
@@ -712,24 +715,20 @@ class HierarchicalLocalizer:
 
     def _update_twist(self, t: float, imu: bool) -> None:
         """The camera's motion at ``t`` for the rolling shutter's correction: its angular rate from
-        the gyro; its velocity, the slope of a line through the accepted poses of the last
-        :data:`TWIST_WINDOW_S` (at least two), carried from the line's mean time to ``t`` by the
-        accelerations the IMU's rows give since (:func:`imu_accel`; where they cover that time at
-        50 Hz or more, in the pad frame the gates' vision-IMU heading gives).  The line's slope is
-        the velocity at its mean time, 0.1-0.3 s old: a drone slowing for touchdown was read 0.07-0.1
-        m/s too fast downward.  Over the 14 rolling-shutter descents of stop 40 it took Adjustment
-        RMSE 13.7 -> 12.6 mm and touchdown 3.9 -> 3.7 mm; on a vibrating airframe (2 m/s^2 per
-        sample, unseen38) touchdown 9.9 -> 7.0 mm.  The integral of 0.1-0.3 s of rows averages the
-        vibration out; one sample a frame did not (stop 40).  The IMU follows the drone, not the
-        pad: a deck that accelerates is not followed (it is in the covariance,
-        :data:`SHUTTER_VELOCITY_DOUBT`).
+        the gyro; its velocity from a Kalman filter (:class:`hvloc.shutter.VelocityFilter`) that the
+        IMU's accelerations since the last pose carry (:meth:`_imu_motion`) and each accepted pose's
+        velocity-free position corrects, as sure as its covariance says (a flow pose's keyframe's
+        doubt left out: it is the same in the poses before).  A velocity once two poses are in,
+        at most :data:`TWIST_WINDOW_S` apart.
 
-        Not the rate between two AHRS attitudes a frame apart: tried on bench_v2's
-        x_field_rs_oblique, its noise moved poses more than the shutter does (a pose 2.4 mm off
-        uncorrected was 23 mm off with that rate, 2.7 mm with the gyro's).  The line through up to
-        four poses rather than the last two: their errors over 0.1 s are a velocity error (on the
-        same datasets the last two gave Adjustment RMSE 4.6 against 4.4 mm on x_field_rs_oblique,
-        14.6 against 14.4 mm on the realism suite's real tier).
+        It was the slope of a line through the last 0.45 s of poses, carried from the line's mean
+        time by the rows: every pose weighed alike.  On the airframe suite's 5 Hz camera (read in
+        29 ms) markers poses at 5-9 m, 50-100 mm off, made velocities 0.5 m/s off, whose unrolling
+        moved the next poses as much again.  The line itself replaced the last two poses' slope
+        (too noisy), and that the rate between two AHRS attitudes a frame apart (bench_v2's
+        x_field_rs_oblique: a pose 2.4 mm off uncorrected was 23 mm off with that rate, 2.7 mm with
+        the gyro's).  The IMU follows the drone, not the pad: a deck that accelerates is the filter's
+        process noise, and in the covariance (:data:`SHUTTER_VELOCITY_DOUBT`).
 
         Nothing without the IMU's attitude this frame (``imu``): poses without gravity are too
         loose to tell the velocity (bench_v2's no_imu ablation on its two rolling-shutter datasets:
@@ -738,29 +737,47 @@ class HierarchicalLocalizer:
             return
         if not imu:
             self.twist = None
+            self.vfilter.pred = None
             return
         w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
-        pts = [r for r in self.recent if 0.0 < t - r[0] < TWIST_WINDOW_S]
-        v = None
-        if len(pts) >= 2:
-            ts = np.array([r[0] for r in pts])
-            mid = float(ts.mean())
-            v = np.polyfit(ts - mid, np.array([r[1] for r in pts]), 1)[0]
-            since = [(a, dt) for ta, a, dt in self.accels if mid < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
-            R_W_P = self.gates.R_W_P
-            if since and R_W_P is not None and sum(dt for _, dt in since) >= 0.8 * (t - mid):
-                v = v + R_W_P.T @ sum(a * dt for a, dt in since)
+        if self.vfilter.t is not None:
+            motion = self._imu_motion(self.vfilter.t, t)
+            self.vfilter.predict(t, motion, self._imu_accel_psd(self.vfilter.t, t) if motion is not None else 0.0)
+        v = self.vfilter.velocity
         self.twist = None if v is None and w is None else Twist(v, w)
+
+    def _imu_motion(self, t0: float, t: float):
+        """``(dv, dp)``: the velocity the IMU's rows since ``t0`` added by ``t``, and the position
+        that added, in the pad frame (the gates' vision-IMU heading); ``None`` where the rows do not
+        cover that time at 50 Hz or more (:func:`imu_accel`) or the pad's heading is not known."""
+        since = [(ta, a, dt) for ta, a, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
+        R_W_P = self.gates.R_W_P
+        if not since or R_W_P is None or sum(dt for _, _, dt in since) < 0.8 * (t - t0):
+            return None
+        dv = sum(a * dt for _, a, dt in since)
+        dp = sum(a * dt * (t - ta) for ta, a, dt in since)
+        return R_W_P.T @ dv, R_W_P.T @ dp
+
+    def _imu_accel_psd(self, t0: float, t: float) -> float:
+        """The accelerometer's noise as the velocity filter's process noise (m^2/s^3): the rows'
+        scatter about their mean since ``t0`` (per axis, averaged) times their spacing.  A
+        multirotor's vibration (2 m/s^2 a sample at 200 Hz: 0.02) integrates into the velocity."""
+        a = np.array([a for ta, a, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S])
+        if len(a) < 4:
+            return 0.0
+        dts = [dt for ta, _, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
+        return float(a.var(axis=0, ddof=1).mean() * np.mean(dts))
 
     def _unrolled(self, px, cam2pad, pts_P):
         """``px`` as the rolling shutter's reference row would have seen them (:mod:`hvloc.shutter`)."""
         return self.shutter.unrolled(self.camera, cam2pad, pts_P, px, self.twist)
 
-    def _velocity_free(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
+    def _velocity_free(self, pose: PoseResult, pts_P, px, solve, extras: dict, shared_cov=None,
+                       shared_key=None) -> PoseResult:
         """``pose`` (of the unrolled pixels ``px``) as the shutter's velocity leaves it.  Solved again
         (``solve(pixels)``) with the velocity's share of the unrolling put back (the gyro's kept), its
-        position goes to ``extras["still_p"]``: the shutter's velocity is read from these, never
-        from poses that were themselves corrected with it.  That was a loop: a pose off by e moves
+        position goes to ``extras["still_p"]``: the shutter's velocity filter is told these, never
+        poses that were themselves corrected with it.  That was a loop: a pose off by e moves
         the next velocity by ~e / dt, whose correction moves the next pose by ~fx * line_s * e / dt,
         the other way (the rows' skew read as a tilt); on a 1280x960 camera at 5 Hz read in 29 ms
         (fx 1545 px), poses at 1.7 m swung +-60 mm from frame to frame, growing, with markers
@@ -783,10 +800,17 @@ class HierarchicalLocalizer:
 
         ``pose`` as it is where no velocity moved it: a global shutter; or none known yet, where its
         covariance counts the velocity it could have (:meth:`_velocity_unknown`).  And under a
-        rolling shutter its covariance counts the gyro's rate as uncertain too (:meth:`_rate_spread`)."""
+        rolling shutter its covariance counts the gyro's rate as uncertain too (:meth:`_rate_spread`).
+        ``shared_cov``: the part of its covariance the poses of ``shared_key`` share (a flow pose's
+        keyframe's), which the velocity filter is told apart (``extras["still_shared"]``)."""
         if not self.shutter.active:
             return pose
-        return self._rate_spread(self._velocity_twin(pose, pts_P, px, solve, extras), pts_P, px, solve)
+        pose = self._rate_spread(pose, pts_P, px, solve)
+        if pose.cov is not None:  # what the velocity filter is told of the twin: the fit's doubt and the rate's
+            extras["still_cov"] = pose.cov[:3, :3] - (0.0 if shared_cov is None else shared_cov[:3, :3])
+            if shared_cov is not None:
+                extras["still_shared"] = (shared_key, shared_cov[:3, :3])
+        return self._velocity_twin(pose, pts_P, px, solve, extras)
 
     def _velocity_twin(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """:meth:`_velocity_free` under a rolling shutter: the twin and the velocity's doubt."""
@@ -919,7 +943,7 @@ class HierarchicalLocalizer:
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 res = self._velocity_free(res, P, seen, lambda px: solve_planar_pose(
-                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior), extras)
+                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior), extras, self.flow.kf.cov, self.flow.kf.serial)
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""

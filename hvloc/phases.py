@@ -1620,6 +1620,7 @@ class Keyframe:
     anchored: bool        # made from a pad-anchored pose (markers/outline), not a chained one
     cov: np.ndarray | None = None  # the keyframe pose's 6x6 covariance: every pose tracked from it inherits it
     tag: object = None    # the frame it was made from, as :class:`ImageWork` names frames
+    serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
 
 
 def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None) -> np.ndarray | None:
@@ -1767,6 +1768,7 @@ class FlowTracker:
         self.min_tracks = min_tracks
         self.work = work if work is not None else ImageWork()
         self.unroll = None  # (px, cam2pad, pts_P) -> px at the rolling shutter's reference row (make_keyframe)
+        self.keyframes = 0  # keyframes made so far (each one's serial)
         self.reset()
 
     def reset(self) -> None:
@@ -1798,6 +1800,8 @@ class FlowTracker:
         if kf is None:
             return False
         kf.tag = tag
+        self.keyframes += 1
+        kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
         self.pending = None
         return True

@@ -373,7 +373,7 @@ def test_the_flow_keeps_its_keyframe_over_a_pose_less_sure_than_it(pad):
     loc._after_accept("markers", est(0.003), gray)
     assert loc.flow.kf is first  # less sure: kept
     loc._after_accept("markers", est(0.001), gray)
-    assert loc.flow.kf is not first and loc.flow.kf.anchored
+    assert loc.flow.kf is not first and loc.flow.kf.anchored and loc.flow.kf.serial == first.serial + 1
 
 
 def test_flow_only_needs_flow():
