@@ -6,8 +6,9 @@ table per tier.
     python -m benchmarks.leaderboard RESULTS_DIR [--note TEXT ...]
         (re)write the suite's leaderboard; notes are caveats shown with the table
     python -m benchmarks.leaderboard --mark-stale WHY [--suite NAME]
-        the suite changed since the table was made and it could not be re-run yet: say so at the top of
-        the table, with the suite's hash now (a later change to the suite is caught again)
+        the suite (or a localizer it scores) changed since the table was made and it could not be re-run
+        yet: say so at the top of the table, with the suite's hash now (a later change to the suite is
+        caught again)
 """
 from __future__ import annotations
 
@@ -61,7 +62,7 @@ def markdown(lb: dict) -> str:
              "covariance gives ~0.3 %).  Ranked by false accepts, then availability.",
              "",
              *([f"**Stale:** these numbers were measured on `{lb['suite']}` as it was at commit `{p.get('commit')}`; "
-                f"the suite has changed since ({lb['stale']['why']}), and the table awaits a re-run "
+                f"since then: {lb['stale']['why']}; the table awaits a re-run "
                 f"(`hvloc bench run {lb['suite']}`, then `python -m benchmarks.leaderboard`).", ""]
                if lb.get("stale") else []),
              *[line for n in lb.get("notes", []) for line in (f"**Note:** {n}", "")],
@@ -123,7 +124,8 @@ def main(argv=None, prog: str = "python -m benchmarks.leaderboard") -> int:
     p = ArgumentParser(prog=prog, description=__doc__)
     p.add_argument("results", nargs="?", help="a results folder of a frozen suite (or its results.json)")
     p.add_argument("--note", action="append", default=[], help="a line to print under the table (repeatable)")
-    p.add_argument("--mark-stale", metavar="WHY", help="mark the committed table stale: the suite changed since")
+    p.add_argument("--mark-stale", metavar="WHY",
+                   help="mark the committed table stale: the suite, or a localizer it scores, changed since")
     p.add_argument("--suite", default="bench_v1", help="with --mark-stale: whose leaderboard (default bench_v1)")
     a = p.parse_args(sys.argv[1:] if argv is None else argv)
     if a.mark_stale:
