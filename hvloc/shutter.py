@@ -82,11 +82,14 @@ class VelocityFilter:
     IMU's accelerations between frames carry it (where its rows cover the time; else it coasts,
     less sure), and each accepted pose corrects it by its position, as sure as that pose's
     covariance says.  A pose's error that it shares with others (a flow pose's keyframe's) is told
-    apart: constant while its key is, it moves the position alone where the key changes.  A line through the last poses weighed every pose
-    alike: at 5 Hz two poses 0.2 s apart, each 50-100 mm off at 7 m (a small pad far off, its tilt
-    barely seen), made a velocity 0.5 m/s off, and its unrolling moved the next poses as much again
-    (the airframe suite's 5 Hz camera).  Weighed, far poses barely move the velocity and near ones
-    (1 mm off at 0.3 m) set it.  The filter forgets everything after ``max_gap_s`` without a pose.
+    apart: constant while its key is, it moves the position alone where the key changes.
+
+    A line through the last poses weighed every pose alike: at 5 Hz two poses 0.2 s apart, each
+    50-100 mm off at 7 m (a small pad far off, its tilt barely seen), made a velocity 0.5 m/s off,
+    and its unrolling moved the next poses as much again (the airframe suite's 5 Hz camera).
+    Weighed, far poses barely move the velocity and near ones (1 mm off at 0.3 m) set it.  The
+    filter forgets everything after ``max_gap_s`` without a pose, and a pose or covariance that is
+    not finite starts it again (nothing is learnt from it).
 
     ``predict(t, motion)`` before a frame (``motion``: the IMU's ``(dv, dp)`` since the last pose,
     in the pad frame, or ``None``), ``update(t, p, cov)`` with the frame's accepted position;
@@ -140,6 +143,9 @@ class VelocityFilter:
         p = np.asarray(p, np.float64)
         R = np.asarray(cov, np.float64)[:3, :3]
         key, S = shared
+        if not (np.isfinite(p).all() and np.isfinite(R).all() and (S is None or np.isfinite(S).all())):
+            self.reset()
+            return
         if self.pred is not None and abs(self.pred[0] - t) < 1e-9:
             _, x, P = self.pred
             if key is None or key != self.shared[0]:  # the shared error changed: the position jumps by it

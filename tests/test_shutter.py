@@ -491,3 +491,8 @@ def test_the_velocity_filter_forgets_after_a_gap():
     assert np.allclose(f.velocity, [0.5, 0.0, 0.0], atol=0.05)  # their slope (the velocity may have changed between)
     f.predict(0.9)  # 0.8 s since the last pose
     assert f.velocity is None and f.t is None
+    for bad in (np.array([np.nan, 0.0, 0.0]), np.zeros(3)):  # a pose, or a covariance, that is not finite
+        f.update(1.0, np.zeros(3), 1e-6 * np.eye(3))
+        f.predict(1.1)
+        f.update(1.1, bad, np.full((3, 3), np.nan) if not np.isnan(bad).any() else 1e-6 * np.eye(3))
+        assert f.t is None and np.isfinite(f.x).all()  # nothing learnt from it, the filter starts again
