@@ -230,6 +230,16 @@ def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
     frame's readout; ``0``: the last row alone).  One sample carries the airframe's
     vibration (0.02-0.2 rad/s on a multirotor, as much as the turn the rolling shutter corrects for);
     the mean over the rows the frame was read in is the turn the image shows."""
+    rows = _gyro_rows(imu, span_s)
+    if rows is None or not rows[2].any():
+        return None
+    g, _, within = rows
+    return g[within].mean(axis=0)
+
+
+def _gyro_rows(imu, span_s: float):
+    """``(gyro, time before the last row, within span_s)`` of a block's usable rows (a gyro sample
+    finite and within :data:`GYRO_MAX_RAD_S`, a finite time), or ``None`` for no block of rows."""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
@@ -238,12 +248,10 @@ def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
         a = a[None]
     if a.ndim != 2 or a.shape[1] != IMU_ROW:
         return None
-    g = a[:, 1:4]
-    good = np.isfinite(g).all(axis=1) & (a[:, 0] >= a[-1, 0] - span_s - 1e-9)  # NaN times are not within
+    g, tt = a[:, 1:4], a[:, 0] - a[-1, 0]
+    good = np.isfinite(g).all(axis=1) & np.isfinite(tt)
     good[good] = np.linalg.norm(g[good], axis=1) <= GYRO_MAX_RAD_S
-    if not good.any():
-        return None
-    return g[good].mean(axis=0)
+    return g[good], tt[good], tt[good] >= -span_s - 1e-9
 
 
 RATE_DOUBT_MIN_ROWS = 4  # a block of fewer rows says nothing of its own scatter
@@ -260,22 +268,14 @@ def imu_rate_doubt(imu, span_s: float = 0.0) -> np.ndarray | None:
     it, which turns the rolling shutter's unrolling by up to 3 px across a 1280-px frame.  Counted as
     white noise, which a tone is not: on the airframe suite's vibrating tiers the mean's error was
     0.6 of this in rms per axis (never beyond 3 of it), conservative."""
-    try:
-        a = np.asarray(imu, np.float64)
-    except (TypeError, ValueError):
+    rows = _gyro_rows(imu, span_s)
+    if rows is None or len(rows[0]) < RATE_DOUBT_MIN_ROWS or np.ptp(rows[1]) <= 0.0:
         return None
-    if a.ndim != 2 or a.shape[1] != IMU_ROW or len(a) < RATE_DOUBT_MIN_ROWS:
-        return None
-    g, tt = a[:, 1:4], a[:, 0] - a[-1, 0]
-    good = np.isfinite(g).all(axis=1) & np.isfinite(tt)
-    good[good] = np.linalg.norm(g[good], axis=1) <= GYRO_MAX_RAD_S
-    if good.sum() < RATE_DOUBT_MIN_ROWS or np.ptp(tt[good]) <= 0.0:
-        return None
-    coef = np.polyfit(tt[good], g[good], 1)
-    res = g[good] - (np.outer(tt[good], coef[0]) + coef[1])
-    scatter = np.sqrt((res ** 2).sum(axis=0) / (good.sum() - 2))
-    n = max(int((good & (tt >= -span_s - 1e-9)).sum()), 1)  # the rows imu_rate averages
-    return scatter / math.sqrt(n)
+    g, tt, within = rows
+    coef = np.polyfit(tt, g, 1)
+    res = g - (np.outer(tt, coef[0]) + coef[1])
+    scatter = np.sqrt((res ** 2).sum(axis=0) / (len(g) - 2))
+    return scatter / math.sqrt(max(int(within.sum()), 1))  # over the rows imu_rate averages
 
 
 def imu_for(localizer, imu):
@@ -745,31 +745,24 @@ class HierarchicalLocalizer:
         w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         if self.vfilter.t is not None:
             motion = self._imu_motion(self.vfilter.t, t)
-            self.vfilter.predict(t, motion, self._imu_accel_psd(self.vfilter.t, t) if motion is not None else 0.0)
+            self.vfilter.predict(t, motion and motion[:2], motion[2] if motion else 0.0)
         v = self.vfilter.velocity
         self.twist = None if v is None and w is None else Twist(v, w)
 
     def _imu_motion(self, t0: float, t: float):
-        """``(dv, dp)``: the velocity the IMU's rows since ``t0`` added by ``t``, and the position
-        that added, in the pad frame (the gates' vision-IMU heading); ``None`` where the rows do not
-        cover that time at 50 Hz or more (:func:`imu_accel`) or the pad's heading is not known."""
+        """``(dv, dp, q)``: the velocity the IMU's rows since ``t0`` added by ``t`` and the position
+        that added, in the pad frame (the gates' vision-IMU heading), and the accelerometer's noise
+        as the velocity filter's process noise (m^2/s^3: the rows' scatter about their mean, per
+        axis averaged, times their spacing; a multirotor's vibration, 2 m/s^2 a sample at 200 Hz,
+        gives 0.02); ``None`` where the rows do not cover that time at 50 Hz or more
+        (:func:`imu_accel`) or the pad's heading is not known."""
         since = [(ta, a, dt) for ta, a, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
         R_W_P = self.gates.R_W_P
         if not since or R_W_P is None or sum(dt for _, _, dt in since) < 0.8 * (t - t0):
             return None
-        dv = sum(a * dt for _, a, dt in since)
-        dp = sum(a * dt * (t - ta) for ta, a, dt in since)
-        return R_W_P.T @ dv, R_W_P.T @ dp
-
-    def _imu_accel_psd(self, t0: float, t: float) -> float:
-        """The accelerometer's noise as the velocity filter's process noise (m^2/s^3): the rows'
-        scatter about their mean since ``t0`` (per axis, averaged) times their spacing.  A
-        multirotor's vibration (2 m/s^2 a sample at 200 Hz: 0.02) integrates into the velocity."""
-        a = np.array([a for ta, a, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S])
-        if len(a) < 4:
-            return 0.0
-        dts = [dt for ta, _, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
-        return float(a.var(axis=0, ddof=1).mean() * np.mean(dts))
+        ta, a, dt = (np.array(c) for c in zip(*since))
+        q = float(a.var(axis=0, ddof=1).mean() * dt.mean()) if len(a) >= 4 else 0.0
+        return R_W_P.T @ (a * dt[:, None]).sum(axis=0), R_W_P.T @ (a * (dt * (t - ta))[:, None]).sum(axis=0), q
 
     def _unrolled(self, px, cam2pad, pts_P):
         """``px`` as the rolling shutter's reference row would have seen them (:mod:`hvloc.shutter`)."""
