@@ -1239,7 +1239,7 @@ class HierarchicalLocalizer:
         f.frames_since_kf += 1
         if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                 or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
-            if not _surer(f.kf, est.cov):
+            if f.reaches(est.cam2pad) and not _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
                 return
             f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
 

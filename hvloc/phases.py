@@ -1865,13 +1865,19 @@ class FlowTracker:
         self.pending = None
         self.frames_since_kf += 1
         n_ok = int(np.isfinite(px).all(axis=1).sum())
-        scale = self.kf.cam2pad[2, 3] / max(cam2pad[2, 3], 1e-6)
-        turn = rotation_angle(self.kf.cam2pad[:3, :3], cam2pad[:3, :3])
-        if (n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not (1 / self.reanchor_scale < scale < self.reanchor_scale)
-                or turn > math.radians(8.0) or rms_px > 0.5):
+        if n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not self.reaches(cam2pad) or rms_px > 0.5:
             if self.anchor(gray, cam2pad, anchored=False, cov=cov, tag=tag):
                 return
         self.tracks, self.prev_gray, self.prev_tag = px, gray, tag
+
+    def reaches(self, cam2pad) -> bool:
+        """Whether Lucas-Kanade against the keyframe still holds for a camera at ``cam2pad``: the
+        scale and the heading changed less than a keyframe is renewed for."""
+        if self.kf is None:
+            return False
+        scale = self.kf.cam2pad[2, 3] / max(cam2pad[2, 3], 1e-6)
+        turn = rotation_angle(self.kf.cam2pad[:3, :3], cam2pad[:3, :3])
+        return 1 / self.reanchor_scale < scale < self.reanchor_scale and turn <= math.radians(8.0)
 
     def skip(self) -> None:
         """The last tracked frame's pose was not accepted: keep its tracks (the next frame is

@@ -376,6 +376,42 @@ def test_the_flow_keeps_its_keyframe_over_a_pose_less_sure_than_it(pad):
     assert loc.flow.kf is not first and loc.flow.kf.anchored and loc.flow.kf.serial == first.serial + 1
 
 
+def test_a_keyframe_out_of_the_flows_reach_is_renewed_by_a_less_sure_pose(pad):
+    """The keyframe is kept over a less sure pose only while the tracker can still use it: once the
+    camera has come down (or turned) out of its reach, LK against it degrades, and a markers pose
+    renews it however sure.  Without gravity a markers pose states 4-8 mm at 1 m; a keyframe made
+    at 1.16 m (2.7 mm stated) was kept down to 0.9 m, where the flow from it was 11.5 mm off against
+    the markers' 0.1 (bench_v1's no_imu ablation, sim800)."""
+    from hvloc.localizer import Estimate
+
+    img, G = _views(pad, 1)[0]
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    loc.config = loc.config.model_copy(update={"touchdown_height_m": float(G[2, 3])})  # the flow runs here
+
+    def est(sd_m, cam2pad):
+        cov = np.eye(6) * 1e-6
+        cov[:3, :3] = np.eye(3) * sd_m ** 2
+        return Estimate(0.0, "touchdown", "ok", cam2pad.copy(), 30, 0.2, cov, method="markers")
+
+    loc._after_accept("markers", est(0.002, G), gray)
+    first = loc.flow.kf
+    first.anchored = False  # a chained keyframe: an anchored pose renews it when it is surer
+    near, low, turned = G.copy(), G.copy(), G.copy()
+    near[:3, 3] *= 0.95
+    low[:3, 3] /= 1.3
+    turned[:3, :3] = turned[:3, :3] @ so3_exp([0.0, 0.0, math.radians(12.0)])
+    assert loc.flow.reaches(near) and not loc.flow.reaches(low) and not loc.flow.reaches(turned)
+    loc._after_accept("markers", est(0.003, near), gray)
+    assert loc.flow.kf is first  # within reach and less sure: kept
+    loc._after_accept("markers", est(0.003, low), gray)
+    assert loc.flow.kf is not first and loc.flow.kf.anchored and np.isclose(loc.flow.kf.cam2pad[2, 3], low[2, 3])
+    second = loc.flow.kf
+    second.anchored = False
+    loc._after_accept("markers", est(0.004, low @ np.linalg.inv(G) @ turned), gray)
+    assert loc.flow.kf is not second
+
+
 def test_flow_only_needs_flow():
     with pytest.raises(ValueError, match="anchor_once"):
         LocalizerConfig(anchor_once=True, use_flow=False)
