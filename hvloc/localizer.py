@@ -694,7 +694,7 @@ class HierarchicalLocalizer:
                 if cov is None:  # a pose with no covariance: counted 1 % of its height off
                     cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
                 self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
-                                    est.extras.get("still_shared", (None, None)))
+                                    est.extras.get("still_shared", (None, None)), est.extras.get("still_dv"))
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
@@ -812,7 +812,7 @@ class HierarchicalLocalizer:
         """:meth:`_velocity_free` under a rolling shutter: the twin and the velocity's doubt."""
         tw = self.twist
         if tw is None or tw.v_P is None:
-            return self._velocity_unknown(pose, pts_P, px, solve)
+            return self._velocity_unknown(pose, pts_P, px, solve, extras)
         d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(tw.v_P, None))
         still = solve(np.where(np.isfinite(d), px + d, px))
         if still is None:
@@ -823,9 +823,9 @@ class HierarchicalLocalizer:
             return pose
         sigma = SHUTTER_VELOCITY_DOUBT * speed / math.sqrt(3.0)  # per axis: SHUTTER_VELOCITY_DOUBT of it in all
         moved = pose.cam2pad[:3, 3] - extras["still_p"]  # what the velocity itself moved it by: its own axis's share
-        return self._velocity_spread(pose, pts_P, px, solve, sigma, (tw.v_P / speed, moved * sigma / speed))
+        return self._velocity_spread(pose, pts_P, px, solve, sigma, (tw.v_P / speed, moved * sigma / speed), extras)
 
-    def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve) -> PoseResult:
+    def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
         the first after a loss; every pose without an IMU), its rows' skew left in.  Its covariance
         gains what a velocity of :data:`SHUTTER_UNKNOWN_SPEED_MPS` along each pad axis would have
@@ -839,24 +839,40 @@ class HierarchicalLocalizer:
         above, after 0.4 s lost, read the speed before the loss as 0.2 m/s and were NEES 36-63)."""
         if self.velocity is not None and self.unposed == 1:  # the last frame was posed
             speed = max(float(np.linalg.norm(self.velocity)), SHUTTER_MIN_SPEED_MPS)
-            return self._velocity_spread(pose, pts_P, px, solve, speed / math.sqrt(3.0))
-        return self._velocity_spread(pose, pts_P, px, solve, SHUTTER_UNKNOWN_SPEED_MPS)
+            return self._velocity_spread(pose, pts_P, px, solve, speed / math.sqrt(3.0), extras=extras)
+        return self._velocity_spread(pose, pts_P, px, solve, SHUTTER_UNKNOWN_SPEED_MPS, extras=extras)
 
-    def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None) -> PoseResult:
+    def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None,
+                         extras: dict | None = None) -> PoseResult:
         """``pose`` with what an error of ``sigma_mps`` along each of three orthogonal directions in
         the shutter's velocity would move it in its covariance: the pad's axes, each solved again
         (three solves); or, given ``along`` = (a unit direction, the move along it, already known),
-        that direction and two across it (two solves)."""
+        that direction and two across it (two solves).
+
+        The same solves say how the pose's velocity-free twin (the pose itself where no velocity
+        unrolled it) answers the true velocity: ``twin = p - M v`` to first order, ``M`` (3x3,
+        m per m/s) to ``extras["still_dv"]``, so the velocity filter reads the twin for what it is.
+        Left out, a change of solver (texture to flow: the flow's twin 22 mm off at 0.4 m and 0.5
+        m/s, the texture's 4) read as a jump in position: the velocity 0.2 m/s off for 3-4 frames."""
         if pose.cov is None or sigma_mps <= 0:
             return pose
         axes, known = np.eye(3), None
+        M = np.zeros((3, 3))
         if along is not None:
             u, moved = along
             known = np.outer(moved, moved)
+            M += np.outer(moved / sigma_mps, u)
             a = np.cross(u, np.eye(3)[int(np.argmin(np.abs(u)))])
             a /= np.linalg.norm(a)
             axes = (a, np.cross(u, a))
-        return self._twist_spread(pose, pts_P, px, solve, [Twist(sigma_mps * axis, None) for axis in axes], known)
+        moves = []
+        out = self._twist_spread(pose, pts_P, px, solve, [Twist(sigma_mps * axis, None) for axis in axes], known,
+                                 moves=moves)
+        if extras is not None and len(moves) == len(axes):
+            for axis, delta in zip(axes, moves):
+                M += np.outer(delta / sigma_mps, axis)
+            extras["still_dv"] = M
+        return out
 
     def _rate_spread(self, pose: PoseResult, pts_P, px, solve) -> PoseResult:
         """``pose`` with what the gyro's rate, off by its doubt (:func:`imu_rate_doubt`) about each
@@ -875,11 +891,11 @@ class HierarchicalLocalizer:
                                   min_px=RATE_SPREAD_MIN_PX)
 
     def _twist_spread(self, pose: PoseResult, pts_P, px, solve, twists: list, known=None,
-                      min_px: float = 0.0) -> PoseResult:
+                      min_px: float = 0.0, moves: list | None = None) -> PoseResult:
         """``pose`` with, in its position covariance, ``known`` (3x3) and, for each of ``twists``
         (one sigma of a doubt in the shutter's motion), how far the pose moves when its unrolling is
         added to the pixels and the pose solved again (``solve(pixels)``); a twist that moves no
-        pixel by ``min_px`` is not solved."""
+        pixel by ``min_px`` is not solved.  ``moves`` gets each solved twist's move."""
         cov = pose.cov.copy()
         if known is not None:
             cov[:3, :3] += known
@@ -891,6 +907,8 @@ class HierarchicalLocalizer:
             if other is not None:
                 delta = other.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
                 cov[:3, :3] += np.outer(delta, delta)
+                if moves is not None:
+                    moves.append(delta)
         return replace(pose, cov=cov)
 
     def _update_phase(self, h) -> None:

@@ -81,8 +81,10 @@ class VelocityFilter:
     bias; the AHRS's tilt, which turns gravity into an acceleration the drone does not have).  The
     IMU's accelerations between frames carry it (where its rows cover the time; else it coasts,
     less sure), and each accepted pose corrects it by its position, as sure as that pose's
-    covariance says.  A pose's error that it shares with others (a flow pose's keyframe's) is told
-    apart: constant while its key is, it moves the position alone where the key changes.
+    covariance says, each read as its solver answers the velocity (``p - M v``: a rolling-shutter
+    pose's velocity-free twin keeps the rows' skew).  A pose's error that it shares with others (a
+    flow pose's keyframe's) is told apart: constant while its key is, it moves the position alone
+    where the key changes.
 
     A line through the last poses weighed every pose alike: at 5 Hz two poses 0.2 s apart, each
     50-100 mm off at 7 m (a small pad far off, its tilt barely seen), made a velocity 0.5 m/s off,
@@ -136,16 +138,21 @@ class VelocityFilter:
     def velocity(self) -> np.ndarray | None:
         return self.pred[1][3:6].copy() if self.pred is not None and self.n >= 2 else None
 
-    def update(self, t: float, p, cov, shared=(None, None)) -> None:
-        """``cov``: the pose's own doubt; ``shared``: ``(key, covariance)`` of an error it shares with
-        the poses of the same ``key`` (a flow pose's keyframe's): constant while the key is, it
-        moves the position alone where the key changes."""
+    def update(self, t: float, p, cov, shared=(None, None), dv=None) -> None:
+        """``p``: a position measured as ``p = position - dv @ velocity`` (``dv``, 3x3, m per m/s: a
+        rolling-shutter pose's velocity-free twin answers the velocity by its own solver's skew;
+        ``None``: zero).  ``cov``: its own doubt; ``shared``: ``(key, covariance)`` of an error it
+        shares with the poses of the same ``key`` (a flow pose's keyframe's): constant while the key
+        is, it moves the position alone where the key changes."""
         p = np.asarray(p, np.float64)
         R = np.asarray(cov, np.float64)[:3, :3]
         key, S = shared
-        if not (np.isfinite(p).all() and np.isfinite(R).all() and (S is None or np.isfinite(S).all())):
+        M = np.zeros((3, 3)) if dv is None else np.asarray(dv, np.float64).reshape(3, 3)
+        if not (np.isfinite(p).all() and np.isfinite(R).all() and (S is None or np.isfinite(S).all())
+                and np.isfinite(M).all()):
             self.reset()
             return
+        H = np.hstack([np.eye(3), -M, np.zeros((3, 3))])
         if self.pred is not None and abs(self.pred[0] - t) < 1e-9:
             _, x, P = self.pred
             if key is None or key != self.shared[0]:  # the shared error changed: the position jumps by it
@@ -153,15 +160,19 @@ class VelocityFilter:
                 for c in (S, self.shared[1]):
                     if c is not None:
                         P[:3, :3] += np.asarray(c, np.float64)[:3, :3]
-            K = P[:, :3] @ np.linalg.inv(P[:3, :3] + R)
-            x = x + K @ (p - x[:3])
-            P = P - K @ P[:3, :]
+            PH = P @ H.T
+            K = PH @ np.linalg.inv(H @ PH + R)
+            x = x + K @ (p - H @ x)
+            P = P - K @ PH.T
             self.x, self.P, self.n = x, 0.5 * (P + P.T), self.n + 1
         else:  # the first pose (or the first after a gap): where it is, the velocity not known
             self.x = np.concatenate([p, np.zeros(6)])
+            Pv = VELOCITY_PRIOR_MPS ** 2 * np.eye(3)
             self.P = np.zeros((9, 9))
-            self.P[:3, :3] = R + (0.0 if S is None else np.asarray(S, np.float64)[:3, :3])
-            self.P[3:6, 3:6] = VELOCITY_PRIOR_MPS ** 2 * np.eye(3)
+            self.P[:3, :3] = R + (0.0 if S is None else np.asarray(S, np.float64)[:3, :3]) + M @ Pv @ M.T
+            self.P[:3, 3:6] = M @ Pv
+            self.P[3:6, :3] = Pv @ M.T
+            self.P[3:6, 3:6] = Pv
             self.P[6:, 6:] = ACCEL_BIAS_PRIOR_MPS2 ** 2 * np.eye(3)
             self.n = 1
         self.t, self.pred, self.shared = t, None, (key, S)
