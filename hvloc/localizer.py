@@ -269,13 +269,19 @@ def imu_rate_doubt(imu, span_s: float = 0.0) -> np.ndarray | None:
     white noise, which a tone is not: on the airframe suite's vibrating tiers the mean's error was
     0.6 of this in rms per axis (never beyond 3 of it), conservative."""
     rows = _gyro_rows(imu, span_s)
+    scatter = _gyro_scatter(rows)
+    return None if scatter is None else scatter / math.sqrt(max(int(rows[2].sum()), 1))  # over imu_rate's rows
+
+
+def _gyro_scatter(rows) -> np.ndarray | None:
+    """Per axis, the scatter of :func:`_gyro_rows`' rows about a line through them (the drone's
+    own turn taken out), or ``None`` for fewer than :data:`RATE_DOUBT_MIN_ROWS` rows."""
     if rows is None or len(rows[0]) < RATE_DOUBT_MIN_ROWS or np.ptp(rows[1]) <= 0.0:
         return None
-    g, tt, within = rows
+    g, tt, _ = rows
     coef = np.polyfit(tt, g, 1)
     res = g - (np.outer(tt, coef[0]) + coef[1])
-    scatter = np.sqrt((res ** 2).sum(axis=0) / (len(g) - 2))
-    return scatter / math.sqrt(max(int(within.sum()), 1))  # over the rows imu_rate averages
+    return np.sqrt((res ** 2).sum(axis=0) / (len(g) - 2))
 
 
 RATE_WINDOW_S = 0.1  # s: the last rows of a block whose ones before the readout join the readout's mean rate
@@ -284,8 +290,8 @@ RATE_WINDOW_S = 0.1  # s: the last rows of a block whose ones before the readout
 def imu_turn(imu, span_s: float = 0.0) -> tuple:
     """``(rate, doubt)``: :func:`imu_rate`'s mean over the readout joined with the mean of the rows
     before it within the block's last :data:`RATE_WINDOW_S`, each weighed by its variance (per body
-    axis), and the doubt of the two together; ``(imu_rate, imu_rate_doubt)`` where either says nothing (a quiet or
-    a single row, no rows before the readout).  The rows before the readout lag the turn: where the
+    axis), and the doubt of the two together; ``(imu_rate, imu_rate_doubt)`` where either says
+    nothing (a single row, no rows before the readout).  The block is read once.  The rows before the readout lag the turn: where the
     two means differ beyond their noise, the difference squared counts as the earlier rows' doubt,
     so a sharp turn keeps the readout's own mean.
 
@@ -293,19 +299,21 @@ def imu_turn(imu, span_s: float = 0.0) -> tuple:
     0.064 rms on the airframe suite's vibrating tier), and a small pad at 5-9 m moved 50-100 mm with
     it.  Over 13 rolling-shutter descents (the airframe suite's four datasets, bench_v2's two,
     unseen40) Adjustment RMSE 19.1 -> 15.1 mm (a_slow_vibrating 36.2 -> 24.8, a_action_vibrating
-    15.4 -> 13.0, unseen40 8.7 -> 6.9), touchdown 2.3 -> 2.2 mm; on unseen43 15.0 -> 14.3 mm.  Shrinking the mean toward
-    zero by its doubt instead helped the slow camera (21.7 mm) and hurt the manoeuvring ones
+    15.4 -> 13.0, unseen40 8.7 -> 6.9), touchdown 2.3 -> 2.2 mm; on unseen43 15.0 -> 14.3 mm.
+    Shrinking the mean toward zero by its doubt instead helped the slow camera (21.7 mm) and hurt the manoeuvring ones
     (a_action_vibrating 17.5, unseen43 16.4): their turns are real."""
-    rate, doubt = imu_rate(imu, span_s), imu_rate_doubt(imu, span_s)
     rows = _gyro_rows(imu, span_s)
-    if rate is None or doubt is None or rows is None or span_s <= 0.0:
-        return rate, doubt
+    if rows is None or not rows[2].any():
+        return None, None
     g, tt, within = rows
+    rate, scatter = g[within].mean(axis=0), _gyro_scatter(rows)
+    if scatter is None:
+        return rate, None
+    doubt = scatter / math.sqrt(int(within.sum()))
     before = ~within & (tt >= -RATE_WINDOW_S - 1e-9)
-    if not before.any():
+    if span_s <= 0.0 or not before.any():
         return rate, doubt
-    per_row = doubt * math.sqrt(int(within.sum()))  # the rows' own scatter (imu_rate_doubt)
-    earlier, d_earlier2 = g[before].mean(axis=0), per_row ** 2 / int(before.sum())
+    earlier, d_earlier2 = g[before].mean(axis=0), scatter ** 2 / int(before.sum())
     lag2 = np.maximum(0.0, (earlier - rate) ** 2 - doubt ** 2 - d_earlier2)
     w_now, w_before = 1.0 / np.maximum(doubt ** 2, 1e-30), 1.0 / np.maximum(d_earlier2 + lag2, 1e-30)
     return (w_now * rate + w_before * earlier) / (w_now + w_before), 1.0 / np.sqrt(w_now + w_before)
