@@ -1329,25 +1329,40 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
 
 
 def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, camera: Camera | None, x0: int, y0: int):
-    """``(pad points, pixels, H)`` or ``None``: the nested squares' corners of the markers ``quads``
-    names (their outer corners in the image (crop), ordered as the marker's), predicted by the
-    homography of those outer corners and refined on ``g`` (the crop, float32); a corner whose
-    refinement moved it further than half a module is left out."""
+    """``(pad points, pixels, predict)`` or ``None``: the nested squares' corners of the markers
+    ``quads`` names (their outer corners in the image (crop), ordered as the marker's), predicted
+    by the homography of those outer corners and refined on ``g`` (the crop, float32); a corner
+    whose refinement moved it further than half a module is left out.  ``predict``: pad-plane
+    ``(N, 2)`` metres -> the crop's pixels by that homography, through the lens."""
     src = [ms[name].outer_corners[:, :2] for name in quads]
-    H, _ = cv2.findHomography(np.concatenate(src), np.concatenate(list(quads.values())), 0)
+    cam = _shifted(camera, x0, y0)
+    lens = cam is not None and cam.has_distortion
+    dst = np.concatenate(list(quads.values()))
+    # the homography holds on the ideal pinhole's pixels, not the lens's: under a wide lens a
+    # marker near the image's edge, seen obliquely, had its inner squares predicted 4-14 px off
+    # (further than the refinement reaches, which then settled on the wrong edge)
+    ideal = cam.undistort_pixels(dst) if lens else dst
+    if not np.isfinite(ideal).all():  # (a fisheye's corner at 90 degrees or more from its axis)
+        return None
+    H, _ = cv2.findHomography(np.concatenate(src), ideal, 0)
     if H is None:
         return None
+
+    def predict(xy):
+        ideal = cv2.perspectiveTransform(np.asarray(xy, np.float64).reshape(-1, 1, 2), H)[:, 0, :]
+        return cam.distort_pixels(ideal) if lens else ideal
+
     hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
     squares = [sq.corners for name in ("Top", "Right", "Bottom") if name in quads for sq in ms[name].squares]
-    guesses = np.stack([cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H)[:, 0, :] for P in squares])
-    refined, _ = refine_quads(g, guesses, hw, camera=_shifted(camera, x0, y0))
+    guesses = np.stack([predict(P[:, :2]) for P in squares])
+    refined, _ = refine_quads(g, guesses, hw, camera=cam)
     pts_P, px = [], []
     for P, guess, ref in zip(squares, guesses, refined):
         if not np.isfinite(ref).all() or np.max(np.linalg.norm(ref - guess, axis=1)) > max(1.5, 0.5 * module_px):
             continue
         pts_P.append(P)
         px.append(ref + [x0, y0])
-    return pts_P, px, H
+    return pts_P, px, predict
 
 
 def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x0: int, y0: int):
@@ -1404,10 +1419,11 @@ def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x
     return found[0]
 
 
-def _refine_outline_from(rgb, pad_geometry, H_pad_to_roi, x0, y0, camera):
-    """The pad's outer corners predicted by a marker homography and refined on the border channel."""
+def _refine_outline_from(rgb, pad_geometry, predict, x0, y0, camera):
+    """The pad's outer corners predicted by the markers (``predict``: pad-plane metres -> the
+    crop's pixels, :func:`_marker_corners`) and refined on the border channel."""
     P = pad_geometry.outer_corners
-    guess = cv2.perspectiveTransform(P[:, :2].reshape(-1, 1, 2), H_pad_to_roi)[:, 0, :] + [x0, y0]
+    guess = predict(P[:, :2]) + [x0, y0]
     h, w = rgb.shape[:2]
     if guess.min() < 4 or guess[:, 0].max() > w - 5 or guess[:, 1].max() > h - 5:
         return None

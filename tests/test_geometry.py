@@ -52,6 +52,10 @@ def test_undistort_matches_opencv_and_inverts_project(dist):
     P = cam.unproject(px, 3.0)
     np.testing.assert_allclose(P[:, 2], 3.0)
     np.testing.assert_allclose(cam.project(P), px, atol=1e-6)
+    # the ideal pinhole's pixels and the lens's, both ways
+    ideal = cam.undistort_pixels(px)
+    np.testing.assert_allclose(ideal, xy * [cam.fx, cam.fy] + [cam.cx, cam.cy], atol=1e-6)
+    np.testing.assert_allclose(cam.distort_pixels(ideal), px, atol=1e-6)
 
 
 FISHEYES = [(0.0, 0.0, 0.0, 0.0), (-0.013, 0.021, -0.009, 0.0015), (0.08, -0.02, 0.004, -0.0003)]

@@ -1736,12 +1736,40 @@ def test_a_pose_of_two_markers_says_how_good_it_is(pad, names, shared_px, pull_p
     assert np.median(lateral) < 0.016, np.median(lateral)
 
 
+def test_markers_inner_squares_are_predicted_through_the_lens(pad):
+    """A marker's inner squares are predicted from its outer corners by a homography and refined
+    within a few pixels.  The homography holds on the ideal pinhole's pixels, not the lens's: under
+    a 110 degree lens (k1 -0.25) a close, oblique view put them up to 14 px off on bench_v2's wide
+    oblique dusk scene, further than the refinement reaches, and it settled on the wrong edges
+    (poses 6-15 mm off at 0.5 m, stated 3 mm).  Predicted through the lens, every corner found
+    (the pad's outer ones too, predicted the same way) is within a fraction of a pixel of its label."""
+    import dataclasses
+
+    cam = dataclasses.replace(Camera.from_hfov(1280, 720, math.radians(110)), dist=(-0.25, 0.05, 0, 0, 0))
+    rng = np.random.default_rng(1)
+    worst, found = [], []
+    for _ in range(10):
+        h, a = rng.uniform(0.45, 0.7), rng.uniform(0, 2 * math.pi)
+        d = h * math.tan(rng.uniform(0.5, 0.7))  # seen 29-40 degrees off its normal
+        G = look_at_cam2world([d * math.cos(a), d * math.sin(a), h], np.append(rng.uniform(-0.1, 0.1, 2), 0.0), (0, 0, 1))
+        img = warp_pad_view(pad, cam, G, GROUND)
+        det, why = detect_markers(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), pad.geometry, cam, rgb=img, up_C=up_in_camera(G))
+        if det is None:
+            continue
+        worst.append(float(np.linalg.norm(det.px - cam.project_from(G, det.pts_P), axis=1).max()))
+        found.append(len(det.px))
+    assert len(worst) >= 8, len(worst)
+    assert max(worst) < 0.8 and min(found) >= 36, (np.round(worst, 2), found)
+
+
 def test_outer_corners_smeared_by_jpeg_chroma_leave_the_markers_pose(pad):
     """JPEG keeps chroma at half resolution: the pad's outer corners, fitted on the border's colour,
     come out ~0.5 px outward while the markers' corners, on luma, stay at ~0.1 px.  Joined to the
     markers they tilted the pose (conditions' wide_jpeg at 1.5-6 m: 0.39 degrees off in the median
     with them, 0.14 without; lateral RMS 37.5 -> 16.3 mm).  Judged by the markers' own fit they
-    are dropped where they disagree with it, and kept on clean frames (they double the baseline)."""
+    are dropped where they disagree with it, and kept on clean frames (they double the baseline).
+    (Since they are predicted through the lens, JPEG's outer corners are 0.39 px RMS off, not 0.66,
+    and fewer of them disagree past 0.45 px: 2 of these 12 frames, not 7.)"""
     import dataclasses
 
     cam = dataclasses.replace(Camera.from_hfov(1280, 720, math.radians(100)), dist=(-0.22, 0.04, 0, 0, 0))
@@ -1762,7 +1790,7 @@ def test_outer_corners_smeared_by_jpeg_chroma_leave_the_markers_pose(pad):
             else:
                 dropped += "outer_dropped_px" in e.extras
                 lateral.append(np.linalg.norm((e.cam2pad[:3, 3] - G[:3, 3])[:2]) / G[2, 3])
-    assert dropped >= 4 and clean_dropped == 0 and kept >= 9, (dropped, clean_dropped, kept)
+    assert dropped >= 2 and clean_dropped == 0 and kept >= 9, (dropped, clean_dropped, kept)
     assert np.median(lateral) < 0.0042, np.round(100 * np.array(lateral), 2)
 
 
