@@ -48,10 +48,11 @@ class LocalizerConfig(BaseModel):
                                       "this from the IMU's up (the pad lies level; the AHRS knows roll and pitch "
                                       "to a fraction of a degree, a vision pose off by more is wrong)")
     max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
-    ahrs_bias_time_s: float = Field(10.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
+    ahrs_bias_time_s: float = Field(0.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
                                     "image-only tilts of marker and texture poses with a Kalman filter whose "
-                                    "error drifts over about this long, and take it out of the attitude the "
-                                    "gravity prior and the gates use; 0: off (the AHRS's attitude as it comes)")
+                                    "error drifts over about this long (10 s works), and take it out of the attitude "
+                                    "the gravity prior and the gates use; "
+                                    "0 (the default): off (README: it helps most scenes, not yet every one)")
     pad_relief_m: float = Field(0.0, ge=0.0, description="how far the pad's surface may stand above the plane it "
                                 "lies on (a paper pad's sag and wrinkles), as the user knows it: every pose is "
                                 "measured to the surface the camera sees, so each pose from the pad carries half "

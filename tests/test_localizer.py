@@ -1570,7 +1570,8 @@ def test_the_ahrs_roll_pitch_error_is_learnt_and_taken_out(pad):
     prior pulls marker poses with it (35 mm sideways at 5 m when the prior outweighed the markers;
     ~11 mm now that it is weighed against their own noise).  The image-only tilts of the marker
     poses, averaged, find that error and it is taken out of the attitude: the last poses are
-    closer still, and the learnt error is the injected one to a tenth of a degree (0: off)."""
+    closer still, and the learnt error is the injected one to a tenth of a degree.  (Opt-in:
+    ``ahrs_bias_time_s`` is 0 by default.)"""
     err = np.radians([0.4, -0.25, 0.0])
     lateral = {}
     for tau in (0.0, 5.0):

@@ -143,8 +143,8 @@ def test_a_vibrating_gyro_is_read_over_the_rows_the_frame_was_read_in(pad):
                      + rng.normal(0.0, 0.3 * math.sqrt(0.3), (len(ts), 3)))
     frames = [(0.1 * k, rolling_view(pad, 0.1 * k)) for k in range(7)]
     errs = {}
-    for mode in ("row", "block"):  # (the AHRS's attitude here is exact: nothing for its tilt filter to learn)
-        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False, ahrs_bias_time_s=0), line_s=LINE_S)
+    for mode in ("row", "block"):
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_flow=False), line_s=LINE_S)
         errs[mode], last = [], None
         for t, img in frames:
             j = int(np.searchsorted(ts, t + 1e-9)) - 1
