@@ -431,8 +431,8 @@ class Camera:
         """Pixels of the ideal pinhole camera with the same K -> distorted pixels (the inverse of
         :meth:`undistort_pixels`)."""
         px = as_points(px, 2, "px")
-        xy = self.distort_normalized(np.column_stack([(px[:, 0] - self.cx) / self.fx, (px[:, 1] - self.cy) / self.fy]))
-        return np.column_stack([self.fx * xy[:, 0] + self.cx, self.fy * xy[:, 1] + self.cy])
+        return self.project(np.column_stack([(px[:, 0] - self.cx) / self.fx, (px[:, 1] - self.cy) / self.fy,
+                                             np.ones(len(px))]))
 
     def ideal_pixel_grid(self) -> np.ndarray:
         """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (itself without

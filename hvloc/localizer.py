@@ -230,11 +230,7 @@ def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
     frame's readout; ``0``: the last row alone).  One sample carries the airframe's
     vibration (0.02-0.2 rad/s on a multirotor, as much as the turn the rolling shutter corrects for);
     the mean over the rows the frame was read in is the turn the image shows."""
-    rows = _gyro_rows(imu, span_s)
-    if rows is None or not rows[2].any():
-        return None
-    g, _, within = rows
-    return g[within].mean(axis=0)
+    return _readout(_gyro_rows(imu, span_s))[0]
 
 
 def _gyro_rows(imu, span_s: float):
@@ -268,9 +264,18 @@ def imu_rate_doubt(imu, span_s: float = 0.0) -> np.ndarray | None:
     it, which turns the rolling shutter's unrolling by up to 3 px across a 1280-px frame.  Counted as
     white noise, which a tone is not: on the airframe suite's vibrating tiers the mean's error was
     0.6 of this in rms per axis (never beyond 3 of it), conservative."""
-    rows = _gyro_rows(imu, span_s)
+    return _readout(_gyro_rows(imu, span_s))[1]
+
+
+def _readout(rows) -> tuple:
+    """``(mean, its doubt, scatter)`` of :func:`_gyro_rows`' rows within the readout: their mean
+    rate, the rows' :func:`_gyro_scatter` over the square root of how many are averaged, and that
+    scatter (``None`` for what the rows cannot say)."""
+    if rows is None or not rows[2].any():
+        return None, None, None
+    g, _, within = rows
     scatter = _gyro_scatter(rows)
-    return None if scatter is None else scatter / math.sqrt(max(int(rows[2].sum()), 1))  # over imu_rate's rows
+    return g[within].mean(axis=0), None if scatter is None else scatter / math.sqrt(int(within.sum())), scatter
 
 
 def _gyro_scatter(rows) -> np.ndarray | None:
@@ -291,25 +296,22 @@ def imu_turn(imu, span_s: float = 0.0) -> tuple:
     """``(rate, doubt)``: :func:`imu_rate`'s mean over the readout joined with the mean of the rows
     before it within the block's last :data:`RATE_WINDOW_S`, each weighed by its variance (per body
     axis), and the doubt of the two together; ``(imu_rate, imu_rate_doubt)`` where either says
-    nothing (a single row, no rows before the readout).  The block is read once.  The rows before the readout lag the turn: where the
-    two means differ beyond their noise, the difference squared counts as the earlier rows' doubt,
-    so a sharp turn keeps the readout's own mean.
+    nothing (a single row, no rows before the readout).  The block is read once.  The rows before
+    the readout lag the turn: where the two means differ beyond their noise, the difference squared
+    counts as the earlier rows' doubt, so a sharp turn keeps the readout's own mean.
 
     The mean over a 30 ms readout keeps 0.03-0.1 rad/s of a multirotor's vibration (stop 42:
     0.064 rms on the airframe suite's vibrating tier), and a small pad at 5-9 m moved 50-100 mm with
     it.  Over 13 rolling-shutter descents (the airframe suite's four datasets, bench_v2's two,
     unseen40) Adjustment RMSE 19.1 -> 15.1 mm (a_slow_vibrating 36.2 -> 24.8, a_action_vibrating
     15.4 -> 13.0, unseen40 8.7 -> 6.9), touchdown 2.3 -> 2.2 mm; on unseen43 15.0 -> 14.3 mm.
-    Shrinking the mean toward zero by its doubt instead helped the slow camera (21.7 mm) and hurt the manoeuvring ones
-    (a_action_vibrating 17.5, unseen43 16.4): their turns are real."""
+    Shrinking the mean toward zero by its doubt instead helped the slow camera (21.7 mm) and hurt
+    the manoeuvring ones (a_action_vibrating 17.5, unseen43 16.4): their turns are real."""
     rows = _gyro_rows(imu, span_s)
-    if rows is None or not rows[2].any():
-        return None, None
-    g, tt, within = rows
-    rate, scatter = g[within].mean(axis=0), _gyro_scatter(rows)
-    if scatter is None:
+    rate, doubt, scatter = _readout(rows)
+    if doubt is None:
         return rate, None
-    doubt = scatter / math.sqrt(int(within.sum()))
+    g, tt, within = rows
     before = ~within & (tt >= -RATE_WINDOW_S - 1e-9)
     if span_s <= 0.0 or not before.any():
         return rate, doubt
