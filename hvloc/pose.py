@@ -32,6 +32,8 @@ class PoseResult:
     image_rms_px: float = float("nan")    # the image-only pose's reprojection RMS (with an IMU)
     sigma_px: object = None               # the pixel noise the refinement and covariance used (scalar or per point)
     other_cam2pad: np.ndarray | None = None  # the rejected flip solution (None if none)
+    mirror_normal_img_C: np.ndarray | None = None  # that solution's image-only pad normal in C (with an IMU)
+    mirror_chi2_gap: float = float("inf")  # how much worse it fits than the chosen one, in squared noise units
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -403,7 +405,8 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     other_T = cands[1 - best] if len(cands) == 2 else None
     tilt = (float("nan"), float("nan"))
     sigma_up = None
-    normal_img = None
+    normal_img = mirror_normal = None
+    mirror_gap = float("inf")
     image_rms = float("nan")
     prior_up = up_C
     if up_C is None and level_up_C is not None and LEVEL_SIGMA_DEG:
@@ -420,12 +423,16 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px, shared)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        if other_T is not None and refine:
+            mirror_normal = other_T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+            mirror_gap = _chi2(camera, other_T, obj, px, sigma_px) - _chi2(camera, T, obj, px, sigma_px)
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
-    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T)
+    return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T,
+                      mirror_normal, mirror_gap)
 
 
 # how far the image-only refinement goes: far enough to reach the minimum of a far pad's flat tilt
@@ -454,3 +461,10 @@ def _refine_image_only(T: np.ndarray, obj: np.ndarray, xy: np.ndarray) -> np.nda
         return T
     R, _ = cv2.Rodrigues(rv)
     return invert(make_transform(R, tv.ravel()))
+
+
+def _chi2(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, sigma_px) -> float:
+    """The sum of squared reprojection errors in units of each point's noise (scalar or per point)."""
+    r = _residuals(camera, cam2pad, pts_P, px).reshape(-1, 2)
+    s = np.asarray(sigma_px, np.float64)
+    return float(np.sum((r / (s.reshape(-1, 1) if s.ndim else s)) ** 2))

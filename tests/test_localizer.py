@@ -1650,6 +1650,47 @@ def test_the_ahrs_tilt_filter_follows_a_drifting_error_and_says_how_well_it_know
     assert np.allclose(f.estimate, before), np.degrees(f.estimate - before)
 
 
+def test_the_ahrs_tilt_filter_weighs_both_planar_solutions_where_the_image_cannot_tell_them_apart():
+    """A pad seen nearly along its normal: the image knows the normal's part across the line of
+    sight only up to its sign, and the AHRS's up picks one of the two.  The picked normal is then
+    pushed away from the line of sight by the noise's magnitude, the same way every frame.  Taken
+    as the measurement, the filter learns that push (here it ends further off than the raw AHRS);
+    with the mirror and its fit given, the two are weighed as a Gaussian sum and the filter ends
+    closer than the raw AHRS, its sigma covering what is left.  A mirror the image rules out (the
+    pad 10 degrees off the line of sight, its mirror 20 degrees away fitting far worse) changes
+    nothing; one that fits as well that far away makes the normal count as flat as that, and the
+    filter is not misled."""
+    from hvloc.localizer import AHRSTiltBias
+
+    z = np.array([0.0, 0.0, 1.0])
+    e = np.radians([0.3, -0.2, 0.0])  # the AHRS's error
+    R_ahrs = so3_exp(e)  # AHRS = true (level) @ exp(e); camera = body
+    up = R_ahrs.T @ z
+
+    def learn(off_deg, with_mirror, seed, gap=0.0):
+        rng = np.random.default_rng(seed)
+        v = so3_exp(np.radians([off_deg, 0.0, 0.0])) @ z  # the line of sight to the pad
+        f = AHRSTiltBias(10.0)
+        left = []
+        for k in range(600):  # 60 s at 10 Hz, 1 degree of noise per frame (markers at 6-10 m)
+            n = so3_exp(np.radians(1.0) * np.append(rng.normal(size=2), 0.0)) @ z
+            m = 2.0 * (n @ v) * v - n  # the mirror about the line of sight
+            pick, other = (n, m) if n @ up >= m @ up else (m, n)
+            f.update(R_ahrs, np.eye(3), pick, 1.0, k / 10.0, *((other, gap) if with_mirror else ()))
+            if k >= 300:
+                left.append(np.degrees(f.estimate[:2] - e[:2]))
+        return float(np.sqrt(np.mean(np.square(left)))), f.sigma_deg
+
+    raw = float(np.sqrt(np.mean(np.degrees(e[:2]) ** 2)))  # 0.25 degrees per axis
+    for seed in (1, 2, 3):
+        picked, _ = learn(0.0, False, seed)
+        both, sigma = learn(0.0, True, seed)
+        assert picked > raw, (seed, picked, raw)
+        assert both < 0.8 * raw and both < 1.5 * math.hypot(sigma, AHRSTiltBias.WHITE_DEG), (seed, both, sigma, raw)
+        assert learn(10.0, True, seed, gap=1e4) == learn(10.0, False, seed)
+        assert learn(10.0, True, seed)[0] < raw
+
+
 def test_clean_markers_outweigh_an_ahrs_a_few_tenths_off(pad):
     """Three markers' corners fit to ~0.1 px on a clean image, and the image alone knows the pad's
     tilt to a few hundredths of a degree; the gravity prior (0.5 degrees) was weighed against the
