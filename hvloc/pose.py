@@ -2,10 +2,11 @@
 
 Normalised DLT homography -> decomposition into R, t with orthonormalisation (our own, used by
 the tracker and as a check); IPPE (OpenCV's ``SOLVEPNP_IPPE``, both solutions) for the two
-candidate poses of a planar target; choice between them with the gravity direction from the
-IMU or the previous pose (the nadir "flip" ambiguity); Levenberg-Marquardt refinement of the
-reprojection error, then (with an IMU) a Gauss-Newton step that adds the AHRS gravity direction
-as a prior on the pad's tilt; a 6x6 covariance from the reprojection Jacobian.
+candidate poses of a planar target; with an IMU, both refined to the reprojection error's minima
+(OpenCV's VVS) and the one whose pad lies nearer the gravity direction taken (the nadir "flip"
+ambiguity), then a Levenberg-Marquardt step that adds the AHRS gravity direction as a prior on
+the pad's tilt; without one, the choice by the previous pose or the fit, refined by OpenCV's
+Levenberg-Marquardt; a 6x6 covariance from the reprojection Jacobian.
 """
 from __future__ import annotations
 
