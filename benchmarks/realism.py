@@ -21,7 +21,11 @@ relative to ``--real-root``).  Patches holding bright paper, or pixels outside `
 average would drop it.  ``--real-psf-px fit`` measures that blur where the list holds frames of
 one kind at two or more GSDs: the sigma with which the finer frames, so downsampled, show the
 coarser frames' Laplacian variance.  Patches are 256 px, or half a frame's shorter side where
-the frame is smaller (16 px at least); every statistic is taken 2 px inside the patch's border.  Rendered frames: a
+the frame is smaller (16 px at least); every statistic is taken 2 px inside the patch's border.
+Smaller patches stand for a 256 px patch together: in the frames' order, they are pooled into
+groups of a 256 px patch's area, each group's statistics the area-weighted means of its patches'
+(a count per patch scaled up from 18 px patches is mostly 0 or hundreds, and its median 0 where
+a 256 px patch of the same ground holds a few corners).  Rendered frames: a
 camera of a shipped spec looking straight down from the height that gives each GSD, far from
 the pad, with the spec's own image formation.  The GSDs compared are ``--base-gsd-mm`` and 5 and 15
 times it for every camera, or with ``--heights`` the GSD each spec's camera has straight down from
@@ -89,9 +93,32 @@ def _medians(rows: list) -> dict:
     return {"patches": len(rows), **{k: float(np.median([r[k] for r in rows])) for k in rows[0]}}
 
 
+def _as_full_patches(patches: list) -> list:
+    """Statistics of 256 px patches from ``patches`` of any size (2-D arrays, in frame order):
+    each full-size patch as it is; smaller ones pooled in order into groups holding a full patch's
+    area (measured ``MARGIN`` px inside each), every statistic the area-weighted mean over the
+    group (a mean over a patch's pixels, or a count per 256 x 256 px: what the whole area shows).
+    A last group under half that area is dropped."""
+    full_area = (PATCH - 2 * MARGIN) ** 2
+    rows, group, area = [], [], 0.0
+    for q in patches:
+        s = ground_stats(q)
+        if min(q.shape) >= PATCH:
+            rows.append(s)
+            continue
+        a = float((q.shape[0] - 2 * MARGIN) * (q.shape[1] - 2 * MARGIN))
+        group.append((s, a))
+        area += a
+        if area >= full_area:
+            rows.append({k: sum(g[k] * w for g, w in group) / area for k in s})
+            group, area = [], 0.0
+    if group and area >= 0.5 * full_area:
+        rows.append({k: sum(g[k] * w for g, w in group) / area for k in group[0][0]})
+    return rows
+
+
 def ratio_text(value: float, real: float) -> str:
-    """``"0.49x"``, or ``"no real reference"`` where the real median is 0 or missing (the real
-    frames box-downsampled 15x leave 24 px patches with no strong corner at all: no ratio to it)."""
+    """``"0.49x"``, or ``"no real reference"`` where the real median is 0 or missing."""
     if not (math.isfinite(real) and real > 0 and math.isfinite(value)):
         return "no real reference"
     return f"{value / real:.2f}x"
@@ -172,7 +199,7 @@ def real_statistics(frames: list, targets_mm, mask_path=None, psf_px: float = 0.
     """Medians of the statistics over every ground patch of the real ``frames`` (``(path, gsd_mm,
     kind)``), per target GSD (mm): ``{target: medians}``."""
     mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE) if mask_path else None
-    rows = {t: [] for t in targets_mm}
+    patches = {t: [] for t in targets_mm}
     for path, gsd, _ in frames:
         gv = _ground_gray(path, mask)
         if gv is None:
@@ -182,8 +209,8 @@ def real_statistics(frames: list, targets_mm, mask_path=None, psf_px: float = 0.
             if at is None:
                 continue
             g, v = at
-            rows[t] += [ground_stats(q) for q in _patches(g, v > 0, _patch_size(g.shape))]
-    return {t: _medians(r) for t, r in rows.items()}
+            patches[t] += _patches(g, v > 0, _patch_size(g.shape))
+    return {t: _medians(_as_full_patches(p)) for t, p in patches.items()}
 
 
 def fit_camera_psf(frames: list, sigmas=np.arange(0.0, 1.51, 0.05)) -> list:

@@ -538,6 +538,38 @@ def test_realism_measures_the_real_cameras_blur_from_two_heights(tmp_path):
     assert real_statistics([f for f in frames if f[1] == 3.0], [1.0])[1.0] == {"patches": 0}
 
 
+def test_realism_pools_patches_smaller_than_a_patch_before_taking_medians(tmp_path):
+    """Frames smaller than a 256 px patch (real tiles box-downsampled to a coarse GSD) stand for a
+    patch together.  A ground with about 6 strong corners per 256 px patch, cut into 48 px tiles:
+    each tile's 24 px patches mostly hold none, so their median count said 0 (real pavement at
+    15.6 mm had "no real reference"); pooled into groups of a patch's area they give the count
+    that 256 px patches of the same ground show."""
+    from benchmarks.realism import _patches, frames_in_list, ground_stats, real_statistics
+
+    rng = np.random.default_rng(3)
+    n = 1536
+    g = 120 + 3 * rng.standard_normal((n, n)).astype(np.float32)
+    for x, y in rng.uniform(8, n - 8, (6 * (n // 256) ** 2, 2)):
+        cv2.circle(g, (int(x), int(y)), 2, 200, -1, cv2.LINE_AA)
+    g = np.clip(cv2.GaussianBlur(g, (0, 0), 0.7), 0, 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "whole.png"), g)
+    lines = ["path,gsd_mm,kind", "whole.png,1.0,x"]
+    for k, (y, x) in enumerate((y, x) for y in range(0, n, 48) for x in range(0, n, 48)):
+        cv2.imwrite(str(tmp_path / f"t{k}.png"), g[y:y + 48, x:x + 48])
+        lines.append(f"t{k}.png,1.0,x")
+    (tmp_path / "l.csv").write_text("\n".join(lines) + "\n")
+    frames = frames_in_list(tmp_path / "l.csv", tmp_path)
+    whole = real_statistics(frames[:1], [1.0])[1.0]
+    tiles = real_statistics(frames[1:], [1.0])[1.0]
+    small = [ground_stats(q)["corners"] for p, _, _ in frames[1:]
+             for q in _patches(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), np.ones((48, 48), bool), 24)]
+    assert np.median(small) == 0  # what the medians of small patches said
+    assert whole["patches"] == 36 and 20 <= tiles["patches"] <= 36, (whole, tiles)
+    assert 3 < whole["corners"] < 9, whole
+    for k in ("corners", "laplacian_var", "gradient_mean"):
+        assert abs(math.log(tiles[k] / whole[k])) < math.log(1.5), (k, tiles, whole)
+
+
 def test_realism_frame_list_errors_name_the_line(tmp_path):
     from benchmarks.realism import frames_in_list
 
