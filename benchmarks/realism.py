@@ -3,7 +3,8 @@ sampling distance (GSD).
 
     python -m benchmarks.realism --real DIR [--real-mask MASK.png] [--real-gsd-mm 3.5]
                                  [--heights 1 5 15 | --base-gsd-mm 3.5]
-                                 [--kinds grass dry_grass asphalt ...] [--out FILE.json]
+                                 [--kinds grass dry_grass asphalt ...] [--draws 8] [--processing]
+                                 [--out FILE.json]
 
 Statistics per 256 x 256 ground-only patch (luma 0-255), medians over patches:
 
@@ -27,7 +28,11 @@ groups of a 256 px patch's area, each group's statistics the area-weighted means
 (a count per patch scaled up from 18 px patches is mostly 0 or hundreds, and its median 0 where
 a 256 px patch of the same ground holds a few corners).  Rendered frames: a
 camera of a shipped spec looking straight down from the height that gives each GSD, far from
-the pad, with the spec's own image formation.  The GSDs compared are ``--base-gsd-mm`` and 5 and 15
+the pad, with the spec's optics (lens, defocus, supersampling) and light, one view in each of
+``--draws`` sequences (seeds 0..N-1: light, exposure and defocus are drawn per sequence, and one
+draw is not the spec: field1080's asphalt at 15.6 mm shows 5 to 890 strong corners per patch
+from one draw to the next), and without the camera's processing (noise, sharpening, JPEG) unless
+``--processing``: the real frames lose theirs where they are box-downsampled.  The GSDs compared are ``--base-gsd-mm`` and 5 and 15
 times it for every camera, or with ``--heights`` the GSD each spec's camera has straight down from
 those heights (its focal length in px: field1080 sees 1.04, 5.2 and 15.6 mm from 1, 5 and 15 m).
 
@@ -257,9 +262,19 @@ def spec_focal_px(spec_name: str) -> float:
     return float(min(cam.fx, cam.fy))
 
 
-def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 4, seed: int = 0) -> dict:
-    """Medians over ground patches of ``views`` nadir frames of a shipped spec's camera over
-    ``kind`` at the height that gives ``gsd_m`` metres per pixel below the camera."""
+# the camera's own processing, left out of the rendered frames compared: the real frames' processing
+# (their sensor's noise, sharpening, compression) is averaged away where they are box-downsampled to
+# a coarser GSD, so only the optics (lens, defocus, supersampling) are the same on both sides
+PROCESSING_OFF = {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "sharpen": [0.0, 0.0], "jpeg_quality": None}
+DRAWS = 8  # sequences drawn per rendered statistic: a spec draws its light and defocus per sequence
+
+
+def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 1, seeds=(0,),
+                        processing: bool = False) -> dict:
+    """Medians over ground patches of ``views`` nadir frames per seed in ``seeds`` (each seed one
+    draw of the spec's sequence: its light, exposure and defocus) of a shipped spec's camera over
+    ``kind``, at the height that gives ``gsd_m`` metres per pixel below the camera.  The camera's
+    processing (noise, sharpening, JPEG) is left out unless ``processing``: see PROCESSING_OFF."""
     import yaml
 
     from hvloc.geometry import make_transform
@@ -268,26 +283,31 @@ def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 4,
 
     from .suite import REPO
 
-    d = yaml.safe_load((REPO / "data_specs" / f"{spec_name}.yaml").read_text())
-    d.update(seed=seed, sequences=1)
-    d.setdefault("environment", {}).update(ground=[kind], distractors={"boxes": [0, 0], "decoy_patches": [0, 0],
-                                                                        "decoy_markers": [0, 0]})
-    d.setdefault("degradations", {})["motion_blur"] = False
-    spec = DatasetSpec.model_validate(d)
+    base = yaml.safe_load((REPO / "data_specs" / f"{spec_name}.yaml").read_text())
     rows = []
-    with SequenceRenderer(spec, 0) as r:
-        f = float(min(r.camera.fx, r.camera.fy))
-        h = gsd_m * f
-        R_W_C = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # nadir, image top north
-        for i in range(views):
-            a = 2 * math.pi * i / views
-            xy = (4.0 + 1.5 * h) * np.array([math.cos(a), math.sin(a)])  # well away from the pad
-            cam2world = make_transform(R_W_C, (xy[0], xy[1], h))
-            body = cam2world @ np.linalg.inv(r.T_B_C)
-            layers = r.render_at(i, 0.0, body, np.eye(4))
-            gray = cv2.cvtColor(layers.rgb, cv2.COLOR_RGB2GRAY)
-            valid = np.isfinite(layers.depth_m)
-            rows += [ground_stats(q) for q in _patches(gray, valid, PATCH)]
+    for seed in seeds:
+        d = json.loads(json.dumps(base))
+        d.update(seed=int(seed), sequences=1)
+        d.setdefault("environment", {}).update(ground=[kind], distractors={"boxes": [0, 0], "decoy_patches": [0, 0],
+                                                                            "decoy_markers": [0, 0]})
+        deg = d.setdefault("degradations", {})
+        deg["motion_blur"] = False
+        if not processing:
+            deg.update(PROCESSING_OFF)
+        spec = DatasetSpec.model_validate(d)
+        with SequenceRenderer(spec, 0) as r:
+            f = float(min(r.camera.fx, r.camera.fy))
+            h = gsd_m * f
+            R_W_C = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # nadir, image top north
+            for i in range(views):
+                a = 2 * math.pi * (i / views + 0.37 * int(seed))
+                xy = (4.0 + 1.5 * h) * np.array([math.cos(a), math.sin(a)])  # well away from the pad
+                cam2world = make_transform(R_W_C, (xy[0], xy[1], h))
+                body = cam2world @ np.linalg.inv(r.T_B_C)
+                layers = r.render_at(i, 0.0, body, np.eye(4))
+                gray = cv2.cvtColor(layers.rgb, cv2.COLOR_RGB2GRAY)
+                valid = np.isfinite(layers.depth_m)
+                rows += [ground_stats(q) for q in _patches(gray, valid, PATCH)]
     return _medians(rows)
 
 
@@ -308,6 +328,10 @@ def main(argv=None) -> int:
     p.add_argument("--kinds", nargs="+", default=None, help="rendered ground kinds (default: the list's kinds, "
                    "or grass dry_grass asphalt gravel)")
     p.add_argument("--specs", nargs="+", default=["field1080", "sim800"])
+    p.add_argument("--draws", type=int, default=DRAWS, help="sequences of each spec drawn (seeds 0..N-1), one "
+                   "view each: its light, exposure and defocus vary per sequence")
+    p.add_argument("--processing", action="store_true", help="keep the spec camera's noise, sharpening and JPEG "
+                   "in the rendered frames (left out by default: the downsampled real frames have lost theirs)")
     p.add_argument("--out", default="out/realism.json")
     a = p.parse_args(argv)
     try:
@@ -357,7 +381,7 @@ def main(argv=None) -> int:
         for kind in kinds:
             ref = real.get(kind, real.get(""))
             for t in by_spec[spec]:
-                r = rendered_statistics(spec, kind, t / 1000.0)
+                r = rendered_statistics(spec, kind, t / 1000.0, seeds=range(a.draws), processing=a.processing)
                 res["rendered"][f"{spec}/{kind}/{t:g}"] = r
                 rt = ref[t] if ref is not None else {}
                 cells = [f"{r.get(k, float('nan')):.1f} ({ratio_text(r.get(k, float('nan')), rt.get(k, float('nan')))})"
