@@ -36,16 +36,19 @@ AMPLITUDE = {"grass": 0.32, "dry_grass": 0.235, "gravel": 0.30, "soil": 0.22, "a
              "concrete": 0.65, "snow": 0.06}
 # the coarse octaves (32, 16, 8 m, in the rasterised texture) relative to the fine ones: real ground
 # has more structure at the scale of blades and stones than at the scale of tufts and patches
-COARSE = {"grass": 0.8, "dry_grass": 0.8, "gravel": 0.6, "soil": 0.8, "asphalt": 0.1, "sand": 0.8, "concrete": 0.15,
+COARSE = {"grass": 0.8, "dry_grass": 0.8, "gravel": 0.6, "soil": 0.8, "asphalt": 0.0, "sand": 0.8, "concrete": 0.15,
           "snow": 1.0}
 # per-octave weights (OCTAVES_M order) for kinds whose detail has a physical size, not the same at
-# every scale; the rest weigh every octave alike.  Asphalt's stones are 3-18 mm across (1.5-9 mm
-# in the finest octave: fine aggregate) and concrete's grains 1.5-8 mm (the two finest octaves'
-# tiles; the coarser octaves' copies of it stand for stains and wear): matched to real nadir
-# frames of quay pavement (benchmarks/real_ground/omu_quay.csv), grass and dry grass to frames of
-# mixed grass (benchmarks/real_ground/agh_grass.csv), at 3.5, 17.5 and 52.5 mm per pixel and at
-# what field1080's camera sees from 1, 5 and 15 m (benchmarks/realism.py)
-OCTAVE_WEIGHT = {"asphalt": (0.16, 0.15, 0.25, 0.6, 1.0, 1.0), "concrete": (0.2, 0.16, 0.2, 0.6, 1.0, 1.0),
+# every scale; the rest weigh every octave alike.  Asphalt is its aggregate alone: stones of 3-18
+# mm across in the 0.5 m octave, 1.5-9 mm and 0.7-4.5 mm (chippings and sand) in the two finest;
+# its copies at 1 m and more per tile (and in the rasterised texture) were stones of 1-28 cm that
+# no asphalt has (render revision 8: field1080's camera saw 332 strong corners per 256 px patch
+# from 15 m, over eight draws, where the quay's asphalt shows 3).  Concrete's grains are 1.5-8 mm
+# (the two finest octaves' tiles; its coarser octaves' copies stand for stains and wear).  Matched
+# to real nadir frames of quay pavement (benchmarks/real_ground/omu_quay.csv), grass and dry grass
+# to frames of mixed grass (benchmarks/real_ground/agh_grass.csv), at what field1080's camera
+# sees from 1, 5 and 15 m (benchmarks/realism.py, eight draws of its light and defocus)
+OCTAVE_WEIGHT = {"asphalt": (0.0, 0.0, 0.0, 0.3, 1.0, 1.6), "concrete": (0.2, 0.16, 0.2, 0.6, 1.0, 1.0),
                  "grass": (0.8, 0.8, 0.8, 1.0, 1.2, 0.8), "dry_grass": (0.8, 0.8, 0.8, 1.0, 1.2, 0.8)}
 GROUND_Z_TOL_M = 0.005
 MAP_STEPS = (4, 2)  # texture coordinates are made every 4 (or 2) px and upsampled (GroundDetail._map_grid)

@@ -43,23 +43,32 @@ from pad_design.spec import PadSpec
 #      level changed; one octave more (0.125 m: detail down to 0.25 mm); grass, dry grass, asphalt
 #      and concrete matched again to real frames at their own GSDs.  Every spec with ground detail
 #      moves, and those without it that draw grass or dry grass (their rasterised texture).
-RENDER_REVISION = 7
+#   8: asphalt is its aggregate alone: its detail's octaves of 1 m and more per tile, and the
+#      coarse octaves of its rasterised texture, copied the aggregate as stones of 1-28 cm, which
+#      gave field1080's camera 332 strong corners per 256 px patch from 15 m where real asphalt
+#      shows 3; its finest octave weighs 1.6 (benchmarks/realism.py, eight draws).  Only specs one
+#      of whose sequences draws asphalt move, with or without ground detail.
+RENDER_REVISION = 8
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
+ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
 
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
-    if spec.environment.ground_detail:
-        return 7
+    drawn = set()
     if (HARD_SURFACES | GRASSES) & set(spec.environment.ground):
         from .plan import drawn_ground_kinds
 
         drawn = drawn_ground_kinds(spec)
-        if GRASSES & drawn:
-            return 7
-        if HARD_SURFACES & drawn:
-            return 6
+    if ASPHALT & drawn:
+        return 8
+    if spec.environment.ground_detail:
+        return 7
+    if GRASSES & drawn:
+        return 7
+    if HARD_SURFACES & drawn:
+        return 6
     m = spec.pad_material
     return 5 if m.relief_m[1] > 0 or m.gloss[1] > 0 else 2
 

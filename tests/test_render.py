@@ -463,8 +463,9 @@ def test_blur_flow_of_a_ray_leaving_a_strong_lens_does_not_run_away():
 
 def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     """Render revision 6 changed asphalt and concrete, revision 7 the ground detail and the grasses'
-    rasterised texture: a spec's identity takes a revision only when one of its sequences draws
-    what it changed (as plan_sequence draws its scene), so every other cached dataset stays valid."""
+    rasterised texture, revision 8 asphalt (detail or not): a spec's identity takes a revision only
+    when one of its sequences draws what it changed (as plan_sequence draws its scene), so every
+    other cached dataset stays valid."""
     from render.plan import drawn_ground_kinds, plan_sequence
     from render.spec import render_revision
 
@@ -475,9 +476,9 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
         kinds = drawn_ground_kinds(spec)
         assert kinds == {plan_sequence(spec, i).scene_draw.ground for i in range(2)}
         seen[frozenset(kinds)] = render_revision(spec)
-    assert seen[frozenset({"sand"})] == 2 and seen[frozenset({"asphalt"})] == 6, seen
-    assert seen[frozenset({"grass"})] == 7 and seen[frozenset({"asphalt", "sand"})] == 6, seen
-    assert seen[frozenset({"asphalt", "grass"})] == 7, seen
+    assert seen[frozenset({"sand"})] == 2 and seen[frozenset({"asphalt"})] == 8, seen
+    assert seen[frozenset({"grass"})] == 7 and seen[frozenset({"asphalt", "sand"})] == 8, seen
+    assert seen[frozenset({"asphalt", "grass"})] == 8, seen
     def revision(**env):
         return render_revision(DatasetSpec.model_validate({"environment": env}))
 
@@ -485,6 +486,7 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     assert revision(ground=["concrete"], ground_detail=False) == 6
     assert revision(ground=["dry_grass"], ground_detail=False) == 7
     assert revision(ground=["sand"]) == 7  # ground detail, on by default, is drawn on every kind
+    assert revision(ground=["concrete"]) == 7 and revision(ground=["asphalt"]) == 8
 
 
 @pytest.mark.parametrize("kind", ["asphalt", "concrete"])
@@ -502,18 +504,30 @@ def test_pavement_shows_stones_that_average_out_higher_up(kind):
     assert near["laplacian_var"] > 2 * far["laplacian_var"], (near, far)
 
 
+def test_asphalt_has_no_stones_larger_than_its_aggregate():
+    """Real asphalt's stones are under 2 cm across: from 15 m (15.6 mm per pixel) the quay's shows
+    about 3 strong corners per 256 px patch.  Up to render revision 7 its detail tile was copied
+    at 1-8 m per tile too, stones of 1-28 cm, and sim800's camera saw 264 there (three draws)."""
+    from benchmarks.realism import rendered_statistics
+
+    far = rendered_statistics("sim800", "asphalt", 0.0156, seeds=range(3))
+    assert far["patches"] >= 9 and far["corners"] < 20, far
+
+
 @pytest.mark.parametrize("kind", ["grass", "asphalt"])
 def test_ground_detail_does_not_jump_where_the_mipmap_level_changes(kind):
     """A camera descending through an octave of height sees the ground's detail change smoothly:
     the two mipmap levels around the pixels' footprint are blended (trilinear).  Read from the
     finer level alone, the Laplacian variance of grass fell 1.8x and of asphalt 2.8x within a
     quarter of an octave, where the level changed: a pulse in the ground's sharpness at every
-    doubling of the height."""
+    doubling of the height.  Detail finer than a pixel may fall as fast as the pixel's area grows
+    (2^(2/4) = 1.41x a quarter octave: revision 8's asphalt, whose aggregate is finer than these
+    4-7 mm pixels, falls 1.14-1.35x a step), never in a step of 1.8x."""
     from benchmarks.realism import rendered_statistics
 
     lap = [rendered_statistics("tiny", kind, 0.004 * 2 ** (i / 4), views=2)["laplacian_var"] for i in range(5)]
     steps = [max(a, b) / min(a, b) for a, b in zip(lap, lap[1:])]
-    assert max(steps) < 1.3, lap
+    assert max(steps) < 1.5, lap
 
 
 def test_ground_detail_levels_blend_in_place():
