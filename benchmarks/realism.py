@@ -54,6 +54,7 @@ The frames this was built against (neither set is shipped: they are not ours; fe
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import math
 from pathlib import Path
@@ -105,6 +106,9 @@ def _as_full_patches(patches: list) -> list:
     area (measured ``MARGIN`` px inside each), every statistic the area-weighted mean over the
     group (a mean over a patch's pixels, or a count per 256 x 256 px: what the whole area shows).
     A last group under half that area is dropped."""
+    def pooled(group, area):
+        return {k: sum(g[k] * w for g, w in group) / area for k in group[0][0]}
+
     full_area = (PATCH - 2 * MARGIN) ** 2
     rows, group, area = [], [], 0.0
     for q in patches:
@@ -116,10 +120,10 @@ def _as_full_patches(patches: list) -> list:
         group.append((s, a))
         area += a
         if area >= full_area:
-            rows.append({k: sum(g[k] * w for g, w in group) / area for k in s})
+            rows.append(pooled(group, area))
             group, area = [], 0.0
     if group and area >= 0.5 * full_area:
-        rows.append({k: sum(g[k] * w for g, w in group) / area for k in group[0][0]})
+        rows.append(pooled(group, area))
     return rows
 
 
@@ -287,7 +291,7 @@ def rendered_statistics(spec_name: str, kind: str, gsd_m: float, views: int = 1,
     base = yaml.safe_load((REPO / "data_specs" / f"{spec_name}.yaml").read_text())
     rows = []
     for seed in seeds:
-        d = json.loads(json.dumps(base))
+        d = copy.deepcopy(base)
         d.update(seed=int(seed), sequences=1)
         d.setdefault("environment", {}).update(ground=[kind], distractors={"boxes": [0, 0], "decoy_patches": [0, 0],
                                                                             "decoy_markers": [0, 0]})

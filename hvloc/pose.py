@@ -281,7 +281,7 @@ def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pt
 def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
                         sigma_px: float, sigma_up_rad: float, iterations: int = 4,
                         shared: SharedNoise | None = None) -> np.ndarray:
-    """Gauss-Newton on the reprojection error plus a prior that the pad's normal is the IMU's up.
+    """Levenberg-Marquardt on the reprojection error plus a prior that the pad's normal is the IMU's up.
 
     With few, close-together correspondences (the pad outline far away) the tilt of a planar
     target is weakly observed and couples into a lateral position error of height x tilt; the

@@ -205,20 +205,20 @@ class GroundDetail:
         for g0, group in ((0, OCTAVES_M[:3]), (3, OCTAVES_M[3:])):
             period, fine = group[0], group[-1]
             n = int(round(TILE_PX * period / fine))
-            drawn = any(weights[g0:g0 + len(group)])  # a group weighing nothing changes no pixel
-            acc = np.zeros((n, n), np.float32)
+            weighs = any(weights[g0:g0 + len(group)])  # a group weighing nothing changes no pixel
+            acc = np.zeros((n, n), np.float32) if weighs else None
             for j, lam in enumerate(group):
                 t = np.rot90(tile, int(rng.integers(4)))  # drawn either way: the next group's draws stay
                 t = t[:, ::-1] if rng.random() < 0.5 else t
                 t = np.roll(t, tuple(int(v) for v in rng.integers(0, TILE_PX, 2)), axis=(0, 1))
-                if not drawn:
+                if not weighs:
                     continue
                 px = int(round(TILE_PX * lam / fine))  # this octave's tile, in the group's texels
                 up = cv2.resize(np.ascontiguousarray(t), (px, px), interpolation=cv2.INTER_CUBIC) if px != TILE_PX else t
                 acc += (AMPLITUDE[kind] * weights[g0 + j]) * np.tile(up, (n // px, n // px))
             ang = rng.uniform(0, 2 * math.pi)
             offset = rng.uniform(0, n, 2)
-            if not drawn:
+            if not weighs:
                 continue
             mip = [acc]
             while mip[-1].shape[0] > 4:  # box-filtered halvings: the group's prefiltered levels

@@ -63,9 +63,7 @@ def render_revision(spec: "DatasetSpec") -> int:
         drawn = drawn_ground_kinds(spec)
     if ASPHALT & drawn:
         return 8
-    if spec.environment.ground_detail:
-        return 7
-    if GRASSES & drawn:
+    if spec.environment.ground_detail or GRASSES & drawn:
         return 7
     if HARD_SURFACES & drawn:
         return 6

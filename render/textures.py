@@ -43,7 +43,10 @@ def ground_texture(kind: str, rng: np.random.Generator, size: int = GROUND_TILE_
     base, var = GROUND_COLOURS[kind]
     log_albedo = np.zeros((size, size), np.float32)
     for repeats in (1, 2, 4):  # octaves of 32, 16 and 8 m: a different tile each, repeated to the period
-        tile = detail_tile(kind, int(rng.integers(2**31)))
+        tile_seed = int(rng.integers(2**31))  # drawn either way: the draws after it stay
+        if AMPLITUDE[kind] * COARSE[kind] == 0:  # asphalt since render revision 8
+            continue
+        tile = detail_tile(kind, tile_seed)
         px = size // repeats
         octave = cv2.resize(tile, (px, px), interpolation=cv2.INTER_CUBIC if px > TILE_PX else cv2.INTER_AREA)
         log_albedo += AMPLITUDE[kind] * COARSE[kind] * np.tile(octave, (repeats, repeats))
