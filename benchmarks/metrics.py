@@ -18,6 +18,26 @@ FALSE_ACCEPT_DEG = 5.0    # ... or 5 degrees is a false accept
 # a pose's position error beyond what its covariance allows 99.73 % of the time (3 sigma in one
 # dimension): the squared Mahalanobis distance over 3 degrees of freedom
 NEES_3SIGMA = 14.156
+NEES_MEDIAN = 2.366  # the median of chi-squared with 3 degrees of freedom: an honest covariance's median NEES
+
+
+def cov_sigma_scale(nees_median: float | None) -> float | None:
+    """How many times its stated position sigma a localizer's errors are, read from the median NEES
+    of its accepted poses: 1 for an honest covariance, 0.25 for one that states four times the error
+    it makes (a filter fusing it would trust it 16 times too little), 3 for one three times too sure.
+    The share beyond 3 sigma catches the few poses far outside their covariance; this, the bulk."""
+    if nees_median is None or not math.isfinite(nees_median) or nees_median < 0:
+        return None
+    return math.sqrt(nees_median / NEES_MEDIAN)
+
+
+def metric(scope: dict, key: str):
+    """``scope[key]``, or for ``pos_cov_scale`` its value from the median NEES where a results file
+    made before it was scored holds only that."""
+    v = scope.get(key)
+    if v is None and key == "pos_cov_scale":
+        v = cov_sigma_scale(scope.get("pos_nees_median"))
+    return v
 
 
 def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
@@ -112,6 +132,7 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     nees = nees[np.isfinite(nees)]
     out["beyond_cov_3sigma"] = float(np.mean(nees > NEES_3SIGMA)) if nees.size else None
     out["pos_nees_median"] = float(np.median(nees)) if nees.size else None
+    out["pos_cov_scale"] = cov_sigma_scale(out["pos_nees_median"])
     out["rejections_right"] = int((rej & wrong).sum())
     out["rejections_wrong"] = int((rej & ~wrong).sum())
     out["wrong_phase_frames"] = int((ok & (fe["phase_est"] != fe["phase_gt"])).sum())

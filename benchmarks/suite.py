@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import json
 import platform
 import subprocess
@@ -294,7 +295,7 @@ def load_results(path) -> dict:
     return r
 
 
-# metric -> (direction, absolute tolerance): "lower" is better or "higher" is better
+# metric -> (direction, absolute tolerance): "lower" is better or "higher" is better, or "one": nearer 1
 TOLERANCES = {
     "availability": ("higher", 0.01),
     "pos_err_m_rmse": ("lower", 0.002),
@@ -303,7 +304,18 @@ TOLERANCES = {
     "false_accepts": ("lower", 0),
     "longest_gap_s": ("lower", 0.2),
     "beyond_cov_3sigma": ("lower", 0.01),
+    # how many times its stated sigma the error is: nearer 1 is better either way (ln units: 10 %)
+    "pos_cov_scale": ("one", 0.1),
 }
+
+
+def _worse(direction: str, tol: float, base: float, new: float) -> bool:
+    if direction == "lower":
+        return new > base + tol
+    if direction == "higher":
+        return new < base - tol
+    off = lambda v: abs(math.log(max(v, 1e-9)))  # "one": how far from 1, by ratio
+    return off(new) > off(base) + tol
 
 
 def compare(new: dict, base: dict, tolerances: dict = TOLERANCES, significant: bool = False) -> list:
@@ -320,13 +332,13 @@ def compare(new: dict, base: dict, tolerances: dict = TOLERANCES, significant: b
             if not isinstance(metrics, dict):
                 continue
             for m, (direction, tol) in tolerances.items():
-                b = metrics.get(m)
-                n = new["summary"][loc].get(scope, {}).get(m)
+                b = M.metric(metrics, m)
+                n = M.metric(new["summary"][loc].get(scope, {}), m)
                 if b is None:
                     continue
                 if n is None:
                     worse.append((loc, scope, m, b, n))
-                elif (direction == "lower" and n > b + tol) or (direction == "higher" and n < b - tol):
+                elif _worse(direction, tol, b, n):
                     ci = cis.get(loc, {}).get(scope, {}).get(m) if significant else None
                     if ci is not None and ci[0] <= n <= ci[1]:
                         continue

@@ -190,6 +190,53 @@ def test_metrics_on_a_hand_made_case():
     assert M.score(M.frame_errors(gt, est))["beyond_cov_3sigma"] == 0.0
 
 
+def test_a_covariance_stating_too_much_error_is_scored_and_caught_as_one_too_sure_is():
+    """The share beyond 3 sigma only catches a covariance too sure of itself: one stating four
+    times the error made never counts there, and a filter fusing it trusts it 16 times too little.
+    The error / stated sigma (square root of the median NEES over a 3-D Gaussian's) reads 1 for
+    errors drawn from the stated covariance, 0.25 for four times the sigma, 3 for a third of it;
+    compare flags a move away from 1 either way, not one toward it, and reads results that hold
+    only the median NEES (made before the metric)."""
+    from benchmarks import metrics as M
+    from benchmarks.suite import compare
+
+    rng = np.random.default_rng(7)
+    n = 4000
+    A = rng.normal(size=(n, 3, 3)) * 0.01
+    C = A @ np.transpose(A, (0, 2, 1)) + 1e-5 * np.eye(3)  # a different honest covariance per pose
+    d = np.einsum("nij,nj->ni", np.linalg.cholesky(C), rng.normal(size=(n, 3)))
+    gt = {"frame": np.arange(n, dtype=float), "t": np.arange(n) * 0.1, "tx": np.zeros(n), "ty": np.zeros(n),
+          "tz": np.full(n, 5.0), "qx": np.ones(n), "qy": np.zeros(n), "qz": np.zeros(n), "qw": np.zeros(n),
+          "phase_gt": np.array(["adjustment"] * n)}
+    est = {k: v.copy() for k, v in gt.items() if k != "phase_gt"}
+    est["tx"], est["ty"], est["tz"] = d[:, 0], d[:, 1], 5.0 + d[:, 2]
+    est["status"] = np.array(["ok"] * n, dtype=object)
+    est["phase"] = np.array(["adjustment"] * n, dtype=object)
+    est["ms"] = np.ones(n)
+
+    def scored(factor):  # the covariance stated: the true one times factor^2
+        for i, a in enumerate("xyz"):
+            for j, b in enumerate("xyz"):
+                if j >= i:
+                    est[f"cov_{a}_{b}"] = C[:, i, j] * factor ** 2
+        return M.score(M.frame_errors(gt, est))
+
+    honest, wide, sure = scored(1.0), scored(4.0), scored(1.0 / 3.0)
+    assert honest["pos_cov_scale"] == pytest.approx(1.0, abs=0.05)
+    assert wide["pos_cov_scale"] == pytest.approx(0.25, abs=0.015) and wide["beyond_cov_3sigma"] == 0.0
+    assert sure["pos_cov_scale"] == pytest.approx(3.0, abs=0.15)
+
+    def results(s):
+        return {"summary": {"h": {"all": dict(s)}}}
+
+    flagged = lambda new, base: [w[2] for w in compare(results(new), results(base)) if w[2] == "pos_cov_scale"]
+    assert flagged(wide, honest) == ["pos_cov_scale"] and flagged(sure, honest) == ["pos_cov_scale"]
+    assert flagged(honest, wide) == [] and flagged(honest, sure) == [] and flagged(honest, honest) == []
+    old = {k: v for k, v in wide.items() if k != "pos_cov_scale"}  # a results file from before the metric
+    assert M.metric(old, "pos_cov_scale") == pytest.approx(wide["pos_cov_scale"])
+    assert flagged(old, honest) == ["pos_cov_scale"]
+
+
 def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
     """``benchmarks.tilt``: one row per accepted pose, its lateral error the horizontal part of the
     position error the benchmark scored, its tilt errors angles (the AHRS's from imu.csv, through
