@@ -38,10 +38,6 @@ class PoseResult:
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
-# a pose weighed by a multiple of its fit's residual (sigma_from_fit) states the error of that fit
-# under this much noise: the residual RMS times FIT_NOISE_PER_RMS, at least FIT_NOISE_MIN_PX
-FIT_NOISE_PER_RMS = 2.0
-FIT_NOISE_MIN_PX = 0.05
 FLIP_MARGIN_SIGMAS = 2.0  # with nothing but the fit to choose, a mirror pose within this many noise units ...
 FLIP_APART = 0.05  # ... and further than this share of the height from the chosen one makes the pose ambiguous
 LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
@@ -254,34 +250,21 @@ def _whiten(W: np.ndarray, r: np.ndarray, J: np.ndarray) -> tuple:
 
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
-                    sigma_up_rad: float | None = None, shared: SharedNoise | None = None,
-                    noise_px: float | None = None) -> np.ndarray:
+                    sigma_up_rad: float | None = None, shared: SharedNoise | None = None) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector of ``R_P_C @ exp(d)``, i.e. about
     the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
     ``min_sigma_px`` squared: a scalar, or one per point where some are less sure than others).
     With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
     gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too.
-    ``shared``: errors groups of points share (:class:`SharedNoise`).
-
-    ``noise_px``: the pixels' noise where the pose was weighed by another (a scalar
-    ``min_sigma_px`` chosen to weigh the prior, not to describe the image): the covariance of that
-    weighted fit under this noise, ``H^-1 (A rho + B) H^-1`` with ``H = A + B`` (A the image's
-    information as weighed, B the prior's, rho the ratio of the two noises' variances; the noise is
-    never taken for less than the residuals show)."""
+    ``shared``: errors groups of points share (:class:`SharedNoise`)."""
     r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
     dof = max(r0.size - 6, 1)
     r0, J = _whiten(_whitener(min_sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared), r0, J)
-    shown = float(r0 @ r0) / dof  # the residuals' variance, in units of the weights'
-    spread = max(shown, 1.0)
-    image = J.T @ J / spread
-    prior = Jn.T @ Jn / sigma_up_rad ** 2 if up_C is not None and sigma_up_rad else np.zeros((6, 6))
+    info = J.T @ J / max(float(r0 @ r0) / dof, 1.0)
+    if up_C is not None and sigma_up_rad:
+        info = info + Jn.T @ Jn / sigma_up_rad ** 2
     try:
-        cov = np.linalg.inv(image + prior)
-        if noise_px is not None and np.ndim(min_sigma_px) == 0 and shared is None:
-            rho = max(float(noise_px) ** 2 / float(min_sigma_px) ** 2, shown) / spread  # (never less than shown)
-            cov = cov @ (image * rho + prior) @ cov
-            cov = 0.5 * (cov + cov.T)
-        return cov
+        return np.linalg.inv(info)
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
 
@@ -432,7 +415,6 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     normal_img = mirror_normal = None
     mirror_gap = float("inf")
     image_rms = float("nan")
-    noise_px = None  # the pixels' noise, where the fit was weighed by another (sigma_from_fit)
     prior_up = up_C
     if up_C is None and level_up_C is not None and LEVEL_SIGMA_DEG:
         # without an IMU, a drone that flies nearly level has the body's up, seen through the mount,
@@ -446,7 +428,6 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         image_rms = reprojection_rms(camera, T, obj, px)
         if sigma_from_fit is not None and np.ndim(sigma_px) == 0 and np.isfinite(image_rms):
             sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
-            noise_px = max(FIT_NOISE_PER_RMS * image_rms, FIT_NOISE_MIN_PX)
         tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px, shared)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
         if other_T is not None and refine:
@@ -456,8 +437,7 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
-    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared,
-                          noise_px=noise_px)
+    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T,
                       mirror_normal, mirror_gap)
 
