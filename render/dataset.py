@@ -558,6 +558,18 @@ class Sequence:
         return imu[(imu[:, 0] > t0) & (imu[:, 0] <= t1)]
 
 
+def _datasets_near(root: Path) -> str:
+    """What a folder given for a dataset holds instead, to say in the error: a benchmark's results
+    folder names its datasets, a sequence folder its dataset."""
+    if (root / "frames.csv").is_file() and (root.parent / "manifest.json").is_file():
+        return f"; it is a sequence of {root.parent}"
+    inside = sorted(p for p in [*root.glob("*"), *root.glob("datasets/*")] if (p / "manifest.json").is_file())
+    if inside:
+        more = f" and {len(inside) - 2} more" if len(inside) > 2 else ""
+        return "; it holds datasets: give one of " + ", ".join(str(p) for p in inside[:2]) + more
+    return ""
+
+
 class Dataset:
     """A generated dataset: its manifest and complete sequences (``.tmp-*`` folders are ignored).
 
@@ -569,7 +581,7 @@ class Dataset:
         self.root = Path(root)
         m = load_manifest(self.root)
         if m is None:
-            raise InputError(f"{self.root}: no manifest.json (not a generated dataset)")
+            raise InputError(f"{self.root}: no manifest.json (not a generated dataset{_datasets_near(self.root)})")
         self.manifest = m
         self.verify = verify
         self.sequence_ids = [s["id"] for s in m["sequences"]]

@@ -70,6 +70,24 @@ def test_damage_through_the_cli_is_one_line_and_a_resume_redoes_it(clean, tmp_pa
         json.loads((clean / "manifest.json").read_text())["files"]
 
 
+def test_a_folder_given_for_a_dataset_names_the_datasets_it_holds(clean, tmp_path):
+    """A benchmark's results folder, or a sequence, given where a dataset is asked for: the one-line
+    error names what to give instead (a new user's first ``hvloc bench diagnose RESULTS`` said only
+    "not a generated dataset"); a folder holding none says just that, and nothing is written."""
+    run = tmp_path / "run"
+    for name in ("rel_a", "rel_b", "rel_c"):
+        shutil.copytree(clean, run / "datasets" / name)
+    r = run_cli("localize", run, "--out", tmp_path / "est", "--quiet")
+    assert_input_error(r, "it holds datasets: give one of")
+    assert str(run / "datasets" / "rel_a") in r.stderr and "and 1 more" in r.stderr
+    assert_input_error(run_cli("bench", "diagnose", run / "datasets" / "rel_b" / "seq_0000"),
+                       f"it is a sequence of {run / 'datasets' / 'rel_b'}")
+    (tmp_path / "empty").mkdir()
+    r = run_cli("localize", tmp_path / "empty", "--out", tmp_path / "est2", "--quiet")
+    assert_input_error(r, "no manifest.json (not a generated dataset)")
+    assert "give one of" not in r.stderr and not (tmp_path / "est").exists() and not (tmp_path / "est2").exists()
+
+
 def _spec_file(tmp_path, seed):
     p = tmp_path / f"spec{seed}.yaml"
     p.write_text(json.dumps({**SPEC, "seed": seed, "sequences": 3}))
