@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import hashlib
-import math
 import json
+import math
 import platform
 import subprocess
 import time
