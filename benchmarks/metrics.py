@@ -26,9 +26,7 @@ def cov_sigma_scale(nees_median: float | None) -> float | None:
     of its accepted poses: 1 for an honest covariance, 0.25 for one that states four times the error
     it makes (a filter fusing it would trust it 16 times too little), 3 for one three times too sure.
     The share beyond 3 sigma catches the few poses far outside their covariance; this, the bulk."""
-    if nees_median is None or not math.isfinite(nees_median) or nees_median < 0:
-        return None
-    return math.sqrt(nees_median / NEES_MEDIAN)
+    return None if nees_median is None else math.sqrt(nees_median / NEES_MEDIAN)
 
 
 def metric(scope: dict, key: str):
