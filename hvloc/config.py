@@ -48,6 +48,12 @@ class LocalizerConfig(BaseModel):
                                       "this from the IMU's up (the pad lies level; the AHRS knows roll and pitch "
                                       "to a fraction of a degree, a vision pose off by more is wrong)")
     max_speed_mps: float = Field(15.0, gt=0.0, description="reject poses implying faster motion")
+    ahrs_tilt_sigma_deg: float = Field(0.5, gt=0.0, le=10.0, description="how far the AHRS's roll and pitch "
+                                       "may be off (one sigma, degrees), as its maker or the user knows it: the "
+                                       "gravity prior of every pose is weighed by it.  0.5 (the default) suits a "
+                                       "hobby flight controller; an INS aided by GNSS or a tuned EKF is nearer "
+                                       "0.1, and where its error is that small, Approaching and Adjustment poses "
+                                       "are that much better (README)")
     ahrs_bias_time_s: float = Field(0.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
                                     "image-only tilts of marker and texture poses with a Kalman filter whose "
                                     "error drifts over about this long (10 s works), and take it out of the attitude "

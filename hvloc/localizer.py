@@ -402,8 +402,8 @@ class AHRSTiltBias:
     A Kalman filter on the error (body frame, per axis): it drifts as a first-order Gauss-Markov
     process of standard deviation ``sigma0_deg`` (the gravity prior's, the AHRS's stated accuracy)
     and correlation time ``tau_s``; each image-only normal measures it with its fit's tilt sigma
-    and ``WHITE_DEG`` more (what the AHRS's own noise moves from row to row, which no average
-    removes).  A measurement further than 3 sigma + 1 degree from the estimate is a bad fit, not
+    and ``WHITE_SHARE`` of ``sigma0_deg`` more (what the AHRS's own noise moves from row to row,
+    which no average removes).  A measurement further than 3 sigma + 1 degree from the estimate is a bad fit, not
     the AHRS, and is skipped.  Heading is not touched (gravity says nothing about it).
 
     It was a weighted mean of the disagreements, faded over ``tau_s`` and shrunk toward zero, each
@@ -413,10 +413,11 @@ class AHRSTiltBias:
     between frames nor how much is left to learn: replayed on sim800's logged tilts, its estimate
     at 4-6 m was 0.22 degrees off per axis, the filter's 0.18, the raw AHRS's 0.26."""
 
-    WHITE_DEG = 0.1
+    WHITE_SHARE = 0.2  # 0.1 degrees of a 0.5 degree AHRS
 
     def __init__(self, tau_s: float, sigma0_deg: float = 0.5):
         self.tau_s, self.var0 = float(tau_s), math.radians(sigma0_deg) ** 2
+        self.white_var = math.radians(self.WHITE_SHARE * sigma0_deg) ** 2
         self.reset()
 
     def reset(self) -> None:
@@ -429,6 +430,11 @@ class AHRSTiltBias:
     def estimate(self) -> np.ndarray:
         """The AHRS's error rotation (body frame, rad): AHRS attitude = true attitude @ exp(this)."""
         return self.x
+
+    @property
+    def white_deg(self) -> float:
+        """The AHRS's own row-to-row noise (deg), which no average of its error removes."""
+        return math.degrees(math.sqrt(self.white_var))
 
     @property
     def sigma_deg(self) -> float:
@@ -480,7 +486,7 @@ class AHRSTiltBias:
             # flatter than the fit's curvature says: as uncertain as d^2 / gap
             apart = float(np.sum((cands[1][0] - cands[0][0]) ** 2))
             R = max(R, apart / max(mirror_chi2_gap, 1.0))
-        S = self.P + R + math.radians(self.WHITE_DEG) ** 2
+        S = self.P + R + self.white_var
         gate = 3.0 * math.sqrt(S) + math.radians(1.0)
         nus, logw = [], []
         for e, lw in cands:  # a normal further than the gate from the estimate is a bad fit, not the AHRS
@@ -651,10 +657,11 @@ class HierarchicalLocalizer:
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
-        self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s)
+        self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s, self.config.ahrs_tilt_sigma_deg)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
+        self.flow.gravity_sigma_deg = self.config.ahrs_tilt_sigma_deg
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one
@@ -1018,7 +1025,8 @@ class HierarchicalLocalizer:
         R_P_C = R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
         turns = []
         for k in range(4):
-            pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C)
+            pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
+                                     gravity_sigma_deg=self.config.ahrs_tilt_sigma_deg)
             turns.append(rotation_angle(pose.cam2pad[:3, :3], R_P_C) if pose is not None else np.inf)
         k = int(np.argmin(turns))
         if turns[k] > math.radians(30) or np.partition(turns, 1)[1] < math.radians(60):
@@ -1037,7 +1045,8 @@ class HierarchicalLocalizer:
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 res = self._velocity_free(res, P, seen, lambda px: solve_planar_pose(
-                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior), extras, self.flow.kf.cov, self.flow.kf.serial)
+                    self.camera, P, px, up_C=up_C, prev_cam2pad=prior, gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg),
+                    extras, self.flow.kf.cov, self.flow.kf.serial)
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""
@@ -1092,7 +1101,8 @@ class HierarchicalLocalizer:
             return det
         from .texfit import fit_pose_to_design
 
-        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C)
+        g = self.config.ahrs_tilt_sigma_deg
+        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
         if start is None:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
@@ -1103,7 +1113,7 @@ class HierarchicalLocalizer:
             from .synthesis import PadSynthesis
 
             self._synthesis = PadSynthesis(self.pad)
-        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C)),
+        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g),
                                  fit_pose_to_design, rgb, self.camera, self._synthesis, start.cam2pad)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
@@ -1119,6 +1129,7 @@ class HierarchicalLocalizer:
         """``((pose, n, extras) | None, reason)``: the pose of a detection's correspondences."""
         if det is None:
             return None, why
+        cfg = self.config
         sigma = PIXEL_SIGMA * np.asarray(det.info.get("px_sigma_scale", 1.0))  # a hidden corner is less sure
         if det.info.get("px_sigma_blur"):  # and a corner placed under motion smear
             sigma = np.hypot(sigma, det.info["px_sigma_blur"])
@@ -1159,9 +1170,9 @@ class HierarchicalLocalizer:
             level = self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]) if up_C is None else None
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
                                       array_key(prior) if up_C is None else None, array_key(level), array_key(s), w,
-                                      None if sh is None else (sh.shift, sh.dilation)),
+                                      None if sh is None else (sh.shift, sh.dilation), cfg.ahrs_tilt_sigma_deg),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
-                             sigma_from_fit=w, shared=sh, level_up_C=level)
+                             sigma_from_fit=w, shared=sh, level_up_C=level, gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg)
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]

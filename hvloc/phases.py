@@ -1742,9 +1742,10 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
 
 
 def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad: np.ndarray | None,
-                     up_C=None, ransac_px: float = 2.0) -> tuple:
+                     up_C=None, ransac_px: float = 2.0, gravity_sigma_deg: float = 0.5) -> tuple:
     """RANSAC homography between the keyframe's pad points and their tracked pixels, then the
-    planar pose on the inliers.  Returns ``(PoseResult | None, inlier mask, reason)``."""
+    planar pose on the inliers (``gravity_sigma_deg``: the AHRS's tilt error, which weighs ``up_C``).
+    Returns ``(PoseResult | None, inlier mask, reason)``."""
     from .pose import solve_planar_pose
 
     ok = np.isfinite(px).all(axis=1)
@@ -1761,7 +1762,8 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
         return None, ok, f"{int(inl.sum())} homography inliers"
     mask = np.zeros(len(px), bool)
     mask[np.nonzero(ok)[0][inl]] = True
-    res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad)
+    res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad,
+                            gravity_sigma_deg=gravity_sigma_deg)
     return res, mask, "ok" if res is not None else "pose failed"
 
 
@@ -1785,6 +1787,7 @@ class FlowTracker:
         self.work = work if work is not None else ImageWork()
         self.unroll = None  # (px, cam2pad, pts_P) -> px at the rolling shutter's reference row (make_keyframe)
         self.keyframes = 0  # keyframes made so far (each one's serial)
+        self.gravity_sigma_deg = 0.5  # the AHRS's tilt error, which weighs its gravity in the tracks' poses
         self.reset()
 
     def reset(self) -> None:
@@ -1866,9 +1869,10 @@ class FlowTracker:
             fin = np.isfinite(px).all(axis=1)
             seen = px.copy()
             seen[fin] = self.unroll(px[fin], at_cam2pad, kf.pts_P[fin])
+        g = self.gravity_sigma_deg
         res, inl, why = self.work(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(seen), array_key(up_C),
-                                           array_key(prior_cam2pad) if up_C is None else None),
-                                  pose_from_tracks, self.camera, kf, seen, prior_cam2pad, up_C)
+                                           array_key(prior_cam2pad) if up_C is None else None, g),
+                                  pose_from_tracks, self.camera, kf, seen, prior_cam2pad, up_C, gravity_sigma_deg=g)
         return res, inl, why, seen
 
     def accept(self, cam2pad, rms_px: float = 0.0, cov: np.ndarray | None = None) -> None:

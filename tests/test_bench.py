@@ -340,7 +340,8 @@ def test_shared_image_work_gives_each_localizer_its_own_estimates_for_less_work(
     out, _ = smoke
     seq = Dataset(next((out / "datasets").glob("tiny-*")))["seq_0000"]
     cfgs = [LocalizerConfig(), LocalizerConfig(adjust_height_m=3.0), LocalizerConfig(touchdown_height_m=2.0),
-            LocalizerConfig(adjust_height_m=12.0, touchdown_height_m=0.4), LocalizerConfig(roi_margin=0.2)]
+            LocalizerConfig(adjust_height_m=12.0, touchdown_height_m=0.4), LocalizerConfig(roi_margin=0.2),
+            LocalizerConfig(ahrs_tilt_sigma_deg=0.1)]
 
     def run(locs, work):
         ests = [[] for _ in locs]
