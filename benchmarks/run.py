@@ -6,6 +6,7 @@ localizer package (``hvloc``) may import only ``pad_design`` (DESIGN.md, layout)
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import time
@@ -50,6 +51,35 @@ def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
         return None
     j = int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1
     return imu[max(j, 0)]
+
+
+def ahrs_error_scaled(seq, scale: float) -> np.ndarray:
+    """``seq.imu`` with its AHRS attitude's error ``scale`` times what it is: what a better
+    (``scale`` < 1) or worse AHRS would give on the same frames.  The error is the rotation from the
+    true body attitude (the labels: the pad's pose in the world, the camera's on the pad, the
+    mount) to the AHRS's at each row, ``R_AHRS = R_true exp(e)`` as the generator makes it
+    (render.imu), and becomes ``R_true exp(scale e)``; gyro and accelerometer rows are unchanged.
+    An :class:`InputError` for a sequence without the labels to know the error by."""
+    from hvloc.geometry import matrix_from_quat_xyzw, quat_xyzw_from_matrix, so3_exp, so3_log
+
+    imu = seq.imu
+    if scale == 1.0 or len(imu) == 0:
+        return imu
+    if not (math.isfinite(scale) and scale >= 0.0):
+        raise InputError(f"ahrs_error_scale: {scale!r} is no scale of an error (0 or more)")
+    lacking = [c for c in ("tx", "qw", "pad2world_qw") if c not in seq.columns]
+    if lacking:
+        raise InputError(f"{seq.root}: an AHRS error is scaled against the labels, and frames.csv lacks {lacking}")
+    R_C_B = seq.T_B_C[:3, :3].T
+    out = imu.copy()
+    for row in out:
+        t = float(row[0]) - seq.imu_time_offset_s  # on the camera's clock, the labels'
+        R_true = seq.pad2world_at(t)[:3, :3] @ seq.pose_at(t)[:3, :3] @ R_C_B
+        q_old = row[7:11].copy()
+        e = so3_log(R_true.T @ matrix_from_quat_xyzw(q_old))
+        q = quat_xyzw_from_matrix(R_true @ so3_exp(scale * e))
+        row[7:11] = q if float(q @ q_old) >= 0.0 else -q
+    return out
 
 
 IMU_BLOCK_MAX_S = 1.0  # a block holds at most this much: no localizer reasons from older samples
@@ -169,7 +199,8 @@ def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progre
 
 
 def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, share_work: bool = True) -> list:
-    """Several localizers ``[(config, use_imu, kind[, gates]), ...]`` over one sequence, each image read once.
+    """Several localizers ``[(config, use_imu, kind[, gates[, ahrs_error_scale]]), ...]`` over one
+    sequence, each image read once (``ahrs_error_scale``: :func:`ahrs_error_scaled`, 1 by default).
     ``on_estimate(estimate)`` sees the first localizer's estimate of each frame as it is made.
     ``share_work``: hvloc's localizers share their image work (:mod:`hvloc.work`; each one's estimates
     are exactly what it makes alone, for less work where their states agree)."""
@@ -177,7 +208,8 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
 
     work = ImageWork() if share_work and sum(s[2] == "hierarchical" for s in setups) > 1 else None
     locs = [make_localizer(s[2], seq, s[0], bool(s[3]) if len(s) > 3 else False, work=work) for s in setups]
-    imu = seq.imu
+    scales = [float(s[4]) if len(s) > 4 else 1.0 for s in setups]
+    imus = {c: ahrs_error_scaled(seq, c) for c in set(scales)}
     out = [[] for _ in setups]
     t_last = None
     for k in range(len(seq)):
@@ -185,10 +217,10 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
         img = seq.image(k)
         if work is not None:
             work.begin(k)
-        sample = imu_since(imu, t_last, t, seq.imu_time_offset_s)
+        samples = {c: imu_since(imu, t_last, t, seq.imu_time_offset_s) for c, imu in imus.items()}
         t_last = t
         for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
-            out[i].append(loc.process(img, t, sample if use_imu else None))
+            out[i].append(loc.process(img, t, samples[scales[i]] if use_imu else None))
         if on_estimate is not None:
             on_estimate(out[0][-1])
         if progress:

@@ -69,6 +69,7 @@ def results_schema() -> dict:
             "localizer_setup": {"type": "object", "additionalProperties": {
                 "type": "object", "required": ["kind", "use_imu", "datasets"],
                 "properties": {"kind": {"type": "string"}, "use_imu": {"type": "boolean"},
+                               "ahrs_error_scale": {"type": "number", "minimum": 0},
                                "datasets": {"type": "array", "items": {"type": "string"}}}}},
         },
         "definitions": {"metrics": _metrics()},

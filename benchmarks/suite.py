@@ -47,6 +47,9 @@ class LocalizerEntry(BaseModel):
                                            "rotation) in front of a peer; hvloc's own localizer has them built in")
     config: dict = Field(default_factory=dict, description="fields of hvloc's LocalizerConfig")
     use_imu: bool = True
+    ahrs_error_scale: float = Field(1.0, ge=0.0, le=10.0, description="give the localizer an AHRS whose attitude "
+                                    "error is this many times the dataset's (the benchmark knows the truth): "
+                                    "what a better (under 1) or worse AHRS would buy on the same frames")
     datasets: list[str] | None = Field(None, description="names of the suite's datasets it runs on (default: all "
                                        "of the pad variant it needs)")
 
@@ -186,7 +189,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
             continue
         t0 = time.time()
         bar = progress_bar(show_progress, sum(len(s) for s in ds), f"localize x{len(here)} {spec.name}")
-        setups = [(cfg.model_dump(), loc.use_imu, loc.kind, loc.gates) for loc, cfg in here]
+        setups = [(cfg.model_dump(), loc.use_imu, loc.kind, loc.gates, loc.ahrs_error_scale) for loc, cfg in here]
         lengths = {sid: s["frames"] for sid, s in ((s["id"], s) for s in ds.manifest["sequences"])}
         jobs = [(str(droot), sid, setups, [str(out / "estimates" / loc.name / droot.name / sid) for loc, _ in here],
                  verify) for sid in sorted(ds.sequence_ids, key=lambda s: -lengths[s])]  # longest first
@@ -241,7 +244,7 @@ def _run_suite(suite, specs, configs, suite_hash, out, workers, show_progress, e
                "provenance": provenance(), "workers": workers, "summary": summary, "ci95": ci95, "sequences": per_seq,
                "timing_s": timing,
                "localizers": {l.name: c.model_dump() for l, c in configs},
-               "localizer_setup": {l.name: {"kind": l.kind, "use_imu": l.use_imu,
+               "localizer_setup": {l.name: {"kind": l.kind, "use_imu": l.use_imu, "ahrs_error_scale": l.ahrs_error_scale,
                                             "datasets": [s.name for s in specs if runs_on(l, s)]} for l, _ in configs}}
     from render.dataset import atomic_write_text, write_csv
 

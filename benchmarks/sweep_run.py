@@ -66,7 +66,7 @@ def run_sweep(a) -> int:
         for seq in Dataset(droot):
             runs.append((droot, seq.id, len(seq)))
             labels.append(seq.columns)
-    setups = [(c.model_dump(), loc.use_imu, "hierarchical", False) for c in cfgs]
+    setups = [(c.model_dump(), loc.use_imu, "hierarchical", False, loc.ahrs_error_scale) for c in cfgs]
     sweep_s = _run_setups(runs, setups, names, out / "estimates", a.workers, True,
                           f"sweep x{len(setups)}", a.quiet)
 
@@ -87,7 +87,7 @@ def run_sweep(a) -> int:
 
     def check(name: str, cfg) -> tuple:
         """A plain run (no shared work) at ``cfg``, compared frame by frame with the grid's run."""
-        live_s = _run_setups(runs, [(cfg.model_dump(), loc.use_imu, "hierarchical", False)], [name],
+        live_s = _run_setups(runs, [(cfg.model_dump(), loc.use_imu, "hierarchical", False, loc.ahrs_error_scale)], [name],
                              out / "live", a.workers, False, f"live {name}", a.quiet)
         live_score, live_ests = scored(out / "live", name)
         differ = sum(frames_differing(x, y) for x, y in zip(live_ests, ests_by_name[name]))

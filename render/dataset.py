@@ -403,6 +403,18 @@ class Frame:
         return read_image(self.image_path)
 
 
+def _interpolated(times: np.ndarray, pose_of_frame, t: float) -> np.ndarray:
+    """The pose at ``t`` between the frames' ``pose_of_frame(k)`` at ``times``: position linearly,
+    rotation along the shortest arc, held before the first frame and after the last."""
+    from hvloc.geometry import make_transform, so3_exp, so3_log
+
+    k = int(np.clip(np.searchsorted(times, t) - 1, 0, len(times) - 2))
+    a = float(np.clip((t - times[k]) / (times[k + 1] - times[k]), 0.0, 1.0)) if len(times) > 1 else 0.0
+    A, B = pose_of_frame(k), pose_of_frame(min(k + 1, len(times) - 1))
+    R = A[:3, :3] @ so3_exp(a * so3_log(A[:3, :3].T @ B[:3, :3]))
+    return make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3])
+
+
 class Sequence:
     """One sequence folder: labels, camera, IMU and pad, with lazy image loading.
 
@@ -509,15 +521,12 @@ class Sequence:
 
     def pose_at(self, t: float) -> np.ndarray:
         """``T_P_C`` at any time within the sequence, interpolated between the labelled frames
-        (position linearly, rotation along the shortest arc)."""
-        from hvloc.geometry import make_transform, so3_exp, so3_log
+        (position linearly, rotation along the shortest arc; held beyond the first and last)."""
+        return _interpolated(self.t, self.cam2pad_at, t)
 
-        times = self.t
-        k = int(np.clip(np.searchsorted(times, t) - 1, 0, len(times) - 2))
-        a = float(np.clip((t - times[k]) / (times[k + 1] - times[k]), 0.0, 1.0)) if len(times) > 1 else 0.0
-        A, B = self.cam2pad_at(k), self.cam2pad_at(min(k + 1, len(times) - 1))
-        R = A[:3, :3] @ so3_exp(a * so3_log(A[:3, :3].T @ B[:3, :3]))
-        return make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3])
+    def pad2world_at(self, t: float) -> np.ndarray:
+        """``T_W_P`` (the pad's pose in the world: a moving deck's) at any time, as :meth:`pose_at`."""
+        return _interpolated(self.t, lambda k: transform_from_tum([self.columns[f"pad2world_{n}"][k] for n in POSE]), t)
 
     def cam2pad_at(self, k: int) -> np.ndarray:
         return transform_from_tum([self.columns[n][k] for n in POSE])

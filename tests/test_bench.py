@@ -672,3 +672,53 @@ def test_realism_grass_frames_are_listed_at_their_own_gsd(tmp_path):
     assert 0.4 < min(gsd.values()) and max(gsd.values()) < 3.5
     # --heights compares at the GSD each camera has from those heights: field1080 sees 1.04 mm from 1 m
     assert spec_focal_px("field1080") == pytest.approx(960.0)
+
+
+def test_an_ahrs_error_is_scaled_against_the_labels_and_each_localizer_gets_its_own(smoke, monkeypatch):
+    """``ahrs_error_scale`` (a suite's localizer entry): the AHRS's attitude error, measured against
+    the labelled attitude, made ``scale`` times as large, the gyro and accelerometer untouched; a
+    better AHRS asked of the same frames.  Each localizer of a run is given its own."""
+    from hvloc.config import LocalizerConfig
+    from hvloc.geometry import matrix_from_quat_xyzw, rotation_angle
+    from hvloc.localizer import Estimate, HierarchicalLocalizer
+    from pad_design.errors import InputError
+    from render.dataset import Dataset
+
+    from benchmarks.run import ahrs_error_scaled, localize_sequence_many
+
+    out, _ = smoke
+    seq = Dataset(next((out / "datasets").glob("tiny-*")))["seq_0000"]
+    imu = seq.imu
+    assert ahrs_error_scaled(seq, 1.0) is imu
+    R_C_B = seq.T_B_C[:3, :3].T
+    rows = [int(np.argmin(np.abs(imu[:, 0] - seq.imu_time_offset_s - t))) for t in seq.t[::5]]
+    errs = {}
+    for scale in (0.0, 0.5, 2.0):
+        got = ahrs_error_scaled(seq, scale)
+        assert np.array_equal(got[:, :7], imu[:, :7]) and np.allclose(np.linalg.norm(got[:, 7:11], axis=1), 1.0)
+        errs[scale] = []
+        for j in rows:
+            t = imu[j, 0] - seq.imu_time_offset_s
+            R_true = seq.pad2world_at(t)[:3, :3] @ seq.pose_at(t)[:3, :3] @ R_C_B
+            errs[scale].append([rotation_angle(R_true, matrix_from_quat_xyzw(q)) for q in (imu[j, 7:11], got[j, 7:11])])
+    e = np.degrees(np.array(errs[0.5]))
+    assert np.median(e[:, 0]) > 0.1  # the premise: the rendered AHRS is off (0.3 degrees roll and pitch, 1 yaw)
+    assert np.degrees(np.array(errs[0.0]))[:, 1].max() < 1e-6
+    assert np.allclose(e[:, 1], 0.5 * e[:, 0], rtol=1e-6, atol=1e-9)
+    assert np.allclose(np.degrees(np.array(errs[2.0]))[:, 1], 2.0 * e[:, 0], rtol=1e-6, atol=1e-9)
+    with pytest.raises(InputError, match="ahrs_error_scale"):
+        ahrs_error_scaled(seq, -0.5)
+
+    given = {}
+
+    def record(self, image, t, imu=None):
+        given.setdefault(id(self), []).append(imu[-1, 7:11].copy())
+        return Estimate(t, "approaching", "lost", None, reason="recorded")
+
+    monkeypatch.setattr(HierarchicalLocalizer, "process", record)
+    cfg = LocalizerConfig()
+    localize_sequence_many(seq, [(cfg, True, "hierarchical", False, 0.0), (cfg, True, "hierarchical", False)])
+    first, plain = given.values()
+    scaled = ahrs_error_scaled(seq, 0.0)
+    assert any(np.array_equal(first[0], q) for q in scaled[:, 7:11]) and not any(np.array_equal(first[0], q) for q in imu[:, 7:11])
+    assert all(any(np.array_equal(p, q) for q in imu[:, 7:11]) for p in plain[:3])
