@@ -403,8 +403,8 @@ class AHRSTiltBias:
     process of standard deviation ``sigma0_deg`` (the gravity prior's, the AHRS's stated accuracy)
     and correlation time ``tau_s``; each image-only normal measures it with its fit's tilt sigma
     and ``WHITE_SHARE`` of ``sigma0_deg`` more (what the AHRS's own noise moves from row to row,
-    which no average removes).  A measurement further than 3 sigma + 1 degree from the estimate is a bad fit, not
-    the AHRS, and is skipped.  Heading is not touched (gravity says nothing about it).
+    which no average removes).  A measurement further than 3 sigma + 1 degree from the estimate is
+    a bad fit, not the AHRS, and is skipped.  Heading is not touched (gravity says nothing about it).
 
     It was a weighted mean of the disagreements, faded over ``tau_s`` and shrunk toward zero, each
     weighed by its fit's sigma scaled by the noise that kind of pose had shown: bench_v1's
