@@ -44,6 +44,7 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
     if len(est_cols["frame"]) != n:
         raise ValueError(f"estimates have {len(est_cols['frame'])} frames, labels {n}")
     pos_err = np.full(n, np.nan)
+    z_err = np.full(n, np.nan)
     rot_err = np.full(n, np.nan)
     yaw_err = np.full(n, np.nan)
     nees = np.full(n, np.nan)
@@ -58,6 +59,7 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
             continue
         d = E[:3, 3] - G[:3, 3]
         pos_err[k] = float(np.linalg.norm(d))
+        z_err[k] = float(d[2])
         if has_cov:
             xx, xy, xz, yy, yz, zz = (float(est_cols[c][k]) for c in cov_cols)
             C = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
@@ -66,7 +68,7 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
         rot_err[k] = math.degrees(rotation_angle(E[:3, :3], G[:3, :3]))
         ye = math.atan2(E[1, 0], E[0, 0]) - math.atan2(G[1, 0], G[0, 0])
         yaw_err[k] = abs(math.degrees((ye + math.pi) % (2 * math.pi) - math.pi))
-    return {"pos_err_m": pos_err, "rot_err_deg": rot_err, "yaw_err_deg": yaw_err,
+    return {"pos_err_m": pos_err, "z_err_m": z_err, "rot_err_deg": rot_err, "yaw_err_deg": yaw_err,
             "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
             "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),
             "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float),
@@ -121,6 +123,12 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     out["longest_gap_s"] = longest_gap_s(fe["t_s"][m], ok[m])
     out.update(_stats(pe[ok], "pos_err_m"))
     out.update(_stats(100.0 * pe[ok] / h[ok], "pos_err_pct"))
+    # the height's bias: the signed median of its error (% of the height; a far outline's step edges
+    # read the pad too large or too small, which no spread of the error shows)
+    if "z_err_m" in fe:
+        z = 100.0 * fe["z_err_m"][ok] / h[ok]
+        z = z[np.isfinite(z)]
+        out["height_err_pct_median"] = float(np.median(z)) if z.size else None
     out.update(_stats(re[ok], "rot_err_deg"))
     out.update(_stats(fe["yaw_err_deg"][ok], "yaw_err_deg"))
     out["false_accepts"] = int((ok & wrong).sum())

@@ -309,6 +309,8 @@ TOLERANCES = {
     "beyond_cov_3sigma": ("lower", 0.01),
     # how many times its stated sigma the error is: nearer 1 is better either way (ln units: 10 %)
     "pos_cov_scale": ("one", 0.1),
+    # the height's bias (signed median, % of the height): nearer 0 is better either way
+    "height_err_pct_median": ("zero", 0.05),
 }
 
 
@@ -317,6 +319,8 @@ def _worse(direction: str, tol: float, base: float, new: float) -> bool:
         return new > base + tol
     if direction == "higher":
         return new < base - tol
+    if direction == "zero":
+        return abs(new) > abs(base) + tol
     off = lambda v: abs(math.log(max(v, 1e-9)))  # "one": how far from 1, by ratio
     return off(new) > off(base) + tol
 

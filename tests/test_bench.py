@@ -237,6 +237,44 @@ def test_a_covariance_stating_too_much_error_is_scored_and_caught_as_one_too_sur
     assert flagged(old, honest) == ["pos_cov_scale"]
 
 
+def test_a_height_bias_is_scored_signed_and_caught_either_way():
+    """A far outline read too large puts every pose too low by the same share of its height: the
+    position error's spread does not show which way.  ``height_err_pct_median`` is the signed
+    median of the height error over the height (the issue-15 target: within +-0.2 %), noise around
+    it leaving it where it is; compare flags a move away from 0 either way, not one toward it."""
+    from benchmarks import metrics as M
+    from benchmarks.suite import compare
+
+    rng = np.random.default_rng(3)
+    n = 2000
+    h = rng.uniform(6.0, 20.0, n)
+    gt = {"frame": np.arange(n, dtype=float), "t": np.arange(n) * 0.1, "tx": np.zeros(n), "ty": np.zeros(n),
+          "tz": h, "qx": np.ones(n), "qy": np.zeros(n), "qz": np.zeros(n), "qw": np.zeros(n),
+          "phase_gt": np.array(["approaching"] * n)}
+
+    def scored(bias_pct):
+        est = {k: v.copy() for k, v in gt.items() if k != "phase_gt"}
+        est["tz"] = h * (1.0 + bias_pct / 100.0 + rng.normal(0.0, 0.003, n))  # 0.3 % of noise besides
+        est["tx"] = rng.normal(0.0, 0.005, n) * h
+        est["status"] = np.array(["ok"] * n, dtype=object)
+        est["phase"] = np.array(["approaching"] * n, dtype=object)
+        est["ms"] = np.ones(n)
+        return M.score(M.frame_errors(gt, est))
+
+    low, none, high = scored(-0.8), scored(0.0), scored(0.5)
+    assert low["height_err_pct_median"] == pytest.approx(-0.8, abs=0.03)
+    assert none["height_err_pct_median"] == pytest.approx(0.0, abs=0.03)
+    assert high["height_err_pct_median"] == pytest.approx(0.5, abs=0.03)
+
+    def flagged(new, base):
+        res = lambda s: {"summary": {"h": {"all": dict(s)}}}
+        return [w[2] for w in compare(res(new), res(base)) if w[2] == "height_err_pct_median"]
+
+    assert flagged(low, none) == flagged(high, none) == ["height_err_pct_median"]
+    assert flagged(none, low) == flagged(none, high) == flagged(none, none) == []
+    assert flagged(low, {k: v for k, v in none.items() if k != "height_err_pct_median"}) == []  # a baseline from before
+
+
 def test_tilt_attribution_covers_every_accepted_pose(smoke, capsys):
     """``benchmarks.tilt``: one row per accepted pose, its lateral error the horizontal part of the
     position error the benchmark scored, its tilt errors angles (the AHRS's from imu.csv, through
