@@ -25,7 +25,10 @@ from .shutter import RollingShutter, Twist, VelocityFilter
 from .work import ImageWork, array_key
 
 PHASES = ("approaching", "adjustment", "touchdown")
-METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown", "texture": "touchdown"}
+# the phase an estimate reports: its method's, the paper's three; the texture (the pad found by its print, or
+# drawn and smeared where the last pose predicts it) is every phase's last resort and reports the phase it
+# was tried in: a far pad under smear posed by its drawing at 13 m said "touchdown" to the flight stack
+METHOD_PHASE = {"outline": "approaching", "markers": "adjustment", "flow": "touchdown", "texture": None}
 DEFAULT_T_B_C = make_transform(np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]), (0.0, 0.0, -0.05))
 
 
@@ -761,7 +764,7 @@ class HierarchicalLocalizer:
                 reasons.append(f"{method}: {why}")
                 continue
             pose, n, extras = res
-            est = Estimate(t, METHOD_PHASE[method], "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
+            est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                            extras=extras)
             verdict = self._gate(est, R_W_B)
             if verdict:

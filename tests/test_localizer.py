@@ -2220,6 +2220,7 @@ def test_a_far_pad_cut_by_the_edge_and_smeared_is_posed_by_its_drawing(pad):
     posed = [(k, e) for k, e in cut if e.ok]
     assert len(posed) >= 2 and all(e.method == "texture" and e.extras.get("by") == "synthesis" for _, e in posed), \
         [(k, e.status, e.method, e.reason[-160:]) for k, e in cut]
+    assert all(e.phase == "approaching" for _, e in posed)  # at 9 m: the phase it was tried in, not touchdown's
     for k, e in posed:
         x = -4.0 - 0.14 * k
         dp, da = pose_error(e.cam2pad, tilted(x, 0.3, 9.0 - 0.05 * k, 0.2))
