@@ -115,19 +115,25 @@ def load_suite(path) -> tuple:
             raise InputError(f"{path}: localizers.{i} ({loc.name}): no dataset of the pad variant it needs "
                              f"({', '.join(pad_variants(loc.kind))})")
     h = hashlib.sha256(json.dumps([s.sha256() for s in specs] + [_config_identity(c) for _, c in configs]
-                                  # gates off leaves the entry as it was before the field existed
-                                  + [l.model_dump_json(exclude=None if l.gates else {"gates"}) for l, _ in configs]
+                                  + [_entry_identity(l) for l, _ in configs]
                                   ).encode()).hexdigest()
     return suite, specs, configs, h
 
 
 # LocalizerConfig fields added after suites were first hashed, with the default that behaves as before
 # the field existed: left out of the hash at that default, so adding one leaves every suite as it was
-CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0, "imu_rows": True}  # fields added after suites were frozen, at their defaults
+CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0, "imu_rows": True,  # fields added after suites were frozen, at their defaults
+                       "ahrs_tilt_sigma_deg": 0.5}
+# the same for a localizer entry's own fields
+ENTRY_FIELDS_ADDED = {"gates": False, "ahrs_error_scale": 1.0}
 
 
 def _config_identity(c: LocalizerConfig) -> str:
     return c.model_dump_json(exclude={k for k, v in CONFIG_FIELDS_ADDED.items() if getattr(c, k) == v} or None)
+
+
+def _entry_identity(loc: LocalizerEntry) -> str:
+    return loc.model_dump_json(exclude={k for k, v in ENTRY_FIELDS_ADDED.items() if getattr(loc, k) == v} or None)
 
 
 def runs_on(loc: LocalizerEntry, spec) -> bool:
