@@ -125,10 +125,9 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     out.update(_stats(100.0 * pe[ok] / h[ok], "pos_err_pct"))
     # the height's bias: the signed median of its error (% of the height; a far outline's step edges
     # read the pad too large or too small, which no spread of the error shows)
-    if "z_err_m" in fe:
-        z = 100.0 * fe["z_err_m"][ok] / h[ok]
-        z = z[np.isfinite(z)]
-        out["height_err_pct_median"] = float(np.median(z)) if z.size else None
+    z = 100.0 * fe["z_err_m"][ok] / h[ok]
+    z = z[np.isfinite(z)]
+    out["height_err_pct_median"] = float(np.median(z)) if z.size else None
     out.update(_stats(re[ok], "rot_err_deg"))
     out.update(_stats(fe["yaw_err_deg"][ok], "yaw_err_deg"))
     out["false_accepts"] = int((ok & wrong).sum())

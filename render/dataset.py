@@ -403,7 +403,7 @@ class Frame:
         return read_image(self.image_path)
 
 
-def _interpolated(times: np.ndarray, pose_of_frame, t: float) -> np.ndarray:
+def interpolate_pose(times: np.ndarray, pose_of_frame, t: float) -> np.ndarray:
     """The pose at ``t`` between the frames' ``pose_of_frame(k)`` at ``times``: position linearly,
     rotation along the shortest arc, held before the first frame and after the last."""
     from hvloc.geometry import make_transform, so3_exp, so3_log
@@ -522,11 +522,11 @@ class Sequence:
     def pose_at(self, t: float) -> np.ndarray:
         """``T_P_C`` at any time within the sequence, interpolated between the labelled frames
         (position linearly, rotation along the shortest arc; held beyond the first and last)."""
-        return _interpolated(self.t, self.cam2pad_at, t)
+        return interpolate_pose(self.t, self.cam2pad_at, t)
 
     def pad2world_at(self, t: float) -> np.ndarray:
         """``T_W_P`` (the pad's pose in the world: a moving deck's) at any time, as :meth:`pose_at`."""
-        return _interpolated(self.t, lambda k: transform_from_tum([self.columns[f"pad2world_{n}"][k] for n in POSE]), t)
+        return interpolate_pose(self.t, lambda k: transform_from_tum([self.columns[f"pad2world_{n}"][k] for n in POSE]), t)
 
     def cam2pad_at(self, k: int) -> np.ndarray:
         return transform_from_tum([self.columns[n][k] for n in POSE])

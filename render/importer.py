@@ -30,8 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hvloc.geometry import (continuous_quaternions, invert, make_transform, so3_exp, so3_log, transform_from_tum,
-                            tum_from_transform)
+from hvloc.geometry import continuous_quaternions, invert, transform_from_tum, tum_from_transform
 from pad_design.errors import InputError, validate_model
 
 from . import dataset as ds
@@ -108,11 +107,7 @@ def interpolate_poses(rows: np.ndarray, t: np.ndarray) -> list:
         if ti < times[0] - 1e-9 or ti > times[-1] + 1e-9:
             out.append(None)
             continue
-        k = int(np.clip(np.searchsorted(times, ti) - 1, 0, len(times) - 2))
-        a = float(np.clip((ti - times[k]) / (times[k + 1] - times[k]), 0.0, 1.0))
-        A, B = transform_from_tum(rows[k, 1:]), transform_from_tum(rows[k + 1, 1:])
-        R = A[:3, :3] @ so3_exp(a * so3_log(A[:3, :3].T @ B[:3, :3]))
-        out.append(make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3]))
+        out.append(ds.interpolate_pose(times, lambda k: transform_from_tum(rows[k, 1:]), ti))
     return out
 
 
