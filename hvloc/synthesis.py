@@ -14,7 +14,10 @@ correspondences.
 Both images are read relative to their local white (a shadow across the pad, the drone's own,
 is no part of the drawing), and only where the whole smear lies on the pad.  A drawing that
 aligns with a correlation under :data:`MIN_CC`, a warp that turns or scales far, or a frame the
-smeared pad fills too little of gives nothing.  Deterministic: ECC's iterations are bounded by a
+smeared pad fills too little of gives nothing.  Nor does a pad whose scale the frame cannot hold:
+one predicted under :data:`MIN_PAD_PX`, a frame much softer than the drawing (blurred to match, up
+to :data:`MAX_BLUR_SHARE` of the side), or an alignment that, restarted a little larger or smaller,
+does not come back (:func:`_scale_unsettled`).  Deterministic: ECC's iterations are bounded by a
 count.
 """
 from __future__ import annotations
@@ -32,6 +35,11 @@ from .phases import Detection
 
 WORK_PX = 400        # the alignment runs on the predicted pad's window shrunk to this many px on its longer side (not enlarged)
 MIN_WINDOW_PX = 24   # ... which must be at least this large (frame px), and hold this many squared where the smear is on the pad
+# the predicted pad's side must span this many frame px: on smaller pads the drawing, sharp where the
+# frame is not, is aligned by trading scale for blur (JPEG 65 views, predictions 7 % off or exact: at
+# 35-40 px the alignments ended 2-7 % off in scale, one from the exact pose; at 45 px within 2 %, at
+# 50-80 px within 1 %; /work/scratch/synprobe_t.py)
+MIN_PAD_PX = 45.0
 MAX_INSTANTS = 12    # instants of the exposure drawn (fewer when the predicted smear is short)
 INSTANT_PX = 3.0     # ... one per this many px of predicted smear (window px)
 MIN_FILL = 0.3       # share of the predicted pad's part in view where the whole smear lies on the pad
@@ -42,7 +50,66 @@ MAX_SHIFT = 0.15     # ... and move it this share of the window's longer side
 WHITE_PX = 21        # the local white is the brightest within this many window px (then smoothed)
 SHUTTER_BANDS = 8    # a rolling shutter's frame is drawn in this many bands of rows, each at its own time
 GRID = 5             # pad points per side whose images are the correspondences (those in the smear's area)
+BLUR_STEPS_PX = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # blurs tried on the drawing to match a softer frame ...
+BLUR_GAIN = 0.002    # ... each taken over the last only for this much more correlation
+BLUR_ROUNDS = 2      # ... read again after aligning with the blurred drawing (from a truer warp)
+# ... and a frame softer than that by more than this share of the pad's side is refused: blurred alike,
+# the drawing still aligns about 1-1.4 times that share small (50-80 px pads under 1-4 px of Gaussian
+# blur, predictions 7 % off: /work/scratch/synprobe_b.py)
+MAX_BLUR_SHARE = 0.03
+SCALE_PROBE = 0.05   # the alignment, started again this share larger and smaller than where it ended ...
+SCALE_SETTLED = 0.3  # ... must come back within this share of the probe (else the frame does not hold its scale)
+ECC_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-5)  # bounded: deterministic
 ALIGN_SIGMA_PX = 1.0  # a correspondence's noise, in window px: the warp's own error (calibrated on rendered gusts)
+
+
+def _matched_blur(a: np.ndarray, b: np.ndarray, mask: np.ndarray, warp: np.ndarray) -> float:
+    """The Gaussian blur (sigma, window px; one of :data:`BLUR_STEPS_PX`) that, added to the drawing
+    ``b`` aligned by ``warp``, makes it correlate best with the frame ``a`` over ``mask``: 0 when the
+    drawing is as soft as the frame.
+
+    ECC aligns a sharp drawing to a softer frame by shrinking it: the blur spreads the dark cells'
+    edges into the white, and a smaller drawing puts more edge where the frame's is (sharp 50-80 px
+    pads under a Gaussian blur of 2-3 px, predictions 7 % off either way: aligned 1-9 % small, the
+    same from both sides, so no probe of the scale would notice)."""
+    h, w = a.shape
+    best, best_cc = 0.0, -np.inf
+    for s in BLUR_STEPS_PX:
+        bs = cv2.GaussianBlur(b, (0, 0), s) if s > 0 else b
+        seen = cv2.warpAffine(bs, warp, (w, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        cc = cv2.computeECC(a, seen, mask)
+        if cc > best_cc + BLUR_GAIN:
+            best, best_cc = s, cc
+    return best
+
+
+def _scale_unsettled(a: np.ndarray, b: np.ndarray, mask: np.ndarray, warp: np.ndarray) -> float | None:
+    """``None`` when the frame ``a`` settles the scale of the alignment ``warp`` of the drawing ``b``
+    (over ``mask``); else how far (a share of the scale) an alignment started :data:`SCALE_PROBE`
+    larger or smaller ends from it.
+
+    A far pad's interior is a few pixels per feature: ECC's affine then keeps the scale it starts
+    from, which is the prediction's, and a pose made from it is as wrong as the one it was predicted
+    from (unseen45: an outline 7.6 % low was carried to a drawn pose 10.9 % off, a false accept).
+    So the alignment is started again from its own end scaled up and down about the window's centre:
+    where the frame holds the scale both come back, where it does not they stay about where they
+    were put (unseen45's 39-40 px pads: ends 2-5 % apart; its 48-58 px ones aligned within 1 % of
+    the true scale from predictions 10 % off either way; /work/scratch/synscale.py)."""
+    h, w = a.shape
+    c = np.array([w / 2.0, h / 2.0])
+    worst = 0.0
+    for z in (1 + SCALE_PROBE, 1 / (1 + SCALE_PROBE)):
+        start = warp.astype(np.float64).copy()
+        start[:, :2] = warp[:, :2] * z
+        start[:, 2] = warp[:, 2] + (warp[:, :2] @ c) * (1 - z)  # scaled about the warp's image of the centre
+        try:
+            _, got = cv2.findTransformECC(a, b, start.astype(np.float32), cv2.MOTION_AFFINE,
+                                          ECC_CRITERIA, mask, 5)
+        except cv2.error:
+            return 1.0
+        ratio = math.sqrt(abs(np.linalg.det(got[:, :2].astype(np.float64)) / np.linalg.det(warp[:, :2].astype(np.float64))))
+        worst = max(worst, abs(math.log(ratio)))
+    return None if worst <= SCALE_SETTLED * SCALE_PROBE else math.expm1(worst)
 
 
 def _white_relative(img: np.ndarray) -> np.ndarray:
@@ -142,6 +209,9 @@ class PadSynthesis:
                                                       [-half, -half, 0]]))
         if not np.isfinite(quad).all():
             return None, "the predicted pad is not wholly in front of the camera"
+        side = float(np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1)))
+        if side < MIN_PAD_PX:
+            return None, f"the predicted pad spans {side:.0f} px (< {MIN_PAD_PX}): too few to align its drawing by"
         v = np.zeros(3) if vel_P is None else np.asarray(vel_P, np.float64)
         r = np.zeros(3) if rate_C is None else np.asarray(rate_C, np.float64)
         e = max(float(exposure_s), 0.0)
@@ -198,7 +268,7 @@ class PadSynthesis:
             wk[:, 2] *= k
             try:
                 cc, wk = cv2.findTransformECC(ak, bk, wk, cv2.MOTION_AFFINE,
-                                              (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-5), mk, 5)
+                                              ECC_CRITERIA, mk, 5)
             except cv2.error:
                 if k < 1:
                     continue
@@ -207,6 +277,23 @@ class PadSynthesis:
                 continue
             warp = wk.copy()
             warp[:, 2] /= k
+        # the frame may be softer than the drawing (a defocused lens, a smear the prediction missed):
+        # the drawing blurred as much, and aligned again from there
+        blur = 0.0  # the blur added to the drawing, squared (window px)
+        for _ in range(BLUR_ROUNDS):
+            sigma = _matched_blur(a, b, inside, warp)
+            if sigma == 0.0:
+                break
+            b = cv2.GaussianBlur(b, (0, 0), sigma)
+            blur += sigma ** 2
+            try:
+                cc, warp = cv2.findTransformECC(a, b, warp, cv2.MOTION_AFFINE,
+                                                ECC_CRITERIA, inside, 5)
+            except cv2.error:
+                return None, "the smeared drawing, blurred as the frame is, did not align"
+        if math.sqrt(blur) / scale > MAX_BLUR_SHARE * side:
+            return None, (f"the frame is softer than the smeared drawing by {math.sqrt(blur) / scale:.1f} px "
+                          f"(> {100 * MAX_BLUR_SHARE:.0f} % of the pad's {side:.0f} px): its scale cannot be held")
         A = warp[:, :2].astype(np.float64)
         turn = math.degrees(math.atan2(A[1, 0] - A[0, 1], A[0, 0] + A[1, 1]))
         zoom = math.sqrt(abs(np.linalg.det(A)))
@@ -215,6 +302,10 @@ class PadSynthesis:
             return None, f"the smeared drawing aligns with correlation {cc:.2f} (< {MIN_CC})"
         if abs(turn) > MAX_TURN_DEG or not 1 / MAX_SCALE < zoom < MAX_SCALE or shift > MAX_SHIFT * max(w, h):
             return None, f"the smeared drawing moved too far to align ({turn:.1f} deg, x{zoom:.2f}, {shift:.0f} px)"
+        off = _scale_unsettled(a, b, inside, warp)
+        if off is not None:
+            return None, (f"the smeared drawing's scale is not settled by the frame (started {100 * SCALE_PROBE:.0f} % "
+                          f"off it, the alignment ends {100 * off:.1f} % off)")
         # pad points on a grid, where the smear lies on the pad: drawn at the predicted pose (window
         # px), carried into the frame by the inverse warp (frame(x) ~ drawing(warp x))
         g = (np.arange(GRID) + 0.5) / GRID - 0.5
@@ -231,5 +322,6 @@ class PadSynthesis:
         x = q[ok] @ Wi[:, :2].T + Wi[:, 2]
         frame_px = (x + 0.5) / scale - 0.5 + [x0, y0]
         info = {"by": "synthesis", "cc": round(float(cc), 3), "smear_px": round(smear, 1), "instants": n,
+                "blur_px": round(math.sqrt(blur) / scale, 2),
                 "fill": round(fill, 2), "px_sigma_blur": ALIGN_SIGMA_PX / scale}
         return Detection(P[ok], frame_px, "texture", info), "ok"
