@@ -1371,6 +1371,60 @@ def test_a_dark_patch_of_the_border_hue_beside_the_pad_does_not_swell_its_outlin
             assert err < 0.03 * side_px, (side_px, yaw, err)
 
 
+def _bled_into_a_grey_deck(pad, G, glare=0.55, bleed_px=5):
+    """The view at ``G`` on a grey deck, the pad's border washed toward white by glare and its
+    colour's chroma at half resolution and spread ``bleed_px`` (a square) past the pad into the deck,
+    as JPEG's 4:2:0 and a codec's smoothing do (unseen45: a glossy pad on a grey deck at JPEG 65)."""
+    geo = pad.geometry
+    img = warp_pad_view(pad, CAM, G, (128, 128, 128)).astype(np.float32)
+
+    def mask(P):
+        m = np.zeros(img.shape[:2], np.uint8)
+        cv2.fillConvexPoly(m, np.round(CAM.project_from(G, P) * 8).astype(np.int32), 1, shift=3)
+        return m > 0
+
+    field = mask(np.c_[geo.field_corners[:, :2], np.zeros(4)])
+    border = mask(geo.outer_corners) & ~field
+    img[border] = (1 - glare) * img[border] + glare * 235
+    ycc = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_RGB2YCrCb).astype(np.float32)
+    kernel = np.ones((bleed_px, bleed_px), np.uint8)
+    for c, spread in ((1, cv2.dilate), (2, cv2.erode)):  # magenta: Cr above neutral, Cb below
+        half = cv2.resize(ycc[..., c], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        full = cv2.resize(half, ycc.shape[1::-1], interpolation=cv2.INTER_LINEAR)
+        ycc[..., c] = np.where(field, ycc[..., c], 128 + spread(full - 128, kernel))
+    return cv2.cvtColor(np.clip(ycc, 0, 255).astype(np.uint8), cv2.COLOR_YCrCb2RGB)
+
+
+@pytest.mark.parametrize("side_px", [30.0, 40.0, 55.0])
+def test_a_pads_colour_bled_into_a_grey_deck_is_refused_or_placed_by_its_field(pad, side_px):
+    """Glare makes the border brighter than a grey deck, and the codec bleeds its magenta 2-3 px into
+    the deck: the colour outline swells uniformly (every corner a few px out, so its four corners
+    still fit a square), and the white field, searched for inward from the swollen prediction,
+    fits loosely or on the border's bright outer edge.  These outlines were posed 6-9 % large
+    (unseen45: 7.6 and 9.9 % of the height low at 13.6 m).  The field now counts against the
+    colour: found outside where the colour puts it, or loosely fitted but swollen past by more than
+    5 % of the side, the outline is refused; where the field fits cleanly it places the pad (40 px:
+    two of four views, within 4 % of the side).  (At
+    30 px the field's fit itself lands 2.5-3.3 px off and two of four views are still placed 15-19 %
+    off: README, not yet.)"""
+    geo = pad.geometry
+    h = CAM.fx * geo.side_m / side_px
+    refused = 0
+    for yaw in np.linspace(0.2, 2 * np.pi, 4, endpoint=False):
+        G = tilted(0.05 * h, -0.04 * h, h, yaw, 0.03, -0.02)
+        found, why = find_outline(_bled_into_a_grey_deck(pad, G), geo, CAM)
+        if found is None:  # (refused as swollen past its field, or for a band the bleed hides)
+            refused += 1
+            continue
+        if found.field_px is not None and side_px < 35:
+            continue  # (the 30 px field's own misfit: not yet, see above)
+        used, P = (found.field_px, geo.field_corners) if found.field_px is not None else (found.quad_px, geo.outer_corners)
+        truth = CAM.project_from(G, np.c_[P[:, :2], np.zeros(4)])
+        err = max(np.linalg.norm(used - t, axis=1).min() for t in truth)
+        assert err < 0.05 * side_px, (yaw, err / side_px, found.field_px is not None)
+    assert refused >= 2, refused  # (the premise: the bleed is as bad as the scene's)
+
+
 def _box_over(img, G, geo, k, f1, f2, corners=1, soften_px=0.8):
     """``img`` (the view at ``G``) with a grey box's edge across the pad from ``f1`` of the way
     along one side to ``f2`` along another, hiding corner ``k`` (``corners=2``: corners ``k`` and
