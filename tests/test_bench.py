@@ -760,3 +760,22 @@ def test_an_ahrs_error_is_scaled_against_the_labels_and_each_localizer_gets_its_
     scaled = ahrs_error_scaled(seq, 0.0)
     assert any(np.array_equal(first[0], q) for q in scaled[:, 7:11]) and not any(np.array_equal(first[0], q) for q in imu[:, 7:11])
     assert all(any(np.array_equal(p, q) for q in imu[:, 7:11]) for p in plain[:3])
+
+
+def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known():
+    """``benchmarks.blur_bias``: on exact views of a sharp 150 px pad the outline's corners lie where
+    the view put them and the drawing, predicted 7 % off either way, comes back to the true scale;
+    a 40 px pad is not drawn (too small to hold its scale), for the reason named, not a number; a
+    2 px Gaussian blur puts the outline past the smear where the centroid places it."""
+    from benchmarks.blur_bias import main, measure
+
+    sharp = measure(150, 0.0, views=2)
+    assert sharp["outlines"] == 2 and abs(sharp["outline_radial_pct_mean"]) < 0.1, sharp
+    assert sharp["drawn"] == 4 and abs(sharp["drawn_scale_pct_worst"]) < 0.5 and sharp["drawing_refused"] == 0, sharp
+    far = measure(40, 0.0, views=1)
+    assert far["drawn"] == 0 and far["drawing_refused_why"] == {"the predicted pad spans # px": 2}, far
+    soft = measure(150, 2.0, views=1)
+    assert soft["centroid_placed"] == 1 and soft["smear_px_median"] > 5.0, soft
+    with pytest.raises(SystemExit) as bad:
+        main(["--views", "0"])
+    assert bad.value.code == 2
