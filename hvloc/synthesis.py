@@ -63,6 +63,18 @@ ECC_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 60, 1e-5)  # bo
 ALIGN_SIGMA_PX = 1.0  # a correspondence's noise, in window px: the warp's own error (calibrated on rendered gusts)
 
 
+def _shrunk(k: float, a: np.ndarray, b: np.ndarray, mask: np.ndarray, warp: np.ndarray) -> tuple:
+    """``(a, b, mask, warp)`` at ``k`` times the size (``k`` < 1; the warp's shift with them), or as they are."""
+    if k >= 1:
+        return a, b, mask, warp
+    ak = cv2.resize(a, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    bk = cv2.resize(b, None, fx=k, fy=k, interpolation=cv2.INTER_AREA)
+    mk = cv2.resize(mask, (ak.shape[1], ak.shape[0]), interpolation=cv2.INTER_NEAREST)
+    wk = warp.copy()
+    wk[:, 2] *= k
+    return ak, bk, mk, wk
+
+
 def _matched_blur(a: np.ndarray, b: np.ndarray, mask: np.ndarray, warp: np.ndarray) -> float:
     """The Gaussian blur (sigma, window px; one of :data:`BLUR_STEPS_PX`) that, added to the drawing
     ``b`` aligned by ``warp``, makes it correlate best with the frame ``a`` over ``mask``: 0 when the
@@ -80,6 +92,8 @@ def _matched_blur(a: np.ndarray, b: np.ndarray, mask: np.ndarray, warp: np.ndarr
         cc = cv2.computeECC(a, seen, mask)
         if cc > best_cc + BLUR_GAIN:
             best, best_cc = s, cc
+        elif cc < best_cc:  # past the best (the correlation rises to the frame's blur, then falls)
+            break
     return best
 
 
@@ -260,12 +274,9 @@ class PadSynthesis:
         # coarse pass is only a start: one that does not converge, or converges somewhere the
         # drawing does not match (a 25 px pad halved is a few features), is dropped and the fine
         # pass starts from the prediction (bench_v2's x_field_rs_oblique at 13 m: 0.17 there)
-        for k in ((0.5, 1.0) if min(w, h) >= 4 * MIN_WINDOW_PX else (1.0,)):
-            ak = cv2.resize(a, None, fx=k, fy=k, interpolation=cv2.INTER_AREA) if k < 1 else a
-            bk = cv2.resize(b, None, fx=k, fy=k, interpolation=cv2.INTER_AREA) if k < 1 else b
-            mk = cv2.resize(inside, (ak.shape[1], ak.shape[0]), interpolation=cv2.INTER_NEAREST) if k < 1 else inside
-            wk = warp.copy()
-            wk[:, 2] *= k
+        coarse = 0.5 if min(w, h) >= 4 * MIN_WINDOW_PX else 1.0
+        for k in sorted({coarse, 1.0}):
+            ak, bk, mk, wk = _shrunk(k, a, b, inside, warp)
             try:
                 cc, wk = cv2.findTransformECC(ak, bk, wk, cv2.MOTION_AFFINE,
                                               ECC_CRITERIA, mk, 5)
@@ -302,7 +313,9 @@ class PadSynthesis:
             return None, f"the smeared drawing aligns with correlation {cc:.2f} (< {MIN_CC})"
         if abs(turn) > MAX_TURN_DEG or not 1 / MAX_SCALE < zoom < MAX_SCALE or shift > MAX_SHIFT * max(w, h):
             return None, f"the smeared drawing moved too far to align ({turn:.1f} deg, x{zoom:.2f}, {shift:.0f} px)"
-        off = _scale_unsettled(a, b, inside, warp)
+        # (at half size where the pad is still twice the smallest drawn there: a 50-60 px pad halved
+        # is too few pixels to hold its scale, and was refused)
+        off = _scale_unsettled(*_shrunk(0.5 if side * scale >= 4 * MIN_PAD_PX else 1.0, a, b, inside, warp))
         if off is not None:
             return None, (f"the smeared drawing's scale is not settled by the frame (started {100 * SCALE_PROBE:.0f} % "
                           f"off it, the alignment ends {100 * off:.1f} % off)")

@@ -2334,8 +2334,8 @@ def test_a_coarse_alignment_that_does_not_converge_leaves_the_fine_one_to_try(pa
 
     monkeypatch.setattr(cv2, "findTransformECC", coarse_fails)
     det, why = PadSynthesis(pad).locate(gray, CAM, pred, v, w, 0.02)
-    # the coarse pass was tried, then the fine one (and after it, at full size, the scale's probes)
-    assert len(sizes) >= 2 and sizes[0][0] < sizes[1][0] and all(s == sizes[1] for s in sizes[1:]), sizes
+    # the coarse pass was tried, then the fine one (and after it the scale's probes)
+    assert len(sizes) >= 2 and sizes[0][0] < sizes[1][0], sizes
     assert det is not None, why
     dp = pose_error(solve_planar_pose(CAM, det.pts_P, det.px, up).cam2pad, G)[0]
     assert dp < 0.004, dp
