@@ -1,7 +1,8 @@
 """How far a blur that the localizer does not model moves what it measures: the pad's outline
 (its corners, hence the height) and the texture's drawing (:mod:`hvloc.synthesis`, its scale).
 
-    python -m benchmarks.blur_bias [--sizes 40 80 150 250] [--sigmas 0 1 2 3] [--views 4] [--json OUT]
+    python -m benchmarks.blur_bias [--sizes 40 80 150 250] [--sigmas 0 1 2 3] [--smears 8 16]
+                                   [--views 4] [--json OUT]
 
 A soft lens (defocus) blurs every edge alike, by a Gaussian.  The outline's placement was made for
 motion: past 5 px of smear (:data:`hvloc.phases.SMEARED_PX`, read in luma as the field edge's
@@ -16,7 +17,10 @@ one Gaussian blur, then
 - the drawing, predicted 7 % too near and 7 % too far (the drone's velocity unknown: no smear
   drawn): its scale error (%, median over the poses given) and how many of the tries were refused.
 
-Deterministic (a seed per row).  A few seconds per row on one core.
+The same rows for motion (``--smears``): a straight smear of that many px (a box along one
+direction, 30 degrees from the image's rows), what the centroid placement was made for, so that a
+model meant for both kernels can be held against both.  Deterministic (a seed per row).  A few
+seconds per row on one core.
 """
 from __future__ import annotations
 
@@ -32,6 +36,8 @@ from pad_design.errors import ArgumentParser
 
 SIZES_PX = (40, 80, 150, 250)
 SIGMAS_PX = (0.0, 1.0, 2.0, 3.0)
+SMEARS_PX = (8.0, 16.0)
+SMEAR_ANGLE_DEG = 30.0
 PREDICTION_OFF = 0.07  # the drawing's predictions: this share too near, and too far
 
 
@@ -48,6 +54,28 @@ def _views(pad, camera, side_px: float, n: int, seed: int) -> list:
         G[:3, :3] = G[:3, :3] @ so3_exp(np.radians(rng.uniform(-3.0, 3.0, 3)))
         out.append(G)
     return out
+
+
+def smeared(img: np.ndarray, length_px: float, angle_deg: float = SMEAR_ANGLE_DEG) -> np.ndarray:
+    """``img`` smeared along a line ``length_px`` long at ``angle_deg`` from its rows (a box kernel,
+    in linear light, as motion during an exposure averages light)."""
+    from hvloc.features import srgb_to_linear
+
+    n = int(math.ceil(length_px)) * 2 + 3
+    k = np.zeros((n, n), np.float32)
+    d = np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))])
+    for t in np.linspace(-length_px / 2, length_px / 2, 8 * n):  # (the kernel drawn with subpixel weights)
+        x, y = n // 2 + t * d
+        x0, y0 = int(math.floor(x)), int(math.floor(y))
+        fx, fy = x - x0, y - y0
+        k[y0, x0] += (1 - fx) * (1 - fy)
+        k[y0, x0 + 1] += fx * (1 - fy)
+        k[y0 + 1, x0] += (1 - fx) * fy
+        k[y0 + 1, x0 + 1] += fx * fy
+    lin = cv2.filter2D(srgb_to_linear(img), -1, k / k.sum(), borderType=cv2.BORDER_REPLICATE)
+    v = lin / 255.0
+    return np.clip(255.0 * np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(np.clip(v, 0, None), 1 / 2.4) - 0.055)
+                   + 0.5, 0, 255).astype(np.uint8)
 
 
 def radial_error_pct(quad_px: np.ndarray, truth_px: np.ndarray) -> float:
@@ -67,8 +95,9 @@ def drawn_scale(det, camera, cam2pad) -> float:
                  / np.mean(np.linalg.norm(truth - truth.mean(axis=0), axis=1)))
 
 
-def measure(side_px: float, sigma_px: float, views: int = 4, pad=None, camera=None) -> dict:
-    """One row (see the module's doc) for pads ``side_px`` across under a Gaussian blur of ``sigma_px``."""
+def measure(side_px: float, sigma_px: float, views: int = 4, pad=None, camera=None, smear_px: float = 0.0) -> dict:
+    """One row (see the module's doc) for pads ``side_px`` across under a Gaussian blur of ``sigma_px``
+    (and a straight smear of ``smear_px``, :func:`smeared`, when given)."""
     from hvloc.geometry import Camera
     from hvloc.phases import SMEARED_PX, find_outline
     from hvloc.synthesis import PadSynthesis
@@ -80,10 +109,12 @@ def measure(side_px: float, sigma_px: float, views: int = 4, pad=None, camera=No
     geo = pad.geometry
     synth = PadSynthesis(pad)
     errs, smears, refused, scales, why = [], [], 0, [], {}
-    for G in _views(pad, camera, side_px, views, seed=int(1000 * side_px + 10 * sigma_px)):
+    for G in _views(pad, camera, side_px, views, seed=int(1000 * side_px + 10 * sigma_px + smear_px)):
         img = warp_pad_view(pad, camera, G, (110, 105, 90))
         if sigma_px > 0:
             img = cv2.GaussianBlur(img, (0, 0), sigma_px)
+        if smear_px > 0:
+            img = smeared(img, smear_px)
         found, _ = find_outline(img, geo, camera)
         if found is not None:
             used, P = (found.field_px, geo.field_corners) if found.field_px is not None else (found.quad_px,
@@ -102,7 +133,7 @@ def measure(side_px: float, sigma_px: float, views: int = 4, pad=None, camera=No
             else:
                 scales.append(100.0 * (drawn_scale(det, camera, G) - 1.0))
     e = np.array(errs)
-    return {"side_px": side_px, "sigma_px": sigma_px, "views": views, "outlines": len(errs),
+    return {"side_px": side_px, "sigma_px": sigma_px, "smear_px": smear_px, "views": views, "outlines": len(errs),
             "outline_radial_pct_mean": float(e.mean()) if len(e) else None,
             "outline_radial_pct_spread": float(e.max() - e.min()) if len(e) else None,
             "smear_px_median": float(np.median(smears)) if smears else None,
@@ -120,21 +151,25 @@ def main(argv=None) -> int:
     p = ArgumentParser(prog="python -m benchmarks.blur_bias", description=__doc__)
     p.add_argument("--sizes", nargs="+", type=float, default=list(SIZES_PX), help="pad sizes, px across")
     p.add_argument("--sigmas", nargs="+", type=float, default=list(SIGMAS_PX), help="Gaussian blurs, px")
+    p.add_argument("--smears", nargs="+", type=float, default=list(SMEARS_PX),
+                   help="straight motion smears, px (0 for none)")
     p.add_argument("--views", type=int, default=4, help="views per row")
     p.add_argument("--json", help="also write the rows here")
     a = p.parse_args(argv)
-    if a.views < 1 or any(s <= 0 for s in a.sizes) or any(s < 0 for s in a.sigmas):
-        p.error("--views must be at least 1, --sizes positive, --sigmas not negative")
-    print("| pad px | blur sigma px | outlines | outline radial error % (mean) | spread over views | smear read px "
+    if a.views < 1 or any(s <= 0 for s in a.sizes) or any(s < 0 for s in a.sigmas + a.smears):
+        p.error("--views must be at least 1, --sizes positive, --sigmas and --smears not negative")
+    print("| pad px | blur | outlines | outline radial error % (mean) | spread over views | smear read px "
           "| centroid-placed | drawn | drawn scale error % (median, worst) | drawing refused |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     rows = []
+    blurs = [(s, 0.0) for s in a.sigmas] + [(0.0, m) for m in a.smears if m > 0]
     for size in a.sizes:
-        for sigma in a.sigmas:
-            r = measure(size, sigma, a.views)
+        for sigma, smear in blurs:
+            r = measure(size, sigma, a.views, smear_px=smear)
             rows.append(r)
             refused = ", ".join(f"{n} {k}" for k, n in sorted(r["drawing_refused_why"].items())) or "0"
-            print(f"| {size:g} | {sigma:g} | {r['outlines']}/{r['views']} | {_f(r['outline_radial_pct_mean'])} | "
+            kind = f"smear {smear:g} px" if smear else f"Gaussian {sigma:g} px"
+            print(f"| {size:g} | {kind} | {r['outlines']}/{r['views']} | {_f(r['outline_radial_pct_mean'])} | "
                   f"{_f(r['outline_radial_pct_spread'], '{:.2f}')} | {_f(r['smear_px_median'], '{:.1f}')} | "
                   f"{r['centroid_placed']} | {r['drawn']}/{2 * r['views']} | {_f(r['drawn_scale_pct_median'])}, "
                   f"{_f(r['drawn_scale_pct_worst'])} | {refused} |", flush=True)

@@ -766,7 +766,8 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     """``benchmarks.blur_bias``: on exact views of a sharp 150 px pad the outline's corners lie where
     the view put them and the drawing, predicted 7 % off either way, comes back to the true scale;
     a 40 px pad is not drawn (too small to hold its scale), for the reason named, not a number; a
-    2 px Gaussian blur puts the outline past the smear where the centroid places it."""
+    2 px Gaussian blur puts the outline past the smear where the centroid places it, as a 16 px
+    straight smear does, read as about that long."""
     from benchmarks.blur_bias import main, measure
 
     sharp = measure(150, 0.0, views=2)
@@ -776,6 +777,9 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     assert far["drawn"] == 0 and far["drawing_refused_why"] == {"the predicted pad spans # px": 2}, far
     soft = measure(150, 2.0, views=1)
     assert soft["centroid_placed"] == 1 and soft["smear_px_median"] > 5.0, soft
+    # a straight 16 px smear (motion's kernel) is read as about that long, and centroid-placed too
+    moving = measure(150, 0.0, views=1, smear_px=16.0)
+    assert moving["centroid_placed"] == 1 and 12.0 < moving["smear_px_median"] < 19.0, moving
     with pytest.raises(SystemExit) as bad:
         main(["--views", "0"])
     assert bad.value.code == 2
