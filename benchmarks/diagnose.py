@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import collections
 import math
+import re
 
 import numpy as np
 
@@ -47,6 +48,19 @@ def diagnose(root, config: LocalizerConfig | None = None, max_frames: int | None
     return rows
 
 
+def reason_kind(reason: str, width: int = 80) -> str:
+    """What kind of failure ``reason`` names, without its numbers: the first method's reason, and
+    for a refused pose the first clause of why (``outline: rejected; the outline's corners are no
+    square's``), so that frames refused for one cause count together however their numbers differ.
+    Reads the localizer's reasons (methods joined by "; ", a refusal's verdict after ", ") and the
+    estimates files' (every "," written as ";")."""
+    parts = reason.replace(", ", "; ").split("; ")
+    kind = parts[0]
+    if kind.endswith(": rejected") and len(parts) > 1:
+        kind += "; " + parts[1].split(": ")[0]
+    return re.sub(r"\d+(\.\d+)?", "#", kind)[:width]
+
+
 def summarise(rows) -> str:
     lines = []
     by = collections.defaultdict(list)
@@ -56,8 +70,7 @@ def summarise(rows) -> str:
         st = collections.Counter(r[4] for r in rs)
         fa = sum(1 for r in rs if r[4] == "ok" and r[8])
         rej_right = sum(1 for r in rs if r[4] == "rejected" and not r[8])
-        reasons = collections.Counter(r[9].split(" ")[0] + " " + " ".join(r[9].split(" ")[1:3]) for r in rs
-                                      if r[4] != "ok")
+        reasons = collections.Counter(reason_kind(r[9]) for r in rs if r[4] != "ok")
         lines.append(f"{ph:12s} n={len(rs):4d} ok={st['ok']:4d} rejected={st['rejected']:4d} "
                      f"(of them right {rej_right}) lost={st['lost']:4d} false_accepts={fa}")
         for why, n in reasons.most_common(5):

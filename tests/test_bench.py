@@ -579,6 +579,30 @@ def test_diagnose_reports_the_signed_height_bias_of_right_poses():
     assert "false_accepts=1" in text
 
 
+def test_diagnose_counts_refusals_by_their_cause_not_their_first_words():
+    """The summary grouped reasons by their first three words: every refused outline read "outline:
+    rejected, the" (unseen46), whatever refused it.  Now by the first method's verdict and the first
+    clause of why, numbers left out: refusals for one cause count together, different causes apart."""
+    from benchmarks.diagnose import reason_kind, summarise
+
+    square = "outline: rejected, the outline's corners are no square's: reprojection RMS {} % of its side (> 2 %); " \
+             "texture: drawn at the predicted pose: the predicted pad spans {} px (< 45.0)"
+    reasons = [square.format(2.2, 31), square.format(2.7, 33), square.format(3.9, 30),
+               "outline: rejected, moved 2.66 m in 0.083 s (> 2.12 m possible); texture: no recent pose",
+               "outline: rejected, reprojection RMS 12.48 px > 3.0",
+               "outline: no pad-coloured quadrilateral; markers: no finder squares"]
+    rows = [("s", k, "approaching", 10.0, "rejected" if k < 5 else "lost", "outline", 1.0, 0.1, False, why, {},
+             float("nan")) for k, why in enumerate(reasons)]
+    text = summarise(rows)
+    assert "   3  outline: rejected; the outline's corners are no square's" in text, text
+    assert "   1  outline: rejected; moved # m in # s (> # m possible)" in text, text
+    assert "   1  outline: rejected; reprojection RMS # px > #" in text, text
+    assert "1  outline: no pad-coloured quadrilateral" in [line.strip() for line in text.splitlines()], text
+    assert reason_kind("aruco: no marker") == "aruco: no marker"
+    # as the estimates files write it (every comma a semicolon): the same kind
+    assert reason_kind(square.format(2.2, 31).replace(",", ";")) == reason_kind(square.format(2.2, 31))
+
+
 def test_realism_ratios_never_divide_by_a_missing_real_median():
     """Real frames downsampled 15x have no strong corner in a 24 px patch: the table said
     "1000000000.00x" for a rendered 1; it now says there is no reference."""
