@@ -982,14 +982,13 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
                      rounds=FIELD_FIT_ROUNDS, loose_rms_px=FIELD_SAYS_SWOLLEN_RMS_PX, refit_when=used)
     if got is None:
         return None, False, None, 0.0
-    field, move, swollen, rms = got
+    field, move, swollen, rms, guess = got
     far = bool(swollen and move > limit)
     if rms > max_rms_px:
         # too loose a fit to place the pad by, but it still says how far the colour swelled: more
         # than a corner's share the height may be off by is refused as far (the synthetic bleed of
         # test_a_pads_colour_bled_into_a_grey_deck: 3.2-3.5 px at 40-55 px, the pad 6-9 % large)
         return None, far or bool(swollen and move > max(FIELD_OUTSIDE_PX, FIELD_OUTSIDE_SHARE * side_px)), None, 0.0
-    guess = _through_quad(quad_px, geo, camera, geo.field_corners[:, :2])
     centre = guess.mean(axis=0)
     outside = float(np.max(np.linalg.norm(field - centre, axis=1) - np.linalg.norm(guess - centre, axis=1)))
     return (field if used(move, swollen) else None), far, field, max(outside, 0.0)
@@ -997,9 +996,9 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
 
 def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
                max_rms_px: float = 0.35, rounds: int = 1, loose_rms_px: float = 0.0, refit_when=None):
-    """``(field corners, largest move from the prediction px, swollen, line rms px)`` or ``None`` (its
-    lines fit worse than ``max(max_rms_px, loose_rms_px)``; the linear-light fit is preferred where it
-    fits within ``max_rms_px``): the white
+    """``(field corners, largest move from the prediction px, swollen, line rms px, the predicted
+    corners)`` or ``None`` (its lines fit worse than ``max(max_rms_px, loose_rms_px)``; the
+    linear-light fit is preferred where it fits within ``max_rms_px``): the white
     field's square fitted on luma from where the outline ``quad_px`` predicts it, each side first
     moved to the nearest strong rise into the white within ``reach_px`` inward, then fitted up to
     ``rounds`` times, each from the last (only when ``refit_when(move, swollen)``, if given: the
@@ -1041,8 +1040,8 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     # lens, 0.8 % of the side, and the height 1.2 % low)
     linear, rms_l = refine_quad(srgb_to_linear(gray8), start, half_width=half, camera=camera)
     if linear is not None and rms_l <= max_rms_px:
-        return linear, move, swollen, rms_l
-    return fitted, move, swollen, rms
+        return linear, move, swollen, rms_l, guess
+    return fitted, move, swollen, rms, guess
 
 
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:

@@ -2358,9 +2358,9 @@ def test_a_coarse_alignment_that_does_not_converge_leaves_the_fine_one_to_try(pa
 
 def _drawn_scale(det, G) -> float:
     """How much larger than at the true pose ``G`` the detection's points lie (spread about their centre)."""
-    truth = CAM.project_from(G, det.pts_P)
-    return float(np.mean(np.linalg.norm(det.px - det.px.mean(0), axis=1))
-                 / np.mean(np.linalg.norm(truth - truth.mean(0), axis=1)))
+    from benchmarks.blur_bias import drawn_scale
+
+    return drawn_scale(det, CAM, G)
 
 
 def _soft_jpeg(pad, G, sigma, quality=65):
