@@ -800,10 +800,10 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     far = measure(40, 0.0, views=1)
     assert far["drawn"] == 0 and far["drawing_refused_why"] == {"the predicted pad spans # px": 2}, far
     soft = measure(150, 2.0, views=1)
-    assert soft["centroid_placed"] == 1 and soft["smear_px_median"] > 5.0, soft
+    assert soft["smear_placed"] == 1 and soft["smear_px_median"] > 5.0, soft
     # a straight 16 px smear (motion's kernel) is read as about that long, and centroid-placed too
     moving = measure(150, 0.0, views=1, smear_px=16.0)
-    assert moving["centroid_placed"] == 1 and 12.0 < moving["smear_px_median"] < 19.0, moving
+    assert moving["smear_placed"] == 1 and 12.0 < moving["smear_px_median"] < 19.0, moving
     with pytest.raises(SystemExit) as bad:
         main(["--views", "0"])
     assert bad.value.code == 2
