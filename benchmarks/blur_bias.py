@@ -4,22 +4,22 @@
     python -m benchmarks.blur_bias [--sizes 40 80 150 250] [--sigmas 0 1 2 3] [--smears 8 16]
                                    [--views 4] [--json OUT]
 
-A soft lens (defocus) blurs every edge alike, by a Gaussian.  The outline's placement was made for
-motion: past 5 px of smear (:data:`hvloc.phases.SMEARED_PX`, read in luma as the field edge's
-width, about 3 times a Gaussian's sigma) its sides are placed by the border's centroid, below by
-an edge fit.  Each row: exact views (``render.planar.warp_pad_view``, a 1280x720 90 degree
+A soft lens (defocus) blurs every edge alike, by a Gaussian; motion by a box along its direction.
+Past 5 px of smear (:data:`hvloc.phases.SMEARED_PX`, read in luma as the field edge's width, about
+3 times a Gaussian's sigma) the outline's sides are placed by the border's blurred profile, fitted
+where the border is smeared over no more than its width, else by its centroid; below, by an edge
+fit (in light past 3 px).  Each row: exact views (``render.planar.warp_pad_view``, a 1280x720 90 degree
 pinhole, the pad nadir within 3 degrees, random yaw and offset) at one pad size (px across) under
 one Gaussian blur, then
 
 - the outline (:func:`hvloc.phases.find_outline`): the mean of its corners' radial errors over the
   views (% of the half side: a pad read that much larger puts the camera that much lower), their
-  spread over the views, the smear it read and how many views the centroid placed;
+  spread over the views, the smear it read and how many views it placed as smeared;
 - the drawing, predicted 7 % too near and 7 % too far (the drone's velocity unknown: no smear
   drawn): its scale error (%, median over the poses given) and how many of the tries were refused.
 
 The same rows for motion (``--smears``): a straight smear of that many px (a box along one
-direction, 30 degrees from the image's rows), what the centroid placement was made for, so that a
-model meant for both kernels can be held against both.  Deterministic (a seed per row).  A few
+direction, 30 degrees from the image's rows), so that the placement is held against both kernels.  Deterministic (a seed per row).  A few
 seconds per row on one core.
 """
 from __future__ import annotations

@@ -423,6 +423,147 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
     return offsets, blur, at
 
 
+def _box_gauss_step(x: np.ndarray, box, sigma) -> np.ndarray:
+    """A unit step seen through a box ``box`` px wide (motion) convolved with a Gaussian of
+    ``sigma`` px (a lens, the pixel): the Gaussian step averaged over the box,
+    ``sigma / box * (psi(u + box / 2 sigma) - psi(u - box / 2 sigma))`` with ``psi(u) = u Phi(u) + phi(u)``.
+    ``box`` and ``sigma`` broadcast against ``x``; a box under a twentieth of sigma is taken as that."""
+    box = np.maximum(box, 0.05 * sigma)
+
+    def psi(u):
+        return u * _blurred_step(u) + 0.3989422804 * np.exp(-0.5 * u * u)
+
+    return sigma / box * (psi((x + 0.5 * box) / sigma) - psi((x - 0.5 * box) / sigma))
+
+
+PROFILE_SIGMAS = np.array([0.5, 1.2, 2.2, 3.6])  # px: the Gaussian part of a border's blur, tried first
+INNER_LIGHT = (0.2, 0.6)  # the checker's light over the solid band's that a fit may find (below)
+
+
+def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
+                         inner=INNER_LIGHT) -> np.ndarray:
+    """(K,) the outer edge (px along ``r``) of the banded border whose blurred profile best explains
+    each row of ``Y`` (K, R), NaN where no rising border does: a ground level, the solid band
+    (``edges[0]`` to ``edges[1]``, shifted by the edge), the checker (to ``edges[2]``) and the
+    field beyond, each a free level, all seen through one kernel, a box (motion) convolved with a
+    Gaussian (a lens), whose widths are searched with the edge on a grid, coarse then fine, and a
+    parabola through the best edge.
+
+    The checker's light, relative to the solid band's, is held within ``inner``: a camera sums it
+    in light (half of the band's, for hvloc's checker of the border's colour and a dark one), a
+    renderer filtering its texture in display values sums less (a quarter); left free, a border
+    smeared over more than its width trades that level for its place."""
+    Y = np.atleast_2d(np.asarray(Y, np.float64))
+    lo, hi = inner
+    # the 3-level models (checker's light fixed at a bound) from the 4-level one: A3 = A4 @ M
+    M = {c: np.array([[1, 0, 0], [0, 1, 0], [0, c, 0], [0, 0, 1]], np.float64) for c in (lo, hi)}
+
+    def levels_fit(A, Yr):
+        """(P, K) squared residuals of each model's best levels (``A``: (P, R, 4) basis)."""
+        At = A.transpose(0, 2, 1)
+        AtA, AtY = At @ A, At @ Yr.T
+        y2 = np.sum(Yr * Yr, axis=1)
+        coef = np.linalg.solve(AtA + 1e-9 * np.eye(4), AtY)  # (P, 4, K)
+        err = y2[None, :] - np.sum(coef * AtY, axis=1)
+        amp = coef[:, 1, :]
+        ratio = coef[:, 2, :] / np.where(amp > 0, amp, np.inf)
+        for c, out in ((lo, ratio < lo), (hi, ratio > hi)):
+            if not out.any():
+                continue
+            m = M[c]
+            A3, B3 = m.T @ AtA @ m, m.T @ AtY
+            c3 = np.linalg.solve(A3 + 1e-9 * np.eye(3), B3)
+            err = np.where(out, y2[None, :] - np.sum(c3 * B3, axis=1), err)
+            amp = np.where(out, c3[:, 1, :], amp)
+        return np.where(amp > 0, err, np.inf)
+
+    def basis(st):
+        """(..., R, 4): ground, solid band, checker, field from the three blurred steps ``st`` (3, ..., R)."""
+        return np.stack([np.ones_like(st[0]), st[0] - st[1], st[1] - st[2], st[2]], axis=-1)
+
+    # coarse: the edge in steps of the profile's own (1 px), so that every model's steps are read off
+    # one table per blur; then around each row's best, finely, the blur's two widths a little either side
+    step = float(r[1] - r[0])
+    k = max(1, int(round(1.0 / step)))
+    rc, Yc, d = r[::k], Y[:, ::k], step * k
+    n_e = int(np.ceil(e_reach / d))
+    es = np.arange(-n_e, n_e + 1) * d
+    boxes = np.linspace(0.0, max(box_max, 1.0), 7)
+    sig = np.sqrt(PROFILE_SIGMAS**2 + 1.0 / 12.0)
+    bb, ss = (a.ravel() for a in np.meshgrid(boxes, sig, indexing="ij"))
+    u = rc[0] - es[-1] + d * np.arange(len(rc) + len(es) - 1)  # every r - e on the lattice
+    table = np.stack([_box_gauss_step(u[None, :] - w, bb[:, None], ss[:, None]) for w in edges])  # (3, BS, U)
+    idx = np.arange(len(rc))[None, :] + (len(es) - 1 - np.arange(len(es)))[:, None]  # (E, R): r_j - e_p
+    A = basis(table[:, :, idx]).reshape(-1, len(rc), 4)  # (BS * E, R, 4)
+    err = levels_fit(A, Yc)
+    b_of, s_of = np.repeat(bb, len(es)), np.repeat(ss, len(es))
+    e_of = np.tile(es, len(bb))
+    out = np.full(len(Y), np.nan)
+    db = boxes[1] - boxes[0]
+
+    def fine(q, boxes, sigmas, edges_at):
+        """(boxes * sigmas, edges) squared residuals of row ``q`` at those widths and edges."""
+        fb, fs, fe = (a.ravel() for a in np.meshgrid(boxes, sigmas, edges_at, indexing="ij"))
+        x = r[None, :] - fe[:, None]
+        st = np.stack([_box_gauss_step(x - w, fb[:, None], fs[:, None]) for w in edges])
+        return levels_fit(basis(st), Y[q:q + 1])[:, 0].reshape(-1, len(edges_at))
+
+    for q in range(len(Y)):
+        p = int(np.argmin(err[:, q]))
+        if not np.isfinite(err[p, q]):
+            continue
+        # the edge finely at the coarse widths, then the widths a little either side of there, and a
+        # parabola through the edge's three best at the best widths
+        at = e_of[p] + np.arange(-d, d + 1e-9, 0.1)
+        e0 = at[int(np.argmin(fine(q, [b_of[p]], [s_of[p]], at)[0]))]
+        rows = fine(q, np.clip(b_of[p] + db * np.array([-0.4, 0.0, 0.4]), 0.0, None),
+                    s_of[p] * np.array([0.8, 1.0, 1.25]), e0 + np.array([-0.1, 0.0, 0.1]))
+        row = rows[int(np.argmin(rows.min(axis=1)))]
+        if not np.isfinite(row[1]) or row[1] > min(row[0], row[2]):
+            out[q] = e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan
+            continue
+        den = row[0] - 2 * row[1] + row[2]
+        out[q] = e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
+    return out
+
+
+def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
+                           within_px: float, blur_px: float, camera: Camera | None = None, reach_px: float = 16.0,
+                           trim: float = 0.25, step: float = 0.5) -> np.ndarray:
+    """(4, S) where (px, along each side's inward normal from the sides of ``quad_px``) the outer
+    edge of the banded border lies over each of S equal stretches of each side's middle (``trim``
+    of the side left at either end), as a fit of the stretch's mean cross-profile by the border's
+    own blurred profile (:func:`_fit_banded_profiles`) finds it within ``within_px`` of ``around``
+    (4, S), where :func:`band_centroid_offsets` read it on the same stretches; NaN where there is no
+    such reading or no fit.  ``chan`` must be linear in light; ``blur_px``: the smear read there.
+
+    A centroid is the sharp border's only when all of the blurred border's light is summed and
+    nothing else's, which a Gaussian's long tails (cut where they fall under the ground's texture)
+    and the field's own level beside it do not allow: under a 2 px lens blur the centroid placed
+    the outline 1-2 % of its half side out (``benchmarks/blur_bias.py``).  The fit needs the
+    border's bands resolved: under a smear wider than the border the checker's light trades for the
+    border's place (:data:`INNER_LIGHT`), and the centroid, which needs no shape, is better."""
+    g = chan if chan.dtype == np.float32 else chan.astype(np.float32)
+    q = np.asarray(quad_px, np.float64).reshape(4, 2)
+    around = np.asarray(around, np.float64)
+    segments = around.shape[1]
+    length = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
+    bands = np.asarray(bands_px, np.float64).reshape(4, -1)
+    offsets = np.full((4, segments), np.nan)
+    reach = max(reach_px, 1.5 * blur_px + 4.0)
+    rs = [np.arange(-reach, bands[i].max() * 2.2 + 1e-9, step) for i in range(4)]
+    per = int(np.clip(np.max(length) * (1.0 - 2.0 * trim) / segments, 4, 20))  # (band_centroid_offsets' stretches)
+    for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
+        edges = np.concatenate([[0.0], bands[i]])
+        for k in range(segments):
+            part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
+            if len(part) < 2 or not np.isfinite(around[i, k]):
+                continue
+            offsets[i, k] = around[i, k] + _fit_banded_profiles(rs[i] - around[i, k], part.mean(axis=0), edges,
+                                                                within_px, 1.6 * blur_px + 2.0)[0]
+    return offsets
+
+
 def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: Camera | None = None,
               reach_px: float = 12.0, trim: float = 0.3, step: float = 0.5, widen: int = 0) -> np.ndarray:
     """(4,) the width (px) of the box blur that the steepest rising edge within ``reach_px`` of

@@ -11,8 +11,8 @@ import cv2
 import numpy as np
 
 from . import markers as mk
-from .features import (_inside, band_centroid_offsets, banded_edge_offsets, refine_quad, refine_quads,
-                       rise_offsets, srgb_to_linear, step_blur)
+from .features import (_inside, band_centroid_offsets, banded_edge_offsets, banded_profile_offsets, refine_quad,
+                       refine_quads, rise_offsets, srgb_to_linear, step_blur)
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
@@ -53,6 +53,12 @@ def _hsv_mask(hsv: np.ndarray, rng) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- Approaching
 
+CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px of smear
+# a profile-fitted one's: soft_gusty_deck's Adjustment poses (mostly such outlines) stated 2.4x the
+# error they made at 0.1, 1.5x at 0.04 (benchmarks/blur_bias.py: 0.1-0.3 px of error under 6-16 px)
+PROFILE_SIGMA_PER_SMEAR = 0.04
+
+
 @dataclass
 class OutlineQuad:
     """The pad's outline found in an image, not yet named: ``quad_px`` (4, 2) sub-pixel corners in
@@ -66,6 +72,7 @@ class OutlineQuad:
     field_px: np.ndarray | None = None  # the field's corners, where they are to be used instead (:func:`_field_quad`)
     sigma_scale: np.ndarray | None = None  # (4,) how much less sure each corner is than a seen one (:func:`_corner_sigma_scale`)
     smear_px: float = 0.0  # how far motion smears its edges (px, in luma: :func:`_smear_near`)
+    sigma_per_smear: float = CENTROID_SIGMA_PER_SMEAR  # a smear-placed corner's noise (px) per px of smear (:func:`_deblurred`)
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -223,7 +230,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
         start = quad if refined is None else refined + [bx0, by0]
-        smeared, smear, fitted = _smeared_in_view(rgb, start, pad_geometry, camera, in_view=True)
+        smeared, smear, fitted, _ = _smeared_in_view(rgb, start, pad_geometry, camera, in_view=True)
         # a corner in view must agree with the hull; the hidden one, where two of the swollen hull's
         # sides were carried out of view, up to the smear further (the hull's a few pixels wide of
         # the pad along a smeared side turns its corner by as much: 8-17 px under 14 px of smear,
@@ -237,7 +244,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     if refined is None:
         # too few edge points on a side (blur): the hull's corners, for what they are worth, unless
         # the border's profile says where it lies under the blur
-        smeared, smear, _ = _deblurred(rgb, quad, pad_geometry, camera)
+        smeared, smear, _, per_smear = _deblurred(rgb, quad, pad_geometry, camera)
         if smeared is None and not smear > SMEARED_PX:
             # but nothing smears it: something hides a stretch of a side (a box over two corners,
             # whose hull's corner lay 35 px from the pad's, taken as it was)
@@ -248,19 +255,21 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     else:
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
-        smeared, smear, _ = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
+        smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
-            smeared, smear, _ = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera, min_blur_px=5.0)
+            smeared, smear, _, per_smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera,
+                                                           min_blur_px=5.0)
         if smeared is None and smear > EDGE_FIT_SMEAR_PX:
             # no edge to fit and no centroid to read: fitted as sharp edges, such sides lay half the
             # smear out (unseen18: the pad read 6 % large under 43 px of smear, a false accept)
             return None, TOO_SMEARED
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
-            again, smear_again, _ = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
+            again, smear_again, _, per_again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
             if smear_again > SMEARED_PX or smear > EDGE_FIT_SMEAR_PX:
                 refined, smear = (smeared if again is None else again), smear_again
+                per_smear = per_smear if again is None else per_again
             else:
                 # read around where the centroid put it, the pad is sharp: the smear was read off
                 # sides that were not the pad's (a box's edge across its corner read 5.04 px, the
@@ -268,8 +277,17 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 # past what structure can widen an edge by: under 30-45 px of smear a placed pad's
                 # field edge is so shallow that the field's texture is steeper (read again, 2.7 px)
                 smeared = smear = None
+                per_smear = CENTROID_SIGMA_PER_SMEAR
         if smeared is None:
-            refined = _on_banded_edge(chan, refined, pad_geometry, cam_s) + [bx0, by0]
+            # a blur of light (a soft lens, motion) shows in luma and is symmetric in light: the edge is
+            # fitted there (fitted in display values, a 1 px lens blur put a 40 px pad's corners 3.7 %
+            # of its half side out, 0.3 % in light: benchmarks/blur_bias.py); JPEG smears chroma in
+            # display values and leaves luma sharp: there it is fitted in those values, as they smear.
+            # (Past the smear the edge fit is made for, where the centroid could not place the pad, as
+            # before: fitted in light such sides passed the band's check 3 px out, in display values not)
+            soft = smear is not None and LIGHT_FIT_SMEAR_PX < smear <= SMEARED_PX
+            refined = _on_banded_edge(_border_channel(srgb_to_linear(f)) if soft else chan, refined, pad_geometry,
+                                      cam_s) + [bx0, by0]
             why = "its border band is missing along a side" if _band_missing(rgb, refined, pad_geometry, camera) \
                 else "its border band is missing beside a corner" if _corner_missing(rgb, refined, pad_geometry, camera) \
                 else None
@@ -292,21 +310,23 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 elif far:
                     return None, "its colour swells past its white field"
     return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
-                         None if field is None else field + [bx0, by0], cut, smear)
+                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear)
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
-                  smear: float | None = None, fitted: np.ndarray | None = None) -> tuple:
+                  smear: float | None = None, fitted: np.ndarray | None = None,
+                  per_smear: float = CENTROID_SIGMA_PER_SMEAR) -> tuple:
     """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled;
     ``smear``: the motion smear already read around it (read here when ``None``); ``fitted``: the
-    stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`)."""
+    stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`);
+    ``per_smear``: the noise of a corner placed under smear, px per px of it (:func:`_deblurred`)."""
     cue = _cue_scores(rgb, refined, geo, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape, fitted=fitted) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
     if smear is None:
         smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
-    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear), "ok"
+    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear, per_smear), "ok"
 
 
 def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -687,18 +707,24 @@ SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are plac
 # whose sides fit within 2 px (bench_v2's v2_wide_jpeg55 at 20 m: 3.1-4.8 px; refused at 3 px, 18 of
 # 239 frames lost).  Larger pads allow a tenth of their side.
 HULL_SLACK_PX = 4.0
-CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px of smear
+LIGHT_FIT_SMEAR_PX = 3.0  # px of luma smear past which the border's edge is fitted in light, not display values
+RESOLVED_SMEAR = 1.0  # smear (in border widths) up to which a border's blurred profile is fitted
+PROFILE_AGREE_PX, PROFILE_AGREE_PER_SMEAR = 1.0, 0.15  # how far (px, + per px of smear) it may move the centroid's side
 
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
                partial: bool = False, trim: float = 0.25, in_view: bool = False) -> tuple:
-    """``(quad | None, smear px, fitted (4, 2) | None)``: ``quad_px`` with its sides moved to where the border's centroid
-    puts them (:func:`band_centroid_offsets`), when some side is smeared by more than ``min_blur_px``
+    """``(quad | None, smear px, fitted (4, 2) | None, noise per smear)``: ``quad_px`` with its sides
+    moved to where the border's centroid puts them (:func:`band_centroid_offsets`), or where its
+    blurred profile is fitted (:func:`banded_profile_offsets`) if the border is smeared over no more
+    than its width, when some side is smeared by more than ``min_blur_px``
     (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
     read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
     around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
-    (fractions of each side, from its first corner) the side's line was fitted.
+    (fractions of each side, from its first corner) the side's line was fitted; noise per smear: a
+    corner's pixel noise per px of smear, as placed (:data:`CENTROID_SIGMA_PER_SMEAR`,
+    :data:`PROFILE_SIGMA_PER_SMEAR`).
 
     Measured on the conditions suite's gusty descent (12 px of blur at 12 m, a 55 px pad): the
     edge fit put every corner 4-5 px outside the pad, the pose 3.8 m off, accepted; the centroid
@@ -706,7 +732,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     levels = _border_channel(srgb_to_linear(np.array([geo.border.color_rgb, geo.border.dark_color_rgb])))
     lin, lo, smear, pairs = _smear_near(rgb, quad_px, geo, camera, reach_px + 3)
     if levels[0] <= 0 or not smear > min_blur_px:
-        return None, smear, None
+        return None, smear, None, CENTROID_SIGMA_PER_SMEAR
     widen = 0 if partial else CENTROID_WIDEN
     if widen:  # a crop that holds the widest profiles (only here: a smeared pad)
         crop, lo = _window(rgb, quad_px, reach_px * 2 ** widen + float(_bands_px(quad_px, geo).max()) + 3.0)
@@ -719,12 +745,23 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         # every profile of the cut side reach out of view when all reached as far as the top's
         across = np.where(np.isfinite(pairs), pairs, smear)[[0, 1, 0, 1]]
         reach_px = np.minimum(reach_px, np.maximum(6.0, 0.75 * across + 3.0))
+    per_smear = CENTROID_SIGMA_PER_SMEAR
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view,
                                         widen=widen)
+    if not in_view and smear <= RESOLVED_SMEAR * float(bands[:, 1].min()):
+        # the border resolved (smeared over no more than its width): its blurred profile fitted, if on
+        # every stretch that agrees with the centroid (what else lies across a profile, a box's edge,
+        # moves a fit further than the centroid's bias); the spread the centroid read is no measure
+        # of a lens's blur (a Gaussian's tails are cut: it read 0 under 3 px), the smear read in luma is
+        near = PROFILE_AGREE_PX + PROFILE_AGREE_PER_SMEAR * smear
+        fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim)
+        if (np.abs(fit - e) < near)[np.isfinite(e)].all():
+            e, blur = np.where(np.isfinite(e), fit, e), np.full_like(blur, smear)
+            per_smear = PROFILE_SIGMA_PER_SMEAR
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
-        return None, smear, None
+        return None, smear, None, CENTROID_SIGMA_PER_SMEAR
     # each side through its stretches' edge points (the side's angle is as uncertain as its place);
     # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view
     d = np.roll(q, -1, axis=0) - q
@@ -737,10 +774,10 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     for j in range(4):  # corner j where sides j - 1 and j meet
         A = np.stack([u[j - 1], -u[j]], axis=1)
         if abs(np.linalg.det(A)) < 1e-9:
-            return None, smear, None
+            return None, smear, None, CENTROID_SIGMA_PER_SMEAR
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
-    return out + lo, smear, np.stack([at[np.arange(4), first], at[np.arange(4), last]], axis=1)
+    return out + lo, smear, np.stack([at[np.arange(4), first], at[np.arange(4), last]], axis=1), per_smear
 
 
 def _smeared_in_view(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -1114,8 +1151,8 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
         # placed by the border's centroid in linear light, which a tone curve not known exactly
         # (a camera's is not sRGB) moves by a share of the smear: ~0.5 px outward at 5-12 px of smear
         # on the conditions suite's gusty descent (the four corners' own 0.3 px made such poses'
-        # covariances 3-5x too tight)
-        info["px_sigma_blur"] = round(CENTROID_SIGMA_PER_SMEAR * found.smear_px, 3)
+        # covariances 3-5x too tight); by its fitted profile, less (:func:`_deblurred`)
+        info["px_sigma_blur"] = round(found.sigma_per_smear * found.smear_px, 3)
     if found.sigma_scale is not None:  # a pad cut by the image's edge: its hidden corner is less sure
         info.update(corners_seen=int(np.sum(found.sigma_scale == 1.0)),
                     px_sigma_scale=[round(float(v), 3) for v in found.sigma_scale[order]])

@@ -789,21 +789,27 @@ def test_an_ahrs_error_is_scaled_against_the_labels_and_each_localizer_gets_its_
 def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known():
     """``benchmarks.blur_bias``: on exact views of a sharp 150 px pad the outline's corners lie where
     the view put them and the drawing, predicted 7 % off either way, comes back to the true scale;
-    a 40 px pad is not drawn (too small to hold its scale), for the reason named, not a number; a
-    2 px Gaussian blur puts the outline past the smear where the centroid places it, as a 16 px
-    straight smear does, read as about that long."""
+    a 40 px pad is not drawn (too small to hold its scale), for the reason named, not a number.  A
+    2 px Gaussian lens blur is read as a smear past the edge fit's, as a 16 px straight smear is
+    (read as about that long), and under both the outline stays where the view put it: the
+    border's blurred profile is fitted (the centroid placed both 1.3-1.5 % of the half side out)."""
     from benchmarks.blur_bias import main, measure
 
     sharp = measure(150, 0.0, views=2)
-    assert sharp["outlines"] == 2 and abs(sharp["outline_radial_pct_mean"]) < 0.1, sharp
+    # (the views are resampled in display values, as OpenGL does; the sides are fitted in light)
+    assert sharp["outlines"] == 2 and abs(sharp["outline_radial_pct_mean"]) < 0.2, sharp
     assert sharp["drawn"] == 4 and abs(sharp["drawn_scale_pct_worst"]) < 0.5 and sharp["drawing_refused"] == 0, sharp
     far = measure(40, 0.0, views=1)
     assert far["drawn"] == 0 and far["drawing_refused_why"] == {"the predicted pad spans # px": 2}, far
     soft = measure(150, 2.0, views=1)
     assert soft["smear_placed"] == 1 and soft["smear_px_median"] > 5.0, soft
-    # a straight 16 px smear (motion's kernel) is read as about that long, and centroid-placed too
+    assert abs(soft["outline_radial_pct_mean"]) < 0.4, soft
+    # under 1 px the edge fit holds, in light (in display values it put a 40 px pad's corners 3.7 % out)
+    far_soft = measure(40, 1.0, views=2)
+    assert far_soft["outlines"] == 2 and abs(far_soft["outline_radial_pct_mean"]) < 1.0, far_soft
     moving = measure(150, 0.0, views=1, smear_px=16.0)
     assert moving["smear_placed"] == 1 and 12.0 < moving["smear_px_median"] < 19.0, moving
+    assert abs(moving["outline_radial_pct_mean"]) < 0.4, moving
     with pytest.raises(SystemExit) as bad:
         main(["--views", "0"])
     assert bad.value.code == 2
