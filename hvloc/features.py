@@ -502,11 +502,12 @@ def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reac
     db = boxes[1] - boxes[0]
 
     def fine(q, boxes, sigmas, edges_at):
-        """(boxes * sigmas, edges) squared residuals of row ``q`` at those widths and edges."""
+        """(boxes * sigmas, edges) squared residuals of row ``q`` at those widths and edges (on the
+        coarse samples too: the edge's place comes from the model, not the sampling)."""
         fb, fs, fe = (a.ravel() for a in np.meshgrid(boxes, sigmas, edges_at, indexing="ij"))
-        x = r[None, :] - fe[:, None]
+        x = rc[None, :] - fe[:, None]
         st = np.stack([_box_gauss_step(x - w, fb[:, None], fs[:, None]) for w in edges])
-        return levels_fit(basis(st), Y[q:q + 1])[:, 0].reshape(-1, len(edges_at))
+        return levels_fit(basis(st), Yc[q:q + 1])[:, 0].reshape(-1, len(edges_at))
 
     for q in range(len(Y)):
         p = int(np.argmin(err[:, q]))
@@ -514,7 +515,7 @@ def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reac
             continue
         # the edge finely at the coarse widths, then the widths a little either side of there, and a
         # parabola through the edge's three best at the best widths
-        at = e_of[p] + np.arange(-d, d + 1e-9, 0.1)
+        at = e_of[p] + np.arange(-d, d + 1e-9, 0.2)
         e0 = at[int(np.argmin(fine(q, [b_of[p]], [s_of[p]], at)[0]))]
         rows = fine(q, np.clip(b_of[p] + db * np.array([-0.4, 0.0, 0.4]), 0.0, None),
                     s_of[p] * np.array([0.8, 1.0, 1.25]), e0 + np.array([-0.1, 0.0, 0.1]))
@@ -550,8 +551,8 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     length = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
     bands = np.asarray(bands_px, np.float64).reshape(4, -1)
     offsets = np.full((4, segments), np.nan)
-    reach = max(reach_px, 1.5 * blur_px + 4.0)
-    rs = [np.arange(-reach, bands[i].max() * 2.2 + 1e-9, step) for i in range(4)]
+    reach = max(reach_px, 1.5 * blur_px + 4.0)  # beyond the border, and into the field past it
+    rs = [np.arange(-reach, bands[i].max() + min(reach, bands[i].max() * 1.2) + 1e-9, step) for i in range(4)]
     per = int(np.clip(np.max(length) * (1.0 - 2.0 * trim) / segments, 4, 20))  # (band_centroid_offsets' stretches)
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
         edges = np.concatenate([[0.0], bands[i]])
