@@ -260,13 +260,14 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             # the cross-profiles of some stretch run out of the image: the stretches in view
             smeared, smear, _, per_smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera,
                                                            min_blur_px=5.0)
-        unresolved = smear > SMEARED_PX and smear > UNRESOLVED_SMEAR * float(_bands_px(quad, pad_geometry)[:, 1].min())
+        unresolved = smear > max(STRUCTURE_SMEAR_PX, UNRESOLVED_SMEAR * float(_bands_px(quad, pad_geometry)[:, 1].min()))
         if smeared is None and (smear > EDGE_FIT_SMEAR_PX or unresolved):
             # no edge to fit and no centroid to read: fitted as sharp edges, such sides lay half the
             # smear out (unseen18: the pad read 6 % large under 43 px of smear, a false accept); so
             # too where the smear is over twice the border's width (soft_gusty_deck: a 34 px pad under
             # a 2 px lens blur read 9.9 px, one of its centroids read 33 px off, and the edge fit put
-            # its corners 2-5 px out, the height 11.3 % low, "ok")
+            # its corners 2-5 px out, the height 11.3 % low, "ok"), past what a sharp small pad's own
+            # structure reads (a 24 px JPEG pad: 5.3 px, its sides fitted and mended by its field)
             return None, TOO_SMEARED
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
@@ -714,6 +715,7 @@ HULL_SLACK_PX = 4.0
 LIGHT_FIT_SMEAR_PX = 3.0  # px of luma smear past which the border's edge is fitted in light, not display values
 RESOLVED_SMEAR = 1.0  # smear (in border widths) up to which a border's blurred profile is fitted
 UNRESOLVED_SMEAR = 2.0  # smear (in border widths) past which a border no centroid placed is not fitted as sharp
+STRUCTURE_SMEAR_PX = 7.0  # smear a sharp small pad's structure may read (JPEG, glare: 5-6 px, see _smear_near)
 PROFILE_AGREE_PX, PROFILE_AGREE_PER_SMEAR = 1.0, 0.15  # how far (px, + per px of smear) it may move the centroid's side
 
 
