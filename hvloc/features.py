@@ -343,6 +343,12 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
     return _SRGB_TO_LINEAR[a]
 
 
+def _stretch_samples(length: np.ndarray, t0: np.ndarray, t1: np.ndarray, segments: int) -> int:
+    """How many cross-profiles each of ``segments`` equal stretches of the sides' spans ``t0``..``t1``
+    (fractions of sides ``length`` px long) is read over: about one per px of the longest, 4 to 20."""
+    return int(np.clip(np.max(length * np.clip(t1 - t0, 0.0, None)) / segments, 4, 20))
+
+
 def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, levels: np.ndarray,
                           camera: Camera | None = None, reach_px=16.0, trim: float = 0.25,
                           step: float = 0.5, segments: int = 2, in_view: bool = False, widen: int = 0) -> tuple:
@@ -375,7 +381,7 @@ def band_centroid_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.nd
     if in_view:
         t0, t1 = _spans(np.stack([seen for _, seen in _cross_profiles(g, q, rs, SPAN_SAMPLES, 0.0, camera)]),
                         length, trim)
-    per = int(np.clip(np.max(length * np.clip(t1 - t0, 0.0, None)) / segments, 4, 20))
+    per = _stretch_samples(length, t0, t1, segments)
     at = t0[:, None] + (t1 - t0)[:, None] * (np.arange(segments) + 0.5) / segments
     todo = np.repeat((t0 < t1)[:, None], segments, axis=1)  # (sides with too little in view: never read)
     for _ in range(widen + 1):
@@ -440,10 +446,10 @@ PROFILE_SIGMAS = np.array([0.5, 1.2, 2.2, 3.6])  # px: the Gaussian part of a bo
 INNER_LIGHT = (0.2, 0.6)  # the checker's light over the solid band's that a fit may find (below)
 
 
-def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
-                         inner=INNER_LIGHT) -> np.ndarray:
-    """(K,) the outer edge (px along ``r``) of the banded border whose blurred profile best explains
-    each row of ``Y`` (K, R), NaN where no rising border does: a ground level, the solid band
+def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
+                        inner=INNER_LIGHT) -> float:
+    """The outer edge (px along ``r``, a lattice of 1 px or so) of the banded border whose blurred
+    profile best explains ``y``, NaN where no rising border does: a ground level, the solid band
     (``edges[0]`` to ``edges[1]``, shifted by the edge), the checker (to ``edges[2]``) and the
     field beyond, each a free level, all seen through one kernel, a box (motion) convolved with a
     Gaussian (a lens), whose widths are searched with the edge on a grid, coarse then fine, and a
@@ -453,7 +459,7 @@ def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reac
     in light (half of the band's, for hvloc's checker of the border's colour and a dark one), a
     renderer filtering its texture in display values sums less (a quarter); left free, a border
     smeared over more than its width trades that level for its place."""
-    Y = np.atleast_2d(np.asarray(Y, np.float64))
+    Y = np.asarray(y, np.float64)[None, :]  # (the levels are fitted for rows of profiles)
     lo, hi = inner
     # the 3-level models (checker's light fixed at a bound) from the 4-level one: A3 = A4 @ M
     M = {c: np.array([[1, 0, 0], [0, 1, 0], [0, c, 0], [0, 0, 1]], np.float64) for c in (lo, hi)}
@@ -481,11 +487,9 @@ def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reac
         """(..., R, 4): ground, solid band, checker, field from the three blurred steps ``st`` (3, ..., R)."""
         return np.stack([np.ones_like(st[0]), st[0] - st[1], st[1] - st[2], st[2]], axis=-1)
 
-    # coarse: the edge in steps of the profile's own (1 px), so that every model's steps are read off
-    # one table per blur; then around each row's best, finely, the blur's two widths a little either side
-    step = float(r[1] - r[0])
-    k = max(1, int(round(1.0 / step)))
-    rc, Yc, d = r[::k], Y[:, ::k], step * k
+    # coarse: the edge in steps of the profile's own, so that every model's steps are read off one
+    # table per blur; then around the best, finely, the blur's two widths a little either side
+    rc, d = r, float(r[1] - r[0])
     n_e = int(np.ceil(e_reach / d))
     es = np.arange(-n_e, n_e + 1) * d
     boxes = np.linspace(0.0, max(box_max, 1.0), 7)
@@ -495,46 +499,42 @@ def _fit_banded_profiles(r: np.ndarray, Y: np.ndarray, edges: np.ndarray, e_reac
     table = np.stack([_box_gauss_step(u[None, :] - w, bb[:, None], ss[:, None]) for w in edges])  # (3, BS, U)
     idx = np.arange(len(rc))[None, :] + (len(es) - 1 - np.arange(len(es)))[:, None]  # (E, R): r_j - e_p
     A = basis(table[:, :, idx]).reshape(-1, len(rc), 4)  # (BS * E, R, 4)
-    err = levels_fit(A, Yc)
+    err = levels_fit(A, Y)[:, 0]
     b_of, s_of = np.repeat(bb, len(es)), np.repeat(ss, len(es))
     e_of = np.tile(es, len(bb))
-    out = np.full(len(Y), np.nan)
     db = boxes[1] - boxes[0]
 
-    def fine(q, boxes, sigmas, edges_at):
-        """(boxes * sigmas, edges) squared residuals of row ``q`` at those widths and edges (on the
-        coarse samples too: the edge's place comes from the model, not the sampling)."""
+    def fine(boxes, sigmas, edges_at):
+        """(boxes * sigmas, edges) squared residuals at those widths and edges (on the same samples:
+        the edge's place comes from the model, not the sampling)."""
         fb, fs, fe = (a.ravel() for a in np.meshgrid(boxes, sigmas, edges_at, indexing="ij"))
         x = rc[None, :] - fe[:, None]
         st = np.stack([_box_gauss_step(x - w, fb[:, None], fs[:, None]) for w in edges])
-        return levels_fit(basis(st), Yc[q:q + 1])[:, 0].reshape(-1, len(edges_at))
+        return levels_fit(basis(st), Y)[:, 0].reshape(-1, len(edges_at))
 
-    for q in range(len(Y)):
-        p = int(np.argmin(err[:, q]))
-        if not np.isfinite(err[p, q]):
-            continue
-        # the edge finely at the coarse widths, then the widths a little either side of there, and a
-        # parabola through the edge's three best at the best widths
-        at = e_of[p] + np.arange(-d, d + 1e-9, 0.2)
-        e0 = at[int(np.argmin(fine(q, [b_of[p]], [s_of[p]], at)[0]))]
-        rows = fine(q, np.clip(b_of[p] + db * np.array([-0.4, 0.0, 0.4]), 0.0, None),
-                    s_of[p] * np.array([0.8, 1.0, 1.25]), e0 + np.array([-0.1, 0.0, 0.1]))
-        row = rows[int(np.argmin(rows.min(axis=1)))]
-        if not np.isfinite(row[1]) or row[1] > min(row[0], row[2]):
-            out[q] = e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan
-            continue
-        den = row[0] - 2 * row[1] + row[2]
-        out[q] = e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
-    return out
+    p = int(np.argmin(err))
+    if not np.isfinite(err[p]):
+        return np.nan
+    # the edge finely at the coarse widths, then the widths a little either side of there, and a
+    # parabola through the edge's three best at the best widths
+    at = e_of[p] + np.arange(-d, d + 1e-9, 0.2)
+    e0 = at[int(np.argmin(fine([b_of[p]], [s_of[p]], at)[0]))]
+    rows = fine(np.clip(b_of[p] + db * np.array([-0.4, 0.0, 0.4]), 0.0, None), s_of[p] * np.array([0.8, 1.0, 1.25]),
+                e0 + np.array([-0.1, 0.0, 0.1]))
+    row = rows[int(np.argmin(rows.min(axis=1)))]
+    if not np.isfinite(row[1]) or row[1] > min(row[0], row[2]):
+        return e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan
+    den = row[0] - 2 * row[1] + row[2]
+    return e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
 
 
 def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
                            within_px: float, blur_px: float, camera: Camera | None = None, reach_px: float = 16.0,
-                           trim: float = 0.25, step: float = 0.5) -> np.ndarray:
+                           trim: float = 0.25, step: float = 1.0) -> np.ndarray:
     """(4, S) where (px, along each side's inward normal from the sides of ``quad_px``) the outer
     edge of the banded border lies over each of S equal stretches of each side's middle (``trim``
     of the side left at either end), as a fit of the stretch's mean cross-profile by the border's
-    own blurred profile (:func:`_fit_banded_profiles`) finds it within ``within_px`` of ``around``
+    own blurred profile (:func:`_fit_banded_profile`) finds it within ``within_px`` of ``around``
     (4, S), where :func:`band_centroid_offsets` read it on the same stretches; NaN where there is no
     such reading or no fit.  ``chan`` must be linear in light; ``blur_px``: the smear read there.
 
@@ -553,15 +553,15 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     offsets = np.full((4, segments), np.nan)
     reach = max(reach_px, 1.5 * blur_px + 4.0)  # beyond the border, and into the field past it
     rs = [np.arange(-reach, bands[i].max() + min(reach, bands[i].max() * 1.2) + 1e-9, step) for i in range(4)]
-    per = int(np.clip(np.max(length) * (1.0 - 2.0 * trim) / segments, 4, 20))  # (band_centroid_offsets' stretches)
+    per = _stretch_samples(length, np.full(4, trim), np.full(4, 1.0 - trim), segments)
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
         edges = np.concatenate([[0.0], bands[i]])
         for k in range(segments):
             part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
             if len(part) < 2 or not np.isfinite(around[i, k]):
                 continue
-            offsets[i, k] = around[i, k] + _fit_banded_profiles(rs[i] - around[i, k], part.mean(axis=0), edges,
-                                                                within_px, 1.6 * blur_px + 2.0)[0]
+            offsets[i, k] = around[i, k] + _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges,
+                                                               within_px, 1.6 * blur_px + 2.0)
     return offsets
 
 
