@@ -255,7 +255,8 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     else:
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
-        smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera)
+        # (placed by the centroid: the border's profile is fitted once, where it is read again below)
+        smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
             smeared, smear, _, per_smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera,
@@ -721,11 +722,11 @@ PROFILE_AGREE_PX, PROFILE_AGREE_PER_SMEAR = 1.0, 0.15  # how far (px, + per px o
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
-               partial: bool = False, trim: float = 0.25, in_view: bool = False) -> tuple:
+               partial: bool = False, trim: float = 0.25, in_view: bool = False, profile: bool = True) -> tuple:
     """``(quad | None, smear px, fitted (4, 2) | None, noise per smear)``: ``quad_px`` with its sides
-    moved to where the border's centroid puts them (:func:`band_centroid_offsets`), or where its
-    blurred profile is fitted (:func:`banded_profile_offsets`) if the border is smeared over no more
-    than its width, when some side is smeared by more than ``min_blur_px``
+    moved to where the border's centroid puts them (:func:`band_centroid_offsets`), or, with
+    ``profile``, where its blurred profile is fitted (:func:`banded_profile_offsets`) if the border is
+    smeared over no more than its width, when some side is smeared by more than ``min_blur_px``
     (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
     read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
     around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
@@ -756,7 +757,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view,
                                         widen=widen)
-    if not in_view and smear <= RESOLVED_SMEAR * float(bands[:, 1].min()):
+    if profile and not in_view and smear <= RESOLVED_SMEAR * float(bands[:, 1].min()):
         # the border resolved (smeared over no more than its width): its blurred profile fitted, if on
         # every stretch that agrees with the centroid (what else lies across a profile, a box's edge,
         # moves a fit further than the centroid's bias); the spread the centroid read is no measure
