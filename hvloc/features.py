@@ -447,9 +447,10 @@ INNER_LIGHT = (0.2, 0.6)  # the checker's light over the solid band's that a fit
 
 
 def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
-                        inner=INNER_LIGHT) -> float:
-    """The outer edge (px along ``r``, a lattice of 1 px or so) of the banded border whose blurred
-    profile best explains ``y``, NaN where no rising border does: a ground level, the solid band
+                        inner=INNER_LIGHT) -> tuple:
+    """``(edge, width)``: the outer edge (px along ``r``, a lattice of 1 px or so) of the banded border
+    whose blurred profile best explains ``y``, NaN where no rising border does, and the width (px) of
+    the box whose spread equals its kernel's (``sqrt(box**2 + 12 sigma**2)``): a ground level, the solid band
     (``edges[0]`` to ``edges[1]``, shifted by the edge), the checker (to ``edges[2]``) and the
     field beyond, each a free level, all seen through one kernel, a box (motion) convolved with a
     Gaussian (a lens), whose widths are searched with the edge on a grid, coarse then fine, and a
@@ -514,36 +515,47 @@ def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach
 
     p = int(np.argmin(err))
     if not np.isfinite(err[p]):
-        return np.nan
-    # the edge finely at the coarse widths, then the widths a little either side of there, and a
-    # parabola through the edge's three best at the best widths
-    at = e_of[p] + np.arange(-d, d + 1e-9, 0.2)
-    e0 = at[int(np.argmin(fine([b_of[p]], [s_of[p]], at)[0]))]
-    rows = fine(np.clip(b_of[p] + db * np.array([-0.4, 0.0, 0.4]), 0.0, None), s_of[p] * np.array([0.8, 1.0, 1.25]),
-                e0 + np.array([-0.1, 0.0, 0.1]))
-    row = rows[int(np.argmin(rows.min(axis=1)))]
+        return np.nan, np.nan
+    # around the best, the edge and both widths together (the box trades for the edge: searched
+    # one at a time, a stretch's edge stopped 0.5 px off), twice, each time finer; then a parabola
+    # through the edge's three best at the best widths
+    b0, s0, e0 = b_of[p], s_of[p], e_of[p]
+    for span in (1.0, 0.4):
+        boxes_at = np.clip(b0 + span * db * np.linspace(-0.6, 0.6, 5), 0.0, None)
+        sig_at = s0 * np.exp(span * np.linspace(-0.4, 0.4, 5))
+        edges_at = e0 + span * d * np.linspace(-0.6, 0.6, 7)
+        rows = fine(boxes_at, sig_at, edges_at)
+        w, k = np.unravel_index(int(np.argmin(rows)), rows.shape)
+        b0, s0, e0 = boxes_at[w // len(sig_at)], sig_at[w % len(sig_at)], edges_at[k]
+    row = fine([b0], [s0], e0 + np.array([-0.1, 0.0, 0.1]))[0]
+    width = float(np.hypot(b0, np.sqrt(12.0) * s0))
     if not np.isfinite(row[1]) or row[1] > min(row[0], row[2]):
-        return e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan
+        return (e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan), width
     den = row[0] - 2 * row[1] + row[2]
-    return e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
+    return e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0), width
 
 
 def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
                            within_px: float, blur_px: float, camera: Camera | None = None, reach_px: float = 16.0,
-                           trim: float = 0.25, step: float = 1.0) -> np.ndarray:
+                           trim: float = 0.25, step: float = 1.0, max_width_px=np.inf) -> np.ndarray:
     """(4, S) where (px, along each side's inward normal from the sides of ``quad_px``) the outer
     edge of the banded border lies over each of S equal stretches of each side's middle (``trim``
     of the side left at either end), as a fit of the stretch's mean cross-profile by the border's
     own blurred profile (:func:`_fit_banded_profile`) finds it within ``within_px`` of ``around``
     (4, S), where :func:`band_centroid_offsets` read it on the same stretches; NaN where there is no
-    such reading or no fit.  ``chan`` must be linear in light; ``blur_px``: the smear read there.
+    such reading or no fit, or where the kernel fitted is wider than ``max_width_px`` (one for all
+    sides or (4,) one per side).  ``chan`` must be linear in light; ``blur_px``: the smear read there.
 
     A centroid is the sharp border's only when all of the blurred border's light is summed and
     nothing else's, which a Gaussian's long tails (cut where they fall under the ground's texture)
     and the field's own level beside it do not allow: under a 2 px lens blur the centroid placed
     the outline 1-2 % of its half side out (``benchmarks/blur_bias.py``).  The fit needs the
     border's bands resolved: under a smear wider than the border the checker's light trades for the
-    border's place (:data:`INNER_LIGHT`), and the centroid, which needs no shape, is better."""
+    border's place (:data:`INNER_LIGHT`), and the centroid, which needs no shape, is better.  What
+    the kernel is wide is the fit's own reading, in the channel fitted: JPEG smears a colour channel
+    further than luma (a 56 px pad under 4.5 px of motion, 5 px in luma, fitted a 9.9 px kernel in the
+    border's channel through JPEG 75, and the fit put its edge 1.1 px in, trading the solid band's
+    light for its place).  Past the border's width its place is not told by its shape."""
     g = chan if chan.dtype == np.float32 else chan.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     around = np.asarray(around, np.float64)
@@ -553,6 +565,7 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     offsets = np.full((4, segments), np.nan)
     reach = max(reach_px, 1.5 * blur_px + 4.0)  # beyond the border, and into the field past it
     rs = [np.arange(-reach, bands[i].max() + min(reach, bands[i].max() * 1.2) + 1e-9, step) for i in range(4)]
+    widest = np.broadcast_to(np.asarray(max_width_px, np.float64), (4,))
     per = _stretch_samples(length, np.full(4, trim), np.full(4, 1.0 - trim), segments)
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
         edges = np.concatenate([[0.0], bands[i]])
@@ -560,8 +573,10 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
             part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
             if len(part) < 2 or not np.isfinite(around[i, k]):
                 continue
-            offsets[i, k] = around[i, k] + _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges,
-                                                               within_px, 1.6 * blur_px + 2.0)
+            e, width = _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges, within_px,
+                                           1.6 * blur_px + 2.0)
+            if width <= widest[i]:
+                offsets[i, k] = around[i, k] + e
     return offsets
 
 

@@ -763,7 +763,8 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         # moves a fit further than the centroid's bias); the spread the centroid read is no measure
         # of a lens's blur (a Gaussian's tails are cut: it read 0 under 3 px), the smear read in luma is
         near = PROFILE_AGREE_PX + PROFILE_AGREE_PER_SMEAR * smear
-        fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim)
+        fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim,
+                                     max_width_px=RESOLVED_SMEAR * bands[:, 1])
         if (np.abs(fit - e) < near)[np.isfinite(e)].all():
             e, blur = np.where(np.isfinite(e), fit, e), np.full_like(blur, smear)
             per_smear = PROFILE_SIGMA_PER_SMEAR
