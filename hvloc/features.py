@@ -444,13 +444,15 @@ def _box_gauss_step(x: np.ndarray, box, sigma) -> np.ndarray:
 
 PROFILE_SIGMAS = np.array([0.5, 1.2, 2.2, 3.6])  # px: the Gaussian part of a border's blur, tried first
 INNER_LIGHT = (0.2, 0.6)  # the checker's light over the solid band's that a fit may find (below)
+BAND_LEVEL_SHARE = 0.6  # the least share of the stretches' median band level a fitted stretch shows
 
 
 def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
                         inner=INNER_LIGHT) -> tuple:
-    """``(edge, width)``: the outer edge (px along ``r``, a lattice of 1 px or so) of the banded border
-    whose blurred profile best explains ``y``, NaN where no rising border does, and the width (px) of
-    the box whose spread equals its kernel's (``sqrt(box**2 + 12 sigma**2)``): a ground level, the solid band
+    """``(edge, width, band)``: the outer edge (px along ``r``, a lattice of 1 px or so) of the banded
+    border whose blurred profile best explains ``y``, NaN where no rising border does, the width (px)
+    of the box whose spread equals its kernel's (``sqrt(box**2 + 12 sigma**2)``) and the solid band's
+    level there.  The model: a ground level, the solid band
     (``edges[0]`` to ``edges[1]``, shifted by the edge), the checker (to ``edges[2]``) and the
     field beyond, each a free level, all seen through one kernel, a box (motion) convolved with a
     Gaussian (a lens), whose widths are searched with the edge on a grid, coarse then fine, and a
@@ -465,8 +467,9 @@ def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach
     # the 3-level models (checker's light fixed at a bound) from the 4-level one: A3 = A4 @ M
     M = {c: np.array([[1, 0, 0], [0, 1, 0], [0, c, 0], [0, 0, 1]], np.float64) for c in (lo, hi)}
 
-    def levels_fit(A, Yr):
-        """(P, K) squared residuals of each model's best levels (``A``: (P, R, 4) basis)."""
+    def levels_fit(A, Yr, band=False):
+        """(P, K) squared residuals of each model's best levels (``A``: (P, R, 4) basis); with
+        ``band``, also the solid band's level in each."""
         At = A.transpose(0, 2, 1)
         AtA, AtY = At @ A, At @ Yr.T
         y2 = np.sum(Yr * Yr, axis=1)
@@ -482,7 +485,8 @@ def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach
             c3 = np.linalg.solve(A3 + 1e-9 * np.eye(3), B3)
             err = np.where(out, y2[None, :] - np.sum(c3 * B3, axis=1), err)
             amp = np.where(out, c3[:, 1, :], amp)
-        return np.where(amp > 0, err, np.inf)
+        err = np.where(amp > 0, err, np.inf)
+        return (err, amp) if band else err
 
     def basis(st):
         """(..., R, 4): ground, solid band, checker, field from the three blurred steps ``st`` (3, ..., R)."""
@@ -515,7 +519,7 @@ def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach
 
     p = int(np.argmin(err))
     if not np.isfinite(err[p]):
-        return np.nan, np.nan
+        return np.nan, np.nan, np.nan
     # around the best, the edge and both widths together (the box trades for the edge: searched
     # one at a time, a stretch's edge stopped 0.5 px off), twice, each time finer; then a parabola
     # through the edge's three best at the best widths
@@ -529,10 +533,16 @@ def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach
         b0, s0, e0 = boxes_at[w // len(sig_at)], sig_at[w % len(sig_at)], edges_at[k]
     row = fine([b0], [s0], e0 + np.array([-0.1, 0.0, 0.1]))[0]
     width = float(np.hypot(b0, np.sqrt(12.0) * s0))
-    if not np.isfinite(row[1]) or row[1] > min(row[0], row[2]):
-        return (e0 + 0.1 * (int(np.argmin(row)) - 1) if np.isfinite(row).any() else np.nan), width
-    den = row[0] - 2 * row[1] + row[2]
-    return e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0), width
+    if not np.isfinite(row).all() or row[1] > min(row[0], row[2]):  # (no parabola: the best of the three)
+        e = (e0 + 0.1 * (int(np.argmin(row)) - 1)) if np.isfinite(row).any() else np.nan
+    else:
+        den = row[0] - 2 * row[1] + row[2]
+        e = e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
+    if not np.isfinite(e):
+        return e, width, np.nan
+    x = rc - e
+    band = levels_fit(basis(np.stack([_box_gauss_step(x - w, b0, s0) for w in edges]))[None], Y, band=True)[1]
+    return e, width, float(band[0, 0])
 
 
 def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
@@ -543,8 +553,12 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     of the side left at either end), as a fit of the stretch's mean cross-profile by the border's
     own blurred profile (:func:`_fit_banded_profile`) finds it within ``within_px`` of ``around``
     (4, S), where :func:`band_centroid_offsets` read it on the same stretches; NaN where there is no
-    such reading or no fit, or where the kernel fitted is wider than ``max_width_px`` (one for all
-    sides or (4,) one per side).  ``chan`` must be linear in light; ``blur_px``: the smear read there.
+    such reading or no fit, where the kernel fitted is wider than ``max_width_px`` (one for all
+    sides or (4,) one per side), or where the solid band's level is under :data:`BAND_LEVEL_SHARE`
+    of the stretches' median: something hides part of that stretch (a box over a corner, softened
+    by 1 px, left two stretches 0.3-0.5 of the others' light, their fit agreed with their
+    centroid, and a corner lay 2.9 px off; under blur alone the stretches' levels lie within 0.8-1.25
+    of their median).  ``chan`` must be linear in light; ``blur_px``: the smear read there.
 
     A centroid is the sharp border's only when all of the blurred border's light is summed and
     nothing else's, which a Gaussian's long tails (cut where they fall under the ground's texture)
@@ -563,6 +577,7 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     length = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
     bands = np.asarray(bands_px, np.float64).reshape(4, -1)
     offsets = np.full((4, segments), np.nan)
+    levels = np.full((4, segments), np.nan)
     reach = max(reach_px, 1.5 * blur_px + 4.0)  # beyond the border, and into the field past it
     rs = [np.arange(-reach, bands[i].max() + min(reach, bands[i].max() * 1.2) + 1e-9, step) for i in range(4)]
     widest = np.broadcast_to(np.asarray(max_width_px, np.float64), (4,))
@@ -573,10 +588,15 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
             part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
             if len(part) < 2 or not np.isfinite(around[i, k]):
                 continue
-            e, width = _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges, within_px,
-                                           1.6 * blur_px + 2.0)
+            e, width, level = _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges, within_px,
+                                                  1.6 * blur_px + 2.0)
+            levels[i, k] = level
             if width <= widest[i]:
                 offsets[i, k] = around[i, k] + e
+    # a stretch part hidden (a box over a corner reaching into it) shows less of the band's light
+    # than the others, and its fit is no measure of the border's place
+    dim = levels < BAND_LEVEL_SHARE * np.nanmedian(levels) if np.isfinite(levels).any() else np.zeros_like(levels, bool)
+    offsets[dim] = np.nan
     return offsets
 
 

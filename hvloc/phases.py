@@ -256,7 +256,9 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # motion blur wider than the fit's window leaves no edge to fit: the border's centroid tells
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
         # (placed by the centroid: the border's profile is fitted once, where it is read again below)
-        smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False)
+        smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False,
+                                                  min_blur_px=LIGHT_FIT_SMEAR_PX)
+        reach = smeared is not None and smear <= SMEARED_PX  # (within an edge fit's reach: placed if fitted)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
             smeared, smear, _, per_smear = _smeared_in_view(rgb, refined + [bx0, by0], pad_geometry, camera,
@@ -273,7 +275,15 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
             again, smear_again, _, per_again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
-            if smear_again > SMEARED_PX or smear > EDGE_FIT_SMEAR_PX:
+            if reach:
+                # within an edge fit's reach the border's fitted profile places it (an edge fit in light
+                # put a small pad's corners 1-2.5 px off under 4.5 px of motion, its solid band 1.7 px
+                # wide: the fit 0.1-0.5 px); where the profile is not fitted the edge fit does, as before
+                if again is not None and per_again == PROFILE_SIGMA_PER_SMEAR and smear_again > LIGHT_FIT_SMEAR_PX:
+                    refined, smear, per_smear = again, smear_again, per_again
+                else:
+                    smeared, per_smear = None, CENTROID_SIGMA_PER_SMEAR
+            elif smear_again > SMEARED_PX or smear > EDGE_FIT_SMEAR_PX:
                 refined, smear = (smeared if again is None else again), smear_again
                 per_smear = per_smear if again is None else per_again
             else:
@@ -713,7 +723,7 @@ SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are plac
 # whose sides fit within 2 px (bench_v2's v2_wide_jpeg55 at 20 m: 3.1-4.8 px; refused at 3 px, 18 of
 # 239 frames lost).  Larger pads allow a tenth of their side.
 HULL_SLACK_PX = 4.0
-LIGHT_FIT_SMEAR_PX = 3.0  # px of luma smear past which the border's edge is fitted in light, not display values
+LIGHT_FIT_SMEAR_PX = 3.0  # px of luma smear past which the border's profile is fitted, else its edge in light
 RESOLVED_SMEAR = 1.0  # smear (in border widths) up to which a border's blurred profile is fitted
 UNRESOLVED_SMEAR = 2.0  # smear (in border widths) past which a border no centroid placed is not fitted as sharp
 STRUCTURE_SMEAR_PX = 7.0  # smear a sharp small pad's structure may read (JPEG, glare: 5-6 px, see _smear_near)

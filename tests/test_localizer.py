@@ -978,14 +978,54 @@ def test_the_border_profile_fit_finds_its_edge_and_its_kernel_together():
     worst, widths = 0.0, []
     for _ in range(200):
         e, box, sig, ratio = rng.uniform(-1, 1), rng.uniform(3, 6), rng.uniform(0.5, 1.5), rng.uniform(0.25, 0.5)
-        found, width = _fit_banded_profile(*profile(e, box, sig, ratio), edges, 1.8, 10.0)
+        found, width, _ = _fit_banded_profile(*profile(e, box, sig, ratio), edges, 1.8, 10.0)
         worst = max(worst, abs(found - e))
         widths.append(width / math.hypot(box, math.sqrt(12.0) * sig))
     assert worst < 0.2, worst
     assert 0.8 < min(widths) and max(widths) < 1.2, (min(widths), max(widths))
-    _, wide = _fit_banded_profile(*profile(0.3, 8.5, 1.3, 0.4), edges, 1.8, 16.0)
+    _, wide, _ = _fit_banded_profile(*profile(0.3, 8.5, 1.3, 0.4), edges, 1.8, 16.0)
     assert wide > 1.3 * edges[-1], wide
 
+
+def _narrow_border_views(seed: int, views: int, smear_px: float, lens_px: float, jpeg: int = 0) -> list:
+    """``[(image, truth (4, 2) of the corners found), ...]``: a 0.6 m pad with a 0.07 m border (a
+    1.7 px solid band, a checker to 6.85 px) 56 px across, nadir within 3 degrees, through a 50
+    degree 1280x960 lens blurred by ``lens_px`` (a Gaussian), smeared ``smear_px`` in a random
+    direction, then JPEG ``jpeg`` (4:2:0) when given; the corners found (outer or field) per view."""
+    from benchmarks.blur_bias import defocused, smeared
+
+    small = make_pad({"side_m": 0.6, "border_m": 0.07, "border_checker_m": 0.01, "marker_size_m": 0.085})
+    geo = small.geometry
+    cam = Camera.from_hfov(1280, 960, math.radians(50.0))
+    rng = np.random.default_rng(seed)
+    worst = []
+    for _ in range(views):
+        h = cam.fx * small.side_m / 56.0
+        G = nadir_cam2pad(rng.uniform(-0.1, 0.1) * h, rng.uniform(-0.1, 0.1) * h, h, rng.uniform(0, 2 * math.pi))
+        G[:3, :3] = G[:3, :3] @ so3_exp(np.radians(rng.uniform(-3, 3, 3)))
+        img = defocused(warp_pad_view(small, cam, G, (110, 105, 90)), lens_px)
+        if smear_px:
+            img = smeared(img, smear_px, rng.uniform(0, 180))
+        if jpeg:
+            img = cv2.imdecode(cv2.imencode(".jpg", np.ascontiguousarray(img[..., ::-1]),
+                                            [cv2.IMWRITE_JPEG_QUALITY, jpeg])[1], cv2.IMREAD_COLOR)[..., ::-1]
+        out, why = find_outline(np.ascontiguousarray(img), geo, cam)
+        assert out is not None, why
+        used, pts = (out.field_px, geo.field_corners) if out.field_px is not None else (out.quad_px, geo.outer_corners)
+        t = cam.project_from(G, np.c_[pts[:, :2], np.zeros(4)])
+        worst.append(max(np.linalg.norm(t - q, axis=1).min() for q in used))
+    return worst
+
+
+def test_a_small_pad_under_a_soft_lens_through_jpeg_is_placed_by_its_border_profile():
+    """A 56 px pad with a narrow border (1.7 px solid band) under a 1.2 px lens blur through JPEG 75
+    reads 3-5 px of smear, within an edge fit's reach; fitted there as an edge (in light), two of
+    these eight views had a corner 2.1-2.3 px off (unseen47's Approaching poses at 8-12 m 4 % of
+    the height off).  Where the smear is read past 3 px the border's blurred profile is fitted
+    first, and kept where it agrees with the border's centroid and its kernel is no wider than the
+    border: every corner within 1.1 px."""
+    worst = _narrow_border_views(1, 8, 0.0, 1.2, jpeg=75)
+    assert max(worst) < 1.1, np.round(worst, 2)
 
 
 def test_an_outline_under_motion_smear_says_how_good_it_is():
