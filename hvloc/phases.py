@@ -724,7 +724,11 @@ SMEARED_PX = 5.0  # px of motion smear beyond which the outline's sides are plac
 # 239 frames lost).  Larger pads allow a tenth of their side.
 HULL_SLACK_PX = 4.0
 LIGHT_FIT_SMEAR_PX = 3.0  # px of luma smear past which the border's profile is fitted, else its edge in light
-RESOLVED_SMEAR = 1.0  # smear (in border widths) up to which a border's blurred profile is fitted
+# A border's blurred profile is fitted where the smear read in luma is at most 1.5 of its width (the
+# field's edge merges with the checker's: a 56 px pad under 4.5 px of motion and a 1 px lens read
+# 8.2 px on half its views, against 4.9), and kept where the kernel fitted in the border's own
+# channel is no wider than the border (JPEG smears that channel further than luma)
+RESOLVED_SMEAR, RESOLVED_WIDTH = 1.5, 1.0
 UNRESOLVED_SMEAR = 2.0  # smear (in border widths) past which a border no centroid placed is not fitted as sharp
 STRUCTURE_SMEAR_PX = 7.0  # smear a sharp small pad's structure may read (JPEG, glare: 5-6 px, see _smear_near)
 PROFILE_AGREE_PX, PROFILE_AGREE_PER_SMEAR = 1.0, 0.15  # how far (px, + per px of smear) it may move the centroid's side
@@ -774,7 +778,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         # of a lens's blur (a Gaussian's tails are cut: it read 0 under 3 px), the smear read in luma is
         near = PROFILE_AGREE_PX + PROFILE_AGREE_PER_SMEAR * smear
         fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim,
-                                     max_width_px=RESOLVED_SMEAR * bands[:, 1])
+                                     max_width_px=RESOLVED_WIDTH * bands[:, 1])
         if (np.abs(fit - e) < near)[np.isfinite(e)].all():
             e, blur = np.where(np.isfinite(e), fit, e), np.full_like(blur, smear)
             per_smear = PROFILE_SIGMA_PER_SMEAR
