@@ -931,6 +931,24 @@ def test_a_pad_smeared_past_the_edge_fit_is_placed_or_refused(pad):
     assert wrong <= 1 and placed >= 18, (placed, wrong)
 
 
+def _soft_views_with_a_strip(pad, beside_px: float, lens_px: float):
+    """``(image, truth (4, 3) px, camera)`` of six views of a 36 px pad (blur_bias's, seed 5) with a
+    strip of the border's colour 3 px wide ``beside_px`` beyond side 1 along it, under a lens blur
+    of ``lens_px``."""
+    from benchmarks.blur_bias import _views, defocused
+
+    cam = Camera.from_hfov(1280, 720, math.radians(90.0))
+    for G in _views(pad, cam, 36.0, 6, seed=5):
+        img = warp_pad_view(pad, cam, G, (110, 105, 90))
+        t = cam.project_from(G, pad.geometry.outer_corners)
+        n = (t[1] + t[2]) / 2 - t.mean(axis=0)
+        n /= np.linalg.norm(n)
+        strip = np.array([t[1] + beside_px * n, t[2] + beside_px * n, t[2] + (beside_px + 3) * n,
+                          t[1] + (beside_px + 3) * n])
+        cv2.fillConvexPoly(img, np.round(strip).astype(np.int32), pad.geometry.border.color_rgb)
+        yield defocused(img, lens_px), t, cam
+
+
 def test_a_far_pad_under_a_soft_lens_is_not_fitted_as_sharp(pad):
     """A 36 px pad (a 4 px border) under a 2.5 px lens blur reads 10-12 px of smear; where one of its
     border's centroids cannot be read (something of the border's colour 16 px beside a side runs
@@ -938,18 +956,9 @@ def test_a_far_pad_under_a_soft_lens_is_not_fitted_as_sharp(pad):
     "holds to 10 px"): one of these six views 12.6 % of the half side out, "ok" (soft_gusty_deck: a
     34 px pad at 15 m read 11.3 % of the height low).  A border smeared over more than twice its
     width is not fitted as sharp: such a pad is refused."""
-    from benchmarks.blur_bias import _views, defocused
-
     geo = pad.geometry
-    cam = Camera.from_hfov(1280, 720, math.radians(90.0))
-    for G in _views(pad, cam, 36.0, 6, seed=5):
-        img = warp_pad_view(pad, cam, G, (110, 105, 90))
-        t = cam.project_from(G, geo.outer_corners)
-        n = (t[1] + t[2]) / 2 - t.mean(axis=0)
-        n /= np.linalg.norm(n)
-        strip = np.array([t[1] + 16 * n, t[2] + 16 * n, t[2] + 19 * n, t[1] + 19 * n])
-        cv2.fillConvexPoly(img, np.round(strip).astype(np.int32), geo.border.color_rgb)
-        out, why = find_outline(defocused(img, 2.5), geo, cam)
+    for img, t, cam in _soft_views_with_a_strip(pad, 16.0, 2.5):
+        out, why = find_outline(img, geo, cam)
         if out is not None:
             q, _ = _in_order_of(out.quad_px, t)
             assert np.linalg.norm(q - t, axis=1).max() < 0.03 * np.linalg.norm(t[1] - t[0]), (why, q - t)
@@ -1048,18 +1057,10 @@ def test_a_strip_of_the_border_colour_beside_a_soft_pad_is_not_taken_for_its_bor
     7.5 % low, a square to 1.4 % of its side: no gate refuses that), on every view.  The bump is now
     the one over the border's place: every view within 2.5 % (the centroid's own bias on an
     unresolved border, +1-2 %)."""
-    from benchmarks.blur_bias import _views, defocused, radial_error_pct
+    from benchmarks.blur_bias import radial_error_pct
 
-    geo = pad.geometry
-    cam = Camera.from_hfov(1280, 720, math.radians(90.0))
-    for G in _views(pad, cam, 36.0, 6, seed=5):
-        img = warp_pad_view(pad, cam, G, (110, 105, 90))
-        t = cam.project_from(G, geo.outer_corners)
-        n = (t[1] + t[2]) / 2 - t.mean(axis=0)
-        n /= np.linalg.norm(n)
-        strip = np.array([t[1] + beside_px * n, t[2] + beside_px * n, t[2] + (beside_px + 3) * n, t[1] + (beside_px + 3) * n])
-        cv2.fillConvexPoly(img, np.round(strip).astype(np.int32), geo.border.color_rgb)
-        out, why = find_outline(defocused(img, 2.0), geo, cam)
+    for img, t, cam in _soft_views_with_a_strip(pad, beside_px, 2.0):
+        out, why = find_outline(img, pad.geometry, cam)
         assert out is not None, why
         assert abs(radial_error_pct(out.quad_px, t[:, :2])) < 2.5, radial_error_pct(out.quad_px, t[:, :2])
 
