@@ -278,7 +278,8 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             if reach:
                 # within an edge fit's reach the border's fitted profile places it (an edge fit in light
                 # put a small pad's corners 1-2.5 px off under 4.5 px of motion, its solid band 1.7 px
-                # wide: the fit 0.1-0.5 px); where the profile is not fitted the edge fit does, as before
+                # wide: the fit 0.1-0.5 px); where the profile is not fitted (the noise stated says how
+                # the sides were placed) the edge fit does, as before
                 if again is not None and per_again == PROFILE_SIGMA_PER_SMEAR and smear_again > LIGHT_FIT_SMEAR_PX:
                     refined, smear, per_smear = again, smear_again, per_again
                 else:
@@ -740,7 +741,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     """``(quad | None, smear px, fitted (4, 2) | None, noise per smear)``: ``quad_px`` with its sides
     moved to where the border's centroid puts them (:func:`band_centroid_offsets`), or, with
     ``profile``, where its blurred profile is fitted (:func:`banded_profile_offsets`) if the border is
-    smeared over no more than its width, when some side is smeared by more than ``min_blur_px``
+    resolved (:data:`RESOLVED_SMEAR`, :data:`RESOLVED_WIDTH`), when some side is smeared by more than ``min_blur_px``
     (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
     read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
     around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
