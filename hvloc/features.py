@@ -456,101 +456,111 @@ BAND_LEVEL_SHARE = 0.6  # the least share of the stretches' median band level a 
 
 def _fit_banded_profile(r: np.ndarray, y: np.ndarray, edges: np.ndarray, e_reach: float, box_max: float,
                         inner=INNER_LIGHT) -> tuple:
-    """``(edge, width, band)``: the outer edge (px along ``r``, a lattice of 1 px or so) of the banded
-    border whose blurred profile best explains ``y``, NaN where no rising border does, the width (px)
-    of the box whose spread equals its kernel's (``sqrt(box**2 + 12 sigma**2)``) and the solid band's
-    level there.  The model: a ground level, the solid band
-    (``edges[0]`` to ``edges[1]``, shifted by the edge), the checker (to ``edges[2]``) and the
-    field beyond, each a free level, all seen through one kernel, a box (motion) convolved with a
-    Gaussian (a lens), whose widths are searched with the edge on a grid, coarse then fine, and a
-    parabola through the best edge.
+    """``(edge, width, band)`` of one profile ``y`` on ``r``: :func:`_fit_banded_profiles`."""
+    e, w, b = _fit_banded_profiles(np.asarray(r, np.float64)[None], np.asarray(y, np.float64)[None],
+                                   np.ones((1, len(r))), np.asarray(edges, np.float64)[None], e_reach, box_max, inner)
+    return float(e[0]), float(w[0]), float(b[0])
+
+
+def _fit_banded_profiles(r: np.ndarray, y: np.ndarray, used: np.ndarray, edges: np.ndarray, e_reach: float,
+                         box_max: float, inner=INNER_LIGHT) -> tuple:
+    """``(edge, width, band)``, each (K,): for each of K profiles ``y`` (K, R) on lattices ``r`` (K, R)
+    of one step (1 px or so; samples where ``used`` (K, R) is 0 are left out), the outer edge (px
+    along ``r``) of the banded border whose blurred profile best explains it, NaN where no rising
+    border does, the width (px) of the box whose spread equals its kernel's (``sqrt(box**2 + 12
+    sigma**2)``) and the solid band's level there.  The model: a ground level, the solid band
+    (``edges[k, 0]`` to ``edges[k, 1]``, shifted by the edge), the checker (to ``edges[k, 2]``) and
+    the field beyond, each a free level, all seen through one kernel, a box (motion, at most
+    ``box_max``) convolved with a Gaussian (a lens), whose widths are searched with the edge (within
+    ``e_reach``) on a grid, coarse then fine, and a parabola through the best edge.  The profiles
+    are fitted together, each on its own grid (one profile at a time, the calls cost more than the
+    arithmetic).
 
     The checker's light, relative to the solid band's, is held within ``inner``: a camera sums it
     in light (half of the band's, for hvloc's checker of the border's colour and a dark one), a
     renderer filtering its texture in display values sums less (a quarter); left free, a border
     smeared over more than its width trades that level for its place."""
-    Y = np.asarray(y, np.float64)[None, :]  # (the levels are fitted for rows of profiles)
+    r, Y, W, edges = (np.asarray(a, np.float64) for a in (r, y, used, edges))
+    K = len(Y)
     lo, hi = inner
     # the 3-level models (checker's light fixed at a bound) from the 4-level one: A3 = A4 @ M
     M = {c: np.array([[1, 0, 0], [0, 1, 0], [0, c, 0], [0, 0, 1]], np.float64) for c in (lo, hi)}
+    y2 = np.sum(W * Y * Y, axis=1)[:, None]
 
-    def levels_fit(A, Yr, band=False):
-        """(P, K) squared residuals of each model's best levels (``A``: (P, R, 4) basis); with
-        ``band``, also the solid band's level in each."""
-        At = A.transpose(0, 2, 1)
-        AtA, AtY = At @ A, At @ Yr.T
-        y2 = np.sum(Yr * Yr, axis=1)
-        coef = np.linalg.solve(AtA + 1e-9 * np.eye(4), AtY)  # (P, 4, K)
-        err = y2[None, :] - np.sum(coef * AtY, axis=1)
-        amp = coef[:, 1, :]
-        ratio = coef[:, 2, :] / np.where(amp > 0, amp, np.inf)
+    def levels_fit(A):
+        """(K, P) squared residuals of each row's P models' best levels and the solid band's level
+        in each (``A``: (K, P, R, 4) basis)."""
+        At = (A * W[:, None, :, None]).swapaxes(-1, -2)  # (K, P, 4, R)
+        AtA, AtY = At @ A, (At @ Y[:, None, :, None])[..., 0]
+        coef = np.linalg.solve(AtA + 1e-9 * np.eye(4), AtY[..., None])[..., 0]  # (K, P, 4)
+        err = y2 - np.sum(coef * AtY, axis=-1)
+        amp = coef[..., 1]
+        ratio = coef[..., 2] / np.where(amp > 0, amp, np.inf)
         for c, out in ((lo, ratio < lo), (hi, ratio > hi)):
             if not out.any():
                 continue
             m = M[c]
-            A3, B3 = m.T @ AtA @ m, m.T @ AtY
-            c3 = np.linalg.solve(A3 + 1e-9 * np.eye(3), B3)
-            err = np.where(out, y2[None, :] - np.sum(c3 * B3, axis=1), err)
-            amp = np.where(out, c3[:, 1, :], amp)
-        err = np.where(amp > 0, err, np.inf)
-        return (err, amp) if band else err
+            A3, B3 = m.T @ AtA @ m, AtY @ m
+            c3 = np.linalg.solve(A3 + 1e-9 * np.eye(3), B3[..., None])[..., 0]
+            err = np.where(out, y2 - np.sum(c3 * B3, axis=-1), err)
+            amp = np.where(out, c3[..., 1], amp)
+        return np.where(amp > 0, err, np.inf), amp
 
     def basis(st):
         """(..., R, 4): ground, solid band, checker, field from the three blurred steps ``st`` (3, ..., R)."""
         return np.stack([np.ones_like(st[0]), st[0] - st[1], st[1] - st[2], st[2]], axis=-1)
 
+    def steps(x, fb, fs):
+        """(3, K, P, R): the three band edges' steps at ``x`` (K, P, R) from the edge, widths (K, P)."""
+        return _box_gauss_step(x[None] - edges.T[:, :, None, None], fb[None, ..., None], fs[None, ..., None])
+
     # coarse: the edge in steps of the profile's own, so that every model's steps are read off one
     # table per blur; then around the best, finely, the blur's two widths a little either side
-    rc, d = r, float(r[1] - r[0])
+    d = float(r[0, 1] - r[0, 0])
     n_e = int(np.ceil(e_reach / d))
     es = np.arange(-n_e, n_e + 1) * d
     boxes = np.linspace(0.0, max(box_max, 1.0), 7)
     sig = np.sqrt(PROFILE_SIGMAS**2 + 1.0 / 12.0)
     bb, ss = (a.ravel() for a in np.meshgrid(boxes, sig, indexing="ij"))
-    u = rc[0] - es[-1] + d * np.arange(len(rc) + len(es) - 1)  # every r - e on the lattice
-    table = np.stack([_box_gauss_step(u[None, :] - w, bb[:, None], ss[:, None]) for w in edges])  # (3, BS, U)
-    idx = np.arange(len(rc))[None, :] + (len(es) - 1 - np.arange(len(es)))[:, None]  # (E, R): r_j - e_p
-    A = basis(table[:, :, idx]).reshape(-1, len(rc), 4)  # (BS * E, R, 4)
-    err = levels_fit(A, Y)[:, 0]
-    b_of, s_of = np.repeat(bb, len(es)), np.repeat(ss, len(es))
-    e_of = np.tile(es, len(bb))
+    R = r.shape[1]
+    u = r[:, :1] - es[-1] + d * np.arange(R + len(es) - 1)[None, :]  # (K, U): every r - e on the lattice
+    table = steps(np.broadcast_to(u[:, None, :], (K, len(bb), u.shape[1])), np.broadcast_to(bb, (K, len(bb))),
+                  np.broadcast_to(ss, (K, len(ss))))  # (3, K, BS, U)
+    idx = np.arange(R)[None, :] + (len(es) - 1 - np.arange(len(es)))[:, None]  # (E, R): r_j - e_p
+    err, _ = levels_fit(basis(table[..., idx]).reshape(K, -1, R, 4))  # (K, BS * E)
+    b_of, s_of, e_of = np.repeat(bb, len(es)), np.repeat(ss, len(es)), np.tile(es, len(bb))
     db = boxes[1] - boxes[0]
 
-    def fine(boxes, sigmas, edges_at):
-        """(boxes * sigmas, edges) squared residuals at those widths and edges (on the same samples:
+    def fine(fb, fs, fe):
+        """(K, P) squared residuals and band levels at widths and edges (K, P) (on the same samples:
         the edge's place comes from the model, not the sampling)."""
-        fb, fs, fe = (a.ravel() for a in np.meshgrid(boxes, sigmas, edges_at, indexing="ij"))
-        x = rc[None, :] - fe[:, None]
-        st = np.stack([_box_gauss_step(x - w, fb[:, None], fs[:, None]) for w in edges])
-        return levels_fit(basis(st), Y)[:, 0].reshape(-1, len(edges_at))
+        return levels_fit(basis(steps(r[:, None, :] - fe[..., None], fb, fs)))
 
-    p = int(np.argmin(err))
-    if not np.isfinite(err[p]):
-        return np.nan, np.nan, np.nan
+    p = np.argmin(err, axis=1)
+    none = ~np.isfinite(err[np.arange(K), p])
     # around the best, the edge and both widths together (the box trades for the edge: searched
     # one at a time, a stretch's edge stopped 0.5 px off), four times, each time finer (as good as
-    # twice on 5x5x7, for half the models); then a parabola
-    # through the edge's three best at the best widths
+    # twice on 5x5x7, for half the models); then a parabola through the edge's three best at the
+    # best widths
     b0, s0, e0 = b_of[p], s_of[p], e_of[p]
+    grid = [a.ravel() for a in np.meshgrid(np.linspace(-0.6, 0.6, 3), np.linspace(-0.4, 0.4, 3),
+                                           np.linspace(-0.6, 0.6, 5), indexing="ij")]
     for span in (1.0, 0.5, 0.25, 0.125):
-        boxes_at = np.clip(b0 + span * db * np.linspace(-0.6, 0.6, 3), 0.0, None)
-        sig_at = s0 * np.exp(span * np.linspace(-0.4, 0.4, 3))
-        edges_at = e0 + span * d * np.linspace(-0.6, 0.6, 5)
-        rows = fine(boxes_at, sig_at, edges_at)
-        w, k = np.unravel_index(int(np.argmin(rows)), rows.shape)
-        b0, s0, e0 = boxes_at[w // len(sig_at)], sig_at[w % len(sig_at)], edges_at[k]
-    row = fine([b0], [s0], e0 + np.array([-0.1, 0.0, 0.1]))[0]
-    width = float(np.hypot(b0, np.sqrt(12.0) * s0))
-    if not np.isfinite(row).all() or row[1] > min(row[0], row[2]):  # (no parabola: the best of the three)
-        e = (e0 + 0.1 * (int(np.argmin(row)) - 1)) if np.isfinite(row).any() else np.nan
-    else:
-        den = row[0] - 2 * row[1] + row[2]
-        e = e0 + (0.5 * (row[0] - row[2]) / den * 0.1 if den > 0 else 0.0)
-    if not np.isfinite(e):
-        return e, width, np.nan
-    x = rc - e
-    band = levels_fit(basis(np.stack([_box_gauss_step(x - w, b0, s0) for w in edges]))[None], Y, band=True)[1]
-    return e, width, float(band[0, 0])
+        fb = np.clip(b0[:, None] + span * db * grid[0], 0.0, None)
+        fs = s0[:, None] * np.exp(span * grid[1])
+        fe = e0[:, None] + span * d * grid[2]
+        w = np.argmin(fine(fb, fs, fe)[0], axis=1)
+        b0, s0, e0 = (a[np.arange(K), w] for a in (fb, fs, fe))
+    row = fine(np.repeat(b0[:, None], 3, axis=1), np.repeat(s0[:, None], 3, axis=1), e0[:, None] + [-0.1, 0.0, 0.1])[0]
+    width = np.hypot(b0, np.sqrt(12.0) * s0)
+    den = row[:, 0] - 2 * row[:, 1] + row[:, 2]
+    middle = np.isfinite(row).all(axis=1) & (row[:, 1] <= np.minimum(row[:, 0], row[:, 2]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shift = np.where(middle, np.where(den > 0, 0.5 * (row[:, 0] - row[:, 2]) / np.where(den > 0, den, 1.0), 0.0) * 0.1,
+                         0.1 * (np.argmin(np.where(np.isfinite(row), row, np.inf), axis=1) - 1))
+    e = np.where(none | ~np.isfinite(row).any(axis=1), np.nan, e0 + shift)
+    band = fine(b0[:, None], s0[:, None], np.where(np.isfinite(e), e, e0)[:, None])[1][:, 0]
+    return e, np.where(none, np.nan, width), np.where(np.isfinite(e), band, np.nan)
 
 
 def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
@@ -590,17 +600,26 @@ def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.n
     rs = [np.arange(-reach, bands[i].max() + min(reach, bands[i].max() * 1.2) + 1e-9, step) for i in range(4)]
     widest = np.broadcast_to(np.asarray(max_width_px, np.float64), (4,))
     per = _stretch_samples(length, np.full(4, trim), np.full(4, 1.0 - trim), segments)
+    n = max(len(x) for x in rs)  # (every stretch's profile on one lattice length, the rest unused)
+    at, rr, yy, used, ee = [], [], [], [], []
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, rs, per * segments, trim, camera)):
-        edges = np.concatenate([[0.0], bands[i]])
         for k in range(segments):
             part = prof[k * per:(k + 1) * per][seen[k * per:(k + 1) * per]]
             if len(part) < 2 or not np.isfinite(around[i, k]):
                 continue
-            e, width, level = _fit_banded_profile(rs[i] - around[i, k], part.mean(axis=0), edges, within_px,
-                                                  1.6 * blur_px + 2.0)
-            levels[i, k] = level
-            if width <= widest[i]:
-                offsets[i, k] = around[i, k] + e
+            m = len(rs[i])
+            at.append((i, k))
+            rr.append(rs[i][0] - around[i, k] + step * np.arange(n))
+            yy.append(np.pad(part.mean(axis=0), (0, n - m)))
+            used.append(np.arange(n) < m)
+            ee.append(np.concatenate([[0.0], bands[i]]))
+    if at:
+        e, width, level = _fit_banded_profiles(np.array(rr), np.array(yy), np.array(used), np.array(ee), within_px,
+                                               1.6 * blur_px + 2.0)
+        for (i, k), ek, wk, lk in zip(at, e, width, level):
+            levels[i, k] = lk
+            if wk <= widest[i]:
+                offsets[i, k] = around[i, k] + ek
     # a stretch part hidden (a box over a corner reaching into it) shows less of the band's light
     # than the others, and its fit is no measure of the border's place
     dim = levels < BAND_LEVEL_SHARE * np.nanmedian(levels) if np.isfinite(levels).any() else np.zeros_like(levels, bool)
