@@ -257,7 +257,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # where it is; otherwise the border's own profile, not a half level, says where its edge is
         # (placed by the centroid: the border's profile is fitted once, where it is read again below)
         smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False,
-                                                  min_blur_px=LIGHT_FIT_SMEAR_PX, from_edge_fit=True)
+                                                  min_blur_px=LIGHT_FIT_SMEAR_PX)
         reach = smeared is not None and smear <= SMEARED_PX  # (within an edge fit's reach: placed if fitted)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
@@ -737,8 +737,7 @@ PROFILE_AGREE_PX, PROFILE_AGREE_PER_SMEAR = 1.0, 0.15  # how far (px, + per px o
 
 def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                min_blur_px: float = SMEARED_PX, reach_px: float = 16.0, segments: int = 2,
-               partial: bool = False, trim: float = 0.25, in_view: bool = False, profile: bool = True,
-               from_edge_fit: bool = False) -> tuple:
+               partial: bool = False, trim: float = 0.25, in_view: bool = False, profile: bool = True) -> tuple:
     """``(quad | None, smear px, fitted (4, 2) | None, noise per smear)``: ``quad_px`` with its sides
     moved to where the border's centroid puts them (:func:`band_centroid_offsets`), or, with
     ``profile``, where its blurred profile is fitted (:func:`banded_profile_offsets`) if the border is
@@ -748,8 +747,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
     (fractions of each side, from its first corner) the side's line was fitted; noise per smear: a
     corner's pixel noise per px of smear, as placed (:data:`CENTROID_SIGMA_PER_SMEAR`,
-    :data:`PROFILE_SIGMA_PER_SMEAR`).  ``from_edge_fit``: ``quad_px`` is an edge fit's, whose sides may
-    lie up to half the image's smear off, not only their own.
+    :data:`PROFILE_SIGMA_PER_SMEAR`).
 
     Measured on the conditions suite's gusty descent (12 px of blur at 12 m, a 55 px pad): the
     edge fit put every corner 4-5 px outside the pad, the pose 3.8 m off, accepted; the centroid
@@ -786,11 +784,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
             e, blur = np.where(np.isfinite(e), fit, e), np.full_like(blur, smear)
             per_smear = PROFILE_SIGMA_PER_SMEAR
     read = np.isfinite(e)
-    # a side moves no further than its smear explains, or, from an edge fit's quad (whose sides the
-    # smear of the sides beside them can bend), the image's (a 250 px pad under 16 px of motion along
-    # one pair: a side of the other pair, smeared by nothing across, lay 2.06 px from its centroid)
-    allow = np.maximum(blur, smear) if from_edge_fit else blur
-    if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > allow[read] / 2 + 2.0):
+    if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
         return None, smear, None, CENTROID_SIGMA_PER_SMEAR
     # each side through its stretches' edge points (the side's angle is as uncertain as its place);
     # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view

@@ -810,10 +810,6 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     moving = measure(150, 0.0, views=1, smear_px=16.0)
     assert moving["smear_placed"] == 1 and 12.0 < moving["smear_px_median"] < 19.0, moving
     assert abs(moving["outline_radial_pct_mean"]) < 0.4, moving
-    # a side smeared by nothing across lay 2.06 px from its centroid on an edge fit's quad: one of
-    # these four views was refused as smeared past placing
-    large = measure(250, 0.0, views=4, smear_px=16.0)
-    assert large["outlines"] == 4 and abs(large["outline_radial_pct_mean"]) < 0.2, large
     with pytest.raises(SystemExit) as bad:
         main(["--views", "0"])
     assert bad.value.code == 2
