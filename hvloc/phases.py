@@ -780,14 +780,18 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         near = PROFILE_AGREE_PX + PROFILE_AGREE_PER_SMEAR * smear
         fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim,
                                      max_width_px=RESOLVED_WIDTH * bands[:, 1])
-        # a side whose every stretch is fitted so is placed by its fit; the outline states the fit's
-        # noise when every side is (a large pad whose one side no fit placed kept the centroid on all
-        # four, 1-2.4 px outward, where three were fitted within 0.35 px)
+        # a side whose every stretch is fitted so is placed by its fit (a large pad whose one side no
+        # fit placed kept the centroid on all four, 1-2.4 px outward, where three were fitted within
+        # 0.35 px); a corner beside a side the centroid placed has the centroid's noise, and the
+        # outline states their RMS over its corners
         agree = ((np.abs(fit - e) < near) | ~np.isfinite(e)).all(axis=1) & np.isfinite(e).any(axis=1)
         e = np.where(agree[:, None] & np.isfinite(e), fit, e)
         blur = np.where(agree[:, None], smear, blur)
         if agree.all():
             per_smear = PROFILE_SIGMA_PER_SMEAR
+        elif agree.any():  # (corner j lies between sides j - 1 and j)
+            corner = np.where(agree & np.roll(agree, 1), PROFILE_SIGMA_PER_SMEAR, CENTROID_SIGMA_PER_SMEAR)
+            per_smear = float(np.sqrt(np.mean(corner**2)))
     read = np.isfinite(e)
     if not ((read.sum(axis=1) >= 2).all() if partial else read.all()) or np.any(np.abs(e[read]) > blur[read] / 2 + 2.0):
         return None, smear, None, CENTROID_SIGMA_PER_SMEAR
