@@ -551,7 +551,7 @@ def _fit_banded_profiles(r: np.ndarray, y: np.ndarray, used: np.ndarray, edges: 
         fe = e0[:, None] + span * d * grid[2]
         w = np.argmin(fine(fb, fs, fe)[0], axis=1)
         b0, s0, e0 = (a[np.arange(K), w] for a in (fb, fs, fe))
-    row = fine(np.repeat(b0[:, None], 3, axis=1), np.repeat(s0[:, None], 3, axis=1), e0[:, None] + [-0.1, 0.0, 0.1])[0]
+    row, amp = fine(np.repeat(b0[:, None], 3, axis=1), np.repeat(s0[:, None], 3, axis=1), e0[:, None] + [-0.1, 0.0, 0.1])
     width = np.hypot(b0, np.sqrt(12.0) * s0)
     den = row[:, 0] - 2 * row[:, 1] + row[:, 2]
     middle = np.isfinite(row).all(axis=1) & (row[:, 1] <= np.minimum(row[:, 0], row[:, 2]))
@@ -559,8 +559,8 @@ def _fit_banded_profiles(r: np.ndarray, y: np.ndarray, used: np.ndarray, edges: 
         shift = np.where(middle, np.where(den > 0, 0.5 * (row[:, 0] - row[:, 2]) / np.where(den > 0, den, 1.0), 0.0) * 0.1,
                          0.1 * (np.argmin(np.where(np.isfinite(row), row, np.inf), axis=1) - 1))
     e = np.where(none | ~np.isfinite(row).any(axis=1), np.nan, e0 + shift)
-    band = fine(b0[:, None], s0[:, None], np.where(np.isfinite(e), e, e0)[:, None])[1][:, 0]
-    return e, np.where(none, np.nan, width), np.where(np.isfinite(e), band, np.nan)
+    # (the band's level where the parabola's middle lies, a tenth of a px from its vertex at most)
+    return e, np.where(none, np.nan, width), np.where(np.isfinite(e), amp[:, 1], np.nan)
 
 
 def banded_profile_offsets(chan: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, around: np.ndarray,
