@@ -769,7 +769,8 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         across = np.where(np.isfinite(pairs), pairs, smear)[[0, 1, 0, 1]]
         reach_px = np.minimum(reach_px, np.maximum(6.0, 0.75 * across + 3.0))
     per_smear = CENTROID_SIGMA_PER_SMEAR
-    e, blur, at = band_centroid_offsets(_border_channel(lin), q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
+    chan = _border_channel(lin)  # (of the crop around the pad: read by the centroid and the fit)
+    e, blur, at = band_centroid_offsets(chan, q, bands, [1.0, 0.5 * (1.0 + levels[1] / levels[0])],
                                         cam, reach_px=reach_px, trim=trim, segments=segments, in_view=in_view,
                                         widen=widen)
     if profile and not in_view and smear <= RESOLVED_SMEAR * float(bands[:, 1].min()):
@@ -778,7 +779,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         # moves a fit further than the centroid's bias); the spread the centroid read is no measure
         # of a lens's blur (a Gaussian's tails are cut: it read 0 under 3 px), the smear read in luma is
         near = PROFILE_AGREE_PX + PROFILE_AGREE_PER_SMEAR * smear
-        fit = banded_profile_offsets(_border_channel(lin), q, bands, e, near, smear, cam, trim=trim,
+        fit = banded_profile_offsets(chan, q, bands, e, near, smear, cam, trim=trim,
                                      max_width_px=RESOLVED_WIDTH * bands[:, 1])
         # a side whose every stretch is fitted so is placed by its fit (a large pad whose one side no
         # fit placed kept the centroid on all four, 1-2.4 px outward, where three were fitted within
