@@ -52,7 +52,7 @@ COLUMN_DOCS = {
     "pad_fully_visible": "1 if the whole pad (outline and area) is in the image and hidden by nothing",
     "markers_visible": "how many of the three corner markers are wholly in the image and hidden by nothing",
     "module_px": "smallest module (px) of the visible corner markers (0 if none)",
-    "blur_px": "largest image motion of a pad corner over the exposure (px, ideal pinhole)",
+    "blur_px": "largest image motion over the exposure of the pad's points in view (px, through the lens; NaN: none in view)",
     "blur_subframes": "samples over the exposure used for this frame's motion blur (1: none)",
     **{f"c{i}{a}": f"pixel {a} of the pad's outer corner {i} (TL, TR, BR, BL); NaN when outside the image"
        for i in range(4) for a in "uv"},

@@ -27,7 +27,7 @@ import numpy as np
 from hvloc.geometry import continuous_quaternions, invert, tum_from_transform
 
 from . import motion as mo
-from .phase import PadSamples, depth_occlusion, phase_gt, view_facts
+from .phase import PadSamples, depth_occlusion, pad_image_motion_px, phase_gt, view_facts
 from .imaging import SRGB_TO_LINEAR
 from .plan import camera_from_spec, mount_from_spec, pad_for, plan_sequence
 from .spec import DatasetSpec
@@ -526,12 +526,10 @@ class SequenceRenderer:
         if np.allclose(cam2pad, self.cam2pad(k), atol=1e-12):
             pose[3:] = self._quats[k]  # the hemisphere kept from row to row
         blur = 0.0
-        if self.exposure > 0:  # the pad corners' image motion over the exposure (ideal pinhole)
+        if self.exposure > 0:  # the image motion over the exposure of the pad in view
             B, P = self._poses_at(t + np.array([-self.exposure / 2, self.exposure / 2]))
-            pin = self.camera.without_distortion()
-            ends = [pin.project_from(invert(Pi) @ Bi @ self.T_B_C, self.pad.outer_corners_P) for Bi, Pi in zip(B, P)]
-            d = np.linalg.norm(ends[1] - ends[0], axis=1)
-            blur = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+            ends = [invert(Pi) @ Bi @ self.T_B_C for Bi, Pi in zip(B, P)]
+            blur = pad_image_motion_px(self.camera, ends[0], ends[1], self.pad.geometry.half_side_m, (cam2pad,))
         phase = phase_gt(self.camera, cam2pad, self.pad.geometry, self.spec.phase_rule.min_module_px, facts)
         body = tum_from_transform(T_W_B)
         if np.allclose(T_W_B, self.body2world[k], atol=1e-12):

@@ -111,18 +111,20 @@ def interpolate_poses(rows: np.ndarray, t: np.ndarray) -> list:
     return out
 
 
-def blur_bound_px(poses: list, index: np.ndarray, camera, corners_P: np.ndarray) -> np.ndarray:
-    """Per frame, the largest image motion of a pad corner over one frame interval (ideal pinhole),
-    toward either neighbour: an upper bound of the motion blur, as no exposure can be longer than a
-    frame.  NaN where a neighbour or the pose is missing (such frames are not image-checked)."""
-    pin = camera.without_distortion()
-    px = [None if p is None else pin.project_from(p, corners_P) for p in poses]
+def blur_bound_px(poses: list, index: np.ndarray, camera, half_side_m: float) -> np.ndarray:
+    """Per frame, the largest image motion of the pad in view over one frame interval, toward
+    either neighbour (:func:`render.phase.pad_image_motion_px`): an upper bound of the motion blur,
+    as no exposure can be longer than a frame.  NaN where a neighbour or the pose is missing, or no
+    part of the pad is in view (such frames are not image-checked)."""
+    from .phase import pad_image_motion_px
+
     out = np.full(len(poses), np.nan)
     for k in range(len(poses)):
-        if px[k] is None:
+        if poses[k] is None:
             continue
-        steps = [np.nanmax(np.linalg.norm(px[j] - px[k], axis=1)) / abs(int(index[j]) - int(index[k]))
-                 for j in (k - 1, k + 1) if 0 <= j < len(poses) and px[j] is not None]
+        steps = [pad_image_motion_px(camera, poses[k], poses[j], half_side_m, (poses[k],)) / abs(int(index[j]) - int(index[k]))
+                 for j in (k - 1, k + 1) if 0 <= j < len(poses) and poses[j] is not None]
+        steps = [s for s in steps if np.isfinite(s)]
         if steps:
             out[k] = max(steps)
     return out
@@ -329,7 +331,7 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
         sid = ds.sequence_id(0)
         writer = ds.SequenceWriter(root / f".tmp-{sid}")
         count = len(index)
-        blur = blur_bound_px(poses, index, camera, pad.outer_corners_P)
+        blur = blur_bound_px(poses, index, camera, pad.geometry.half_side_m)
         bar = progress_bar(show_progress, count, "import")
         qi = iter(q if q is not None else ())
 
