@@ -553,9 +553,9 @@ def _fit_banded_profiles(r: np.ndarray, y: np.ndarray, used: np.ndarray, edges: 
         b0, s0, e0 = (a[np.arange(K), w] for a in (fb, fs, fe))
     row, amp = fine(np.repeat(b0[:, None], 3, axis=1), np.repeat(s0[:, None], 3, axis=1), e0[:, None] + [-0.1, 0.0, 0.1])
     width = np.hypot(b0, np.sqrt(12.0) * s0)
-    den = row[:, 0] - 2 * row[:, 1] + row[:, 2]
     middle = np.isfinite(row).all(axis=1) & (row[:, 1] <= np.minimum(row[:, 0], row[:, 2]))
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):  # (a stretch whose models are all infinite: no parabola)
+        den = row[:, 0] - 2 * row[:, 1] + row[:, 2]
         shift = np.where(middle, np.where(den > 0, 0.5 * (row[:, 0] - row[:, 2]) / np.where(den > 0, den, 1.0), 0.0) * 0.1,
                          0.1 * (np.argmin(np.where(np.isfinite(row), row, np.inf), axis=1) - 1))
     e = np.where(none | ~np.isfinite(row).any(axis=1), np.nan, e0 + shift)
