@@ -968,29 +968,47 @@ class HierarchicalLocalizer:
             extras["still_dv"] = M
         return out
 
-    def _smear_spread(self, pose: PoseResult, pts_P, px, solve) -> PoseResult:
-        """``pose`` with, in its position covariance, how far it moves when every one of its points
-        ``px`` (tracked by Lucas-Kanade, solved by ``solve(pixels)``) shifts by
-        :data:`TRACK_SMEAR_DOUBT` of its own smear over the exposure, as the last poses' velocity and
-        the gyro's rate predict it (one solve; none where no point is smeared
-        :data:`TRACK_SMEAR_MIN_PX`, no exposure is known or no motion is).  A feature's track in a
-        smeared frame lands where its smeared patch best matches a sharper one, which its shape
-        decides; features alike move alike, and the pose takes their shared shift whole.  On the
-        conditions suite's deck pitched 30 degrees under a 1 m/s relative motion (30-37 px of smear
-        at 0.15-0.2 m), flow poses were 1.4-2.2 mm off with 1.1-1.3 mm stated (NEES up to 27); a
-        texture pose at 0.25 m under some 20 px (unseen49) 1.1 mm off with 0.2-0.3 mm stated (NEES 61)."""
+    def _image_motion(self, cam2pad: np.ndarray, motion, pts_P) -> np.ndarray | None:
+        """``(N, 2)`` how far each of ``pts_P`` moves in the image over the exposure, seen from
+        ``cam2pad`` under ``motion`` = (velocity m/s in P, rate rad/s in C; either may be ``None``);
+        ``None`` with no exposure or no motion known."""
         e = self.exposure_s
-        if pose.cov is None or not e > 0 or (self.velocity is None and self.rate_B is None):
-            return pose
-        v = np.zeros(3) if self.velocity is None else np.asarray(self.velocity, np.float64)
-        w = np.zeros(3) if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+        if not e > 0 or motion is None or (motion[0] is None and motion[1] is None):
+            return None
+        v = np.zeros(3) if motion[0] is None else np.asarray(motion[0], np.float64)
+        w = np.zeros(3) if motion[1] is None else np.asarray(motion[1], np.float64)
         ends = []
         for s in (-0.5 * e, 0.5 * e):
-            T = pose.cam2pad.copy()
+            T = cam2pad.copy()
             T[:3, 3] += v * s
             T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
             ends.append(self.camera.project_from(T, pts_P))
-        d = ends[1] - ends[0]
+        return ends[1] - ends[0]
+
+    def _motion(self) -> tuple:
+        """(velocity m/s in P, rate rad/s in C) this frame is exposed under, as the last poses and the gyro say."""
+        return self.velocity, None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+
+    def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None) -> PoseResult:
+        """``pose`` with, in its position covariance, how far it moves when every one of its points
+        ``px`` (tracked by Lucas-Kanade, solved by ``solve(pixels)``) shifts by
+        :data:`TRACK_SMEAR_DOUBT` of how much more (or otherwise) it is smeared over the exposure than
+        where it was tracked from: the keyframe's frame (``keyframe``, its motion known), or a
+        sharp drawing; each smear as the last poses' velocity and the gyro's rate predict it (one
+        solve; none where that differs by under :data:`TRACK_SMEAR_MIN_PX` for every point, no
+        exposure is known or no motion is).  A feature's track lands where its smeared patch best
+        matches the other, differently smeared one, which its shape decides; features alike move
+        alike, and the pose takes their shared shift whole (two patches smeared alike match
+        without it: a steady descent's flow is not doubted for its smear).  On the
+        conditions suite's deck pitched 30 degrees under a 1 m/s relative motion (30-37 px of smear
+        at 0.15-0.2 m), flow poses were 1.4-2.2 mm off with 1.1-1.3 mm stated (NEES up to 27); a
+        texture pose at 0.25 m under some 20 px (unseen49) 1.1 mm off with 0.2-0.3 mm stated (NEES 61)."""
+        d = None if pose.cov is None else self._image_motion(pose.cam2pad, self._motion(), pts_P)
+        if d is None:
+            return pose
+        if keyframe is not None:  # (no motion known for the keyframe: counted as sharp)
+            then = self._image_motion(keyframe.cam2pad, keyframe.motion, pts_P)
+            d = d if then is None else d - then
         fin = np.isfinite(d).all(axis=1)
         if not fin.any() or float(np.linalg.norm(d[fin], axis=1).max()) < TRACK_SMEAR_MIN_PX:
             return pose
@@ -1089,7 +1107,7 @@ class HierarchicalLocalizer:
                     return solve_planar_pose(self.camera, P, px, up_C=up_C, prev_cam2pad=prior,
                                              gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg)
 
-                res = self._smear_spread(res, P, seen, solve)
+                res = self._smear_spread(res, P, seen, solve, self.flow.kf)
                 res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)
             return (res, n, extras), "ok"
         if method == "texture":
@@ -1387,18 +1405,18 @@ class HierarchicalLocalizer:
         if not cfg.use_flow or (not cfg.anchor_once and h > cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m):
             self.flow.reset()
             return
-        if method == "flow":
-            self.flow.accept(est.cam2pad, est.rms_px, est.cov)
-            return
         f = self.flow
-        if est.extras.get("by") == "synthesis":  # a smeared frame: no keyframe for Lucas-Kanade
-            return
-        f.frames_since_kf += 1
-        if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
-                or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
-            if f.reaches(est.cam2pad) and not _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
-                return
-            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+        serial = None if f.kf is None else f.kf.serial
+        if method == "flow":
+            f.accept(est.cam2pad, est.rms_px, est.cov)
+        elif est.extras.get("by") != "synthesis":  # (a smeared frame: no keyframe for Lucas-Kanade)
+            f.frames_since_kf += 1
+            if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
+                    or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
+                if not f.reaches(est.cam2pad) or _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
+                    f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+        if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
+            f.kf.motion = self._motion()
 
 
 def _surer(kf, cov) -> bool:

@@ -355,9 +355,10 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
     stated; a deck's flow at 0.15-0.2 m under 30-37 px: 1.4-2.2 mm, 1.1-1.3 stated).  Now the
     pose's covariance holds what a shift of a tenth of each track's own smear (the last poses'
     velocity and the gyro's rate over the exposure) moves it by; a frame smeared under 4 px, or
-    one with no exposure known, is as it was."""
+    one with no exposure known, is as it was.  The flow's tracks are doubted for how much more
+    they are smeared than in their keyframe: one smeared alike (a steady descent) is not doubted."""
     import hvloc.localizer as L
-    from hvloc.geometry import transform_points
+    from hvloc.phases import Keyframe
 
     G = tilted(0.05, -0.04, 0.3, 0.4, 0.02, -0.01)
     g = np.linspace(-0.12, 0.12, 7)
@@ -389,6 +390,13 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
         nees = (float(err @ np.linalg.solve(pose.cov[:3, :3], err)), float(err @ np.linalg.solve(spread.cov[:3, :3], err)))
         if exposure > 0 and np.linalg.norm(d, axis=1).max() >= L.TRACK_SMEAR_MIN_PX:
             assert np.linalg.norm(d, axis=1).max() > 20 and nees[0] > 50 and nees[1] < 3.0, (nees, np.abs(d).max())
+            # a keyframe exposed under the same motion from nearly the same place: nothing to doubt;
+            # one exposed still: the whole smear, as from a sharp drawing
+            kf = Keyframe(None, tilted(0.052, -0.041, 0.302, 0.4, 0.02, -0.01), None, P, True,
+                          motion=(slow * v, slow * w_C))
+            assert np.array_equal(loc._smear_spread(pose, P, px, solve, kf).cov, pose.cov)
+            kf.motion = (np.zeros(3), np.zeros(3))
+            assert np.allclose(loc._smear_spread(pose, P, px, solve, kf).cov, spread.cov, rtol=1e-3, atol=0)
         else:
             assert np.array_equal(spread.cov, pose.cov), (exposure, slow)
 
