@@ -52,7 +52,11 @@ COLUMN_DOCS = {
     "pad_fully_visible": "1 if the whole pad (outline and area) is in the image and hidden by nothing",
     "markers_visible": "how many of the three corner markers are wholly in the image and hidden by nothing",
     "module_px": "smallest module (px) of the visible corner markers (0 if none)",
-    "blur_px": "largest image motion over the exposure of the pad's points in view (px, through the lens; NaN: none in view)",
+    "blur_px": ("largest image motion over the exposure of the pad's points in view (px, through the lens: a 17 x 17 "
+                "grid over the pad, corners included; NaN when none is in view). Datasets generated before commit "
+                "54ed125 read it on the pad's four corners through an ideal pinhole, those out of view included (a "
+                "fisheye close above a large pad: up to 10^5 px); their images and other labels are the same, so "
+                "their spec identity is too"),
     "blur_subframes": "samples over the exposure used for this frame's motion blur (1: none)",
     **{f"c{i}{a}": f"pixel {a} of the pad's outer corner {i} (TL, TR, BR, BL); NaN when outside the image"
        for i in range(4) for a in "uv"},
