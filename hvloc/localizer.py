@@ -968,26 +968,18 @@ class HierarchicalLocalizer:
             extras["still_dv"] = M
         return out
 
-    def _image_motion(self, cam2pad: np.ndarray, motion, pts_P) -> np.ndarray | None:
+    def _image_motion(self, cam2pad: np.ndarray, motion: Twist | None, pts_P) -> np.ndarray | None:
         """``(N, 2)`` how far each of ``pts_P`` moves in the image over the exposure, seen from
-        ``cam2pad`` under ``motion`` = (velocity m/s in P, rate rad/s in C; either may be ``None``);
-        ``None`` with no exposure or no motion known."""
+        ``cam2pad`` under ``motion``; ``None`` with no exposure or no motion known."""
         e = self.exposure_s
-        if not e > 0 or motion is None or (motion[0] is None and motion[1] is None):
+        if not e > 0 or motion is None or (motion.v_P is None and motion.w_C is None):
             return None
-        v = np.zeros(3) if motion[0] is None else np.asarray(motion[0], np.float64)
-        w = np.zeros(3) if motion[1] is None else np.asarray(motion[1], np.float64)
-        ends = []
-        for s in (-0.5 * e, 0.5 * e):
-            T = cam2pad.copy()
-            T[:3, 3] += v * s
-            T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
-            ends.append(self.camera.project_from(T, pts_P))
-        return ends[1] - ends[0]
+        return (self.camera.project_from(motion.moved(cam2pad, 0.5 * e), pts_P)
+                - self.camera.project_from(motion.moved(cam2pad, -0.5 * e), pts_P))
 
-    def _motion(self) -> tuple:
-        """(velocity m/s in P, rate rad/s in C) this frame is exposed under, as the last poses and the gyro say."""
-        return self.velocity, None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+    def _motion(self) -> Twist:
+        """The motion this frame is exposed under, as the last poses and the gyro say."""
+        return Twist(self.velocity, None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B)
 
     def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None) -> PoseResult:
         """``pose`` with, in its position covariance, how far it moves when every one of its points

@@ -1729,7 +1729,7 @@ class Keyframe:
     cov: np.ndarray | None = None  # the keyframe pose's 6x6 covariance: every pose tracked from it inherits it
     tag: object = None    # the frame it was made from, as :class:`ImageWork` names frames
     serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
-    motion: tuple | None = None  # (velocity m/s in P, rate rad/s in C) the frame was exposed under, where known
+    motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
 
 
 def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None) -> np.ndarray | None:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import Camera
+from .geometry import Camera, so3_exp
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,15 @@ class Twist:
 
     v_P: np.ndarray | None
     w_C: np.ndarray | None
+
+    def moved(self, cam2pad: np.ndarray, dt: float) -> np.ndarray:
+        """``T_P_C`` ``dt`` seconds after ``cam2pad`` under this motion (an unknown part: none)."""
+        T = np.array(cam2pad, np.float64, copy=True)
+        if self.v_P is not None:
+            T[:3, 3] += np.asarray(self.v_P, np.float64) * dt
+        if self.w_C is not None:
+            T[:3, :3] = T[:3, :3] @ so3_exp(np.asarray(self.w_C, np.float64) * dt)
+        return T
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,9 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .features import srgb_to_linear
-from .geometry import Camera, invert, pad_plane_homography, so3_exp
+from .geometry import Camera, invert, pad_plane_homography
 from .phases import Detection
+from .shutter import Twist
 
 WORK_PX = 400        # the alignment runs on the predicted pad's window shrunk to this many px on its longer side (not enlarged)
 MIN_WINDOW_PX = 24   # ... which must be at least this large (frame px), and hold this many squared where the smear is on the pad
@@ -213,7 +214,7 @@ class PadSynthesis:
         acc = np.zeros((h, w), np.float32)
         inside = np.ones((h, w), np.uint8)
         field = np.ones((h, w), np.uint8)
-        border_m = float(getattr(self.pad.geometry, "border_m", 0.0) or 0.0)
+        border_m = self.pad.geometry.border_m
         edges = np.linspace(0, h, (SHUTTER_BANDS if row_dt is not None else 1) + 1).round().astype(int)
         bands = [(a, b, 0.0 if row_dt is None else float(row_dt[(a + b - 1) // 2])) for a, b in zip(edges, edges[1:]) if b > a]
         for tau in times:
@@ -262,11 +263,10 @@ class PadSynthesis:
         h, w = grid.shape[:2]
         n = int(np.clip(math.ceil(smear * scale / INSTANT_PX), 1, MAX_INSTANTS))
         taus = np.linspace(-e / 2, e / 2, n) if n > 1 else [0.0]
+        motion = Twist(v, r)
+
         def pose_at(tau):
-            T = cam2pad.copy()
-            T[:3, 3] = cam2pad[:3, 3] + v * tau
-            T[:3, :3] = cam2pad[:3, :3] @ so3_exp(r * tau)
-            return T
+            return motion.moved(cam2pad, tau)
 
         row_dt = None
         if line_s:

@@ -359,6 +359,7 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
     they are smeared than in their keyframe: one smeared alike (a steady descent) is not doubted."""
     import hvloc.localizer as L
     from hvloc.phases import Keyframe
+    from hvloc.shutter import Twist
 
     G = tilted(0.05, -0.04, 0.3, 0.4, 0.02, -0.01)
     g = np.linspace(-0.12, 0.12, 7)
@@ -393,9 +394,9 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
             # a keyframe exposed under the same motion from nearly the same place: nothing to doubt;
             # one exposed still: the whole smear, as from a sharp drawing
             kf = Keyframe(None, tilted(0.052, -0.041, 0.302, 0.4, 0.02, -0.01), None, P, True,
-                          motion=(slow * v, slow * w_C))
+                          motion=Twist(slow * v, slow * w_C))
             assert np.array_equal(loc._smear_spread(pose, P, px, solve, kf).cov, pose.cov)
-            kf.motion = (np.zeros(3), np.zeros(3))
+            kf.motion = Twist(np.zeros(3), np.zeros(3))
             assert np.allclose(loc._smear_spread(pose, P, px, solve, kf).cov, spread.cov, rtol=1e-3, atol=0)
         else:
             assert np.array_equal(spread.cov, pose.cov), (exposure, slow)
