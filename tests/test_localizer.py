@@ -165,6 +165,35 @@ def test_flow_drift_bounded_over_60_touchdown_frames_without_reanchoring(pad):
     assert dp < 0.005 and da < 1.0, f"drift {dp * 1000:.1f} mm, {da:.2f} deg over 60 frames"
 
 
+def test_keyframe_corners_are_found_in_shadow_beside_a_sunlit_strip(pad):
+    """At touchdown the drone's shadow may cover most of the view, with a strip of sunlit pad beside
+    it: its corners' Harris response is hundreds of times the shadowed texture's, and judged
+    against the frame's strongest every corner was on the strip (moving_deck at 0.17 m: 16 corners,
+    none three frames on).  Judged cell by cell, the shadowed texture gives most of them, and the
+    flow tracks the next frames from them."""
+    from hvloc.phases import harris_corners
+
+    cam = Camera.from_hfov(480, 480, math.radians(60))
+    poses = [tilted(0.03 + 0.002 * k, -0.02, 0.22 - 0.004 * k, 0.3 + 0.01 * k) for k in range(6)]
+
+    def shadowed(G):  # the drone's shadow over all but a strip of rows along the bottom
+        img = warp_pad_view(pad, cam, G, GROUND).astype(np.float64)
+        img[:420] *= 0.15
+        return cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_RGB2GRAY)
+
+    imgs = [shadowed(G) for G in poses]
+    px = harris_corners(imgs[0])
+    assert px is not None and len(px) >= 100
+    assert np.mean(px[:, 1] < 410) > 0.6, np.mean(px[:, 1] < 410)  # most in the shadow, as most of the view is
+    flow = FlowTracker(cam)
+    assert flow.anchor(imgs[0], poses[0])
+    for k in range(1, len(poses)):
+        res, n, why = flow.track(imgs[k], poses[k - 1], up_in_camera(poses[k]))
+        assert res is not None and n >= 60, (k, n, why)
+        assert pose_error(res.cam2pad, poses[k])[0] < 0.002, (k, pose_error(res.cam2pad, poses[k]))
+        flow.accept(res.cam2pad, res.rms_px)
+
+
 def _raised_pad_view(pad, cam, G, raise_m, ground_tex, tex_m):
     """``G``'s view of the pad lying ``raise_m`` above strongly textured ground (``ground_tex``
     spans ``tex_m`` metres about the pad's centre): each pixel's ray meets the pad's plane, and
