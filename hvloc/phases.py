@@ -57,6 +57,11 @@ CENTROID_SIGMA_PER_SMEAR = 0.1  # a centroid-placed corner's noise (px) per px o
 # a profile-fitted one's: soft_gusty_deck's Adjustment poses (mostly such outlines) stated 2.4x the
 # error they made at 0.1, 1.5x at 0.04 (benchmarks/blur_bias.py: 0.1-0.3 px of error under 6-16 px)
 PROFILE_SIGMA_PER_SMEAR = 0.04
+# a corner of the colour hull itself (no side fitted, no centroid read): the colour is smeared past the
+# pad along the motion, and the hull reaches as far as it shows.  unseen49's fisheye at 1-2.5 m under
+# 7-19 px of smear (as read): corners 0.3-1.9 smears off per axis, median 0.6 (stated 0.1, a pose at
+# 1.2 m 69 mm off with 13 mm stated: NEES 21, and the flow's keyframe made from it)
+HULL_SIGMA_PER_SMEAR = 0.6
 
 
 @dataclass
@@ -249,7 +254,10 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             # but nothing smears it: something hides a stretch of a side (a box over two corners,
             # whose hull's corner lay 35 px from the pad's, taken as it was)
             return None, SIDES_NOT_FOUND
-        refined = quad if smeared is None else smeared
+        if smeared is None:  # the hull's own corners: its colour smeared past the pad along the motion
+            refined, per_smear = quad, HULL_SIGMA_PER_SMEAR
+        else:
+            refined = smeared
     elif np.max(np.linalg.norm(refined + [bx0, by0] - quad, axis=1)) > max(HULL_SLACK_PX, 0.1 * side_px):
         return None, "its sides and its colour hull disagree"
     else:

@@ -1419,6 +1419,48 @@ def test_a_cut_pad_smeared_along_a_side_is_read_on_what_is_in_view(pad):
     assert views == 56 and found >= 24, (views, found)
 
 
+def test_an_outline_left_at_its_colour_hulls_corners_states_their_noise(pad):
+    """Smeared so that no side is fitted and no centroid read, an outline keeps its colour hull's
+    corners: the colour reaches past the pad along the motion, and through a fisheye the hull's
+    straight sides cut the pad's bowed ones.  Those corners were stated at the centroid's noise (0.1 px
+    per px of smear): unseen49's fisheye at 1.2 m put a pose 69 mm off stating 13 mm (NEES 21),
+    and the flow's keyframe was made from it.  Here 10-20 px smears through a 120 degree fisheye at
+    0.9 m: where the hull's corners are kept (their poses 8-9 % of the height off), each pose,
+    weighed as the localizer weighs them, holds the truth within its 3 sigma; at the centroid's
+    noise one did not."""
+    from types import SimpleNamespace
+
+    from hvloc.phases import CENTROID_SIGMA_PER_SMEAR, HULL_SIGMA_PER_SMEAR
+
+    geo = pad.geometry
+    cam = Camera(960, 720, 300.0, 300.0, 479.5, 359.5, np.array([0.03, -0.01, 0.002, -0.0002]), model="fisheye")
+    lit = SimpleNamespace(texture_rgb=(_linear(pad.texture_rgb) * 4096).astype(np.float32), ppm=pad.ppm,
+                          side_m=pad.side_m)
+    stated = []  # each hull-cornered pose's NEES: at the hull's noise, at the centroid's
+    for ang, smear_px in ((0.0, 20.0), (1.0, 10.0), (0.0, 10.0)):
+        G = tilted(0.3, -0.2, 0.9, 0.4, 0.05, -0.03)
+        shift = smear_px * 0.9 / cam.fx * np.array([math.cos(ang), math.sin(ang), 0.0])
+        acc = 0.0
+        for s in np.linspace(-0.5, 0.5, 16):
+            T = G.copy()
+            T[:3, 3] += s * shift
+            acc = acc + warp_pad_view(lit, cam, T, tuple(_linear((110, 90, 60)) * 4096), supersample=1) / 4096.0
+        out, why = find_outline(_srgb(np.nan_to_num(acc / 16)), geo, cam)  # (no light past the lens's field)
+        if out is None or out.sigma_per_smear != HULL_SIGMA_PER_SMEAR:
+            continue
+        truth = cam.project_from(G, geo.outer_corners)
+        q, _ = _in_order_of(out.quad_px, truth)
+        nees = []
+        for per in (HULL_SIGMA_PER_SMEAR, CENTROID_SIGMA_PER_SMEAR):
+            pose = solve_planar_pose(cam, geo.outer_corners, q, up_C=up_in_camera(G),
+                                     sigma_px=float(np.hypot(0.3, per * out.smear_px)))
+            err = pose.cam2pad[:3, 3] - G[:3, 3]
+            nees.append(float(err @ np.linalg.solve(pose.cov[:3, :3], err)))
+        stated.append(nees)
+    assert len(stated) >= 2, stated
+    assert all(new < 14.16 for new, _ in stated) and any(old > 14.16 for _, old in stated), stated  # chi2(3), 3 sigma
+
+
 def test_a_cut_pad_whose_ring_the_cue_splits_is_found(pad):
     """The cue square is left out of the border's mask, so a pad running out of the image with its
     cue corner in view is two pieces of ring: a stretch from the image's edge to the cue, and the
