@@ -1745,10 +1745,12 @@ HARRIS_QUALITY = 0.005   # ... each at least this share of its own cell's strong
 HARRIS_FLOOR = 1e-4      # ... in cells whose strongest is at least this share of the frame's (else flat: noise)
 
 
-def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None) -> np.ndarray | None:
+def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None,
+                   cells: int = HARRIS_CELLS) -> np.ndarray | None:
     """``(N, 2)`` pixels of a frame's Harris corners (where ``mask`` is set), or ``None``: in each of
-    :data:`HARRIS_CELLS` squared cells its strongest, judged against that cell's own strongest
-    response, taken from the cells in turn (strongest first in each) up to ``max_corners``.
+    ``cells`` squared cells its strongest, judged against that cell's own strongest response, taken
+    from the cells in turn (strongest first in each) up to ``max_corners``; one cell: the frame's
+    strongest.
 
     A corner's response grows with the fourth power of its contrast.  Judged against the whole
     frame's strongest, a frame half in the drone's shadow and half in sun kept only the sunlit
@@ -1769,8 +1771,8 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
     top = float(R.max())
     if not top > 0:
         return None
-    rows = np.linspace(box[0], box[1], HARRIS_CELLS + 1).astype(int)
-    cols = np.linspace(box[2], box[3], HARRIS_CELLS + 1).astype(int)
+    rows = np.linspace(box[0], box[1], cells + 1).astype(int)
+    cols = np.linspace(box[2], box[3], cells + 1).astype(int)
     found, pad = [], 8  # (each cell read with a margin: the response's window reaches beyond it)
     for y0, y1 in zip(rows[:-1], rows[1:]):
         for x0, x1 in zip(cols[:-1], cols[1:]):
@@ -1959,7 +1961,10 @@ class FlowTracker:
             if corners is not None and len(corners) < self.min_tracks:
                 corners = None
         if corners is None:
-            corners = self.work(lambda: ("harris", tag), harris_corners, gray)
+            # the whole frame: there its strongest corners.  Beyond the pad the ground, boxes and rims
+            # are not its plane, and spread evenly over them the corners were mostly theirs (bench_v1's
+            # flow_only, anchored once at 20 m: false accepts 372 -> 1473 read cell by cell)
+            corners = self.work(lambda: ("harris", tag), harris_corners, gray, 150, None, 1)
         kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners,
                            unroll=self.unroll)
         if kf is None:
