@@ -1740,37 +1740,56 @@ class Keyframe:
     motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
 
 
-HARRIS_CELLS = 4         # corners are found in this many cells a side of the frame (of the mask's box) ...
-HARRIS_QUALITY = 0.005   # ... each at least this share of its own cell's strongest Harris response ...
-HARRIS_FLOOR = 1e-4      # ... in cells whose strongest is at least this share of the frame's (else flat: noise)
+HARRIS_QUALITY = 0.005   # a corner's Harris response, at least this share of the strongest it is judged against
+HARRIS_CELLS = 4         # where the frame's strongest are too few: more from this many cells a side of the mask's box ...
+HARRIS_FLOOR = 1e-4      # ... each judged against its own strongest, in cells whose strongest is at least this share
+                         # of the frame's (else flat: noise)
 
 
 def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | None = None,
                    cells: int = HARRIS_CELLS) -> np.ndarray | None:
-    """``(N, 2)`` pixels of a frame's Harris corners (where ``mask`` is set), or ``None``: in each of
-    ``cells`` squared cells its strongest, judged against that cell's own strongest response, taken
-    from the cells in turn (strongest first in each) up to ``max_corners``; one cell: the frame's
-    strongest.
+    """``(N, 2)`` pixels of a frame's Harris corners (where ``mask`` is set), or ``None``: its
+    strongest, judged against the strongest response (OpenCV's quality level); where those are
+    fewer than ``max_corners``, more from ``cells`` squared cells of the mask's box, each cell's
+    judged against that cell's own strongest, taken from the cells in turn (strongest first in
+    each, none within 8 px of a corner already taken).
 
     A corner's response grows with the fourth power of its contrast.  Judged against the whole
-    frame's strongest, a frame half in the drone's shadow and half in sun kept only the sunlit
-    part's corners: at 0.17 m over a moving deck the shadowed texture's strongest was 1/460 of a
-    sunlit strip's, the quality level kept 16 corners, all on the strip, and three frames later the
-    flow had none left (ten frames lost, the texture in view everywhere)."""
+    frame's strongest, a frame mostly in the drone's shadow beside a strip of sunlit pad kept only
+    the strip's corners: at 0.17 m over a moving deck the shadowed texture's strongest was 1/460 of
+    the strip's, the quality level kept 16 corners, all on the strip, and three frames later the
+    flow had none left (ten frames lost, the texture in view everywhere).  Only to fill: taken cell
+    by cell always, the spread corners were a border's periodic checker in the cells along it, and
+    under 41 px of smear Lucas-Kanade locked them a period off together (unseen47: a chain 41 mm off
+    at 0.5 m, 19 false accepts)."""
     g = np.ascontiguousarray(gray)
+    found = cv2.goodFeaturesToTrack(g, max_corners, HARRIS_QUALITY, 8, mask=mask, blockSize=5,
+                                    useHarrisDetector=True, k=0.04)
+    found = np.zeros((0, 2)) if found is None else found[:, 0, :].astype(np.float64)
+    if cells > 1 and len(found) < max_corners:
+        more = _cell_corners(g, max_corners, mask, cells)
+        if len(more) and len(found):
+            near = np.min(np.linalg.norm(more[:, None, :] - found[None, :, :], axis=2), axis=1) < 8.0
+            more = more[~near]
+        found = np.concatenate([found, more[:max_corners - len(found)]])
+    return found if len(found) else None
+
+
+def _cell_corners(g: np.ndarray, max_corners: int, mask: np.ndarray | None, cells: int) -> np.ndarray:
+    """``(N, 2)``: :func:`harris_corners`' corners judged cell by cell, taken from the cells in turn."""
     H, W = g.shape[:2]
     R = cv2.cornerHarris(g.astype(np.float32), 5, 3, 0.04)
     if mask is not None:
         R = np.where(mask > 0, R, 0.0)
         ys, xs = np.nonzero(mask)
         if not len(ys):
-            return None
+            return np.zeros((0, 2))
         box = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
     else:
         box = (0, H, 0, W)
     top = float(R.max())
     if not top > 0:
-        return None
+        return np.zeros((0, 2))
     rows = np.linspace(box[0], box[1], cells + 1).astype(int)
     cols = np.linspace(box[2], box[3], cells + 1).astype(int)
     found, pad = [], 8  # (each cell read with a margin: the response's window reaches beyond it)
@@ -1788,9 +1807,8 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
             if pts is not None:
                 found.append(pts[:, 0, :].astype(np.float64) + [X0, Y0])
     if not found:
-        return None
-    turns = [f[k] for k in range(max(len(f) for f in found)) for f in found if k < len(f)]
-    return np.array(turns[:max_corners])
+        return np.zeros((0, 2))
+    return np.array([f[k] for k in range(max(len(f) for f in found)) for f in found if k < len(f)])
 
 
 def pad_region_mask(camera: Camera, cam2pad: np.ndarray, region_P: np.ndarray, shape, inset_px: float = 12.0,
