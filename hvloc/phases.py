@@ -1763,11 +1763,9 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
     under 41 px of smear Lucas-Kanade locked them a period off together (unseen47: a chain 41 mm off
     at 0.5 m, 19 false accepts)."""
     g = np.ascontiguousarray(gray)
-    found = cv2.goodFeaturesToTrack(g, max_corners, HARRIS_QUALITY, 8, mask=mask, blockSize=5,
-                                    useHarrisDetector=True, k=0.04)
-    found = np.zeros((0, 2)) if found is None else found[:, 0, :].astype(np.float64)
-    if cells > 1 and len(found) < max_corners:
-        more = _cell_corners(g, max_corners, mask, cells)
+    found, top = _strongest(g, max_corners, mask)
+    if cells > 1 and 0 < len(found) < max_corners:
+        more = _cell_corners(g, max_corners, mask, cells, top)
         if len(more) and len(found):
             near = np.min(np.linalg.norm(more[:, None, :] - found[None, :, :], axis=2), axis=1) < 8.0
             more = more[~near]
@@ -1775,37 +1773,36 @@ def harris_corners(gray: np.ndarray, max_corners: int = 150, mask: np.ndarray | 
     return found if len(found) else None
 
 
-def _cell_corners(g: np.ndarray, max_corners: int, mask: np.ndarray | None, cells: int) -> np.ndarray:
-    """``(N, 2)``: :func:`harris_corners`' corners judged cell by cell, taken from the cells in turn."""
+def _strongest(g: np.ndarray, max_corners: int, mask: np.ndarray | None) -> tuple:
+    """``((N, 2) corners, the strongest's Harris response)`` of ``g`` where ``mask`` is set, judged
+    against that strongest (OpenCV's quality level)."""
+    pts, quality = cv2.goodFeaturesToTrackWithQuality(g, max_corners, HARRIS_QUALITY, 8, mask, blockSize=5,
+                                                      useHarrisDetector=True, k=0.04)
+    if pts is None or not len(pts):
+        return np.zeros((0, 2)), 0.0
+    return pts.reshape(-1, 2).astype(np.float64), float(np.max(quality))
+
+
+def _cell_corners(g: np.ndarray, max_corners: int, mask: np.ndarray | None, cells: int, top: float) -> np.ndarray:
+    """``(N, 2)``: :func:`harris_corners`' corners judged cell by cell (cells whose strongest is under
+    :data:`HARRIS_FLOOR` of ``top``, the frame's, left out), taken from the cells in turn."""
     H, W = g.shape[:2]
-    R = cv2.cornerHarris(g.astype(np.float32), 5, 3, 0.04)
-    if mask is not None:
-        R = np.where(mask > 0, R, 0.0)
-        ys, xs = np.nonzero(mask)
-        if not len(ys):
-            return np.zeros((0, 2))
-        box = (int(ys.min()), int(ys.max()) + 1, int(xs.min()), int(xs.max()) + 1)
-    else:
-        box = (0, H, 0, W)
-    top = float(R.max())
-    if not top > 0:
-        return np.zeros((0, 2))
-    rows = np.linspace(box[0], box[1], cells + 1).astype(int)
-    cols = np.linspace(box[2], box[3], cells + 1).astype(int)
+    x, y, w, h = cv2.boundingRect(mask) if mask is not None else (0, 0, W, H)
+    rows = np.linspace(y, y + h, cells + 1).astype(int)
+    cols = np.linspace(x, x + w, cells + 1).astype(int)
     found, pad = [], 8  # (each cell read with a margin: the response's window reaches beyond it)
     for y0, y1 in zip(rows[:-1], rows[1:]):
         for x0, x1 in zip(cols[:-1], cols[1:]):
-            if y1 <= y0 or x1 <= x0 or R[y0:y1, x0:x1].max() < HARRIS_FLOOR * top:
+            if y1 <= y0 or x1 <= x0:
                 continue
             Y0, Y1, X0, X1 = max(y0 - pad, 0), min(y1 + pad, H), max(x0 - pad, 0), min(x1 + pad, W)
             m = np.zeros((Y1 - Y0, X1 - X0), np.uint8)
             m[y0 - Y0:y1 - Y0, x0 - X0:x1 - X0] = 255
             if mask is not None:
                 m &= (mask[Y0:Y1, X0:X1] > 0).astype(np.uint8) * 255
-            pts = cv2.goodFeaturesToTrack(g[Y0:Y1, X0:X1], max_corners, HARRIS_QUALITY, 8, mask=m, blockSize=5,
-                                          useHarrisDetector=True, k=0.04)
-            if pts is not None:
-                found.append(pts[:, 0, :].astype(np.float64) + [X0, Y0])
+            pts, cell_top = _strongest(np.ascontiguousarray(g[Y0:Y1, X0:X1]), max_corners, m)
+            if len(pts) and cell_top >= HARRIS_FLOOR * top:
+                found.append(pts + [X0, Y0])
     if not found:
         return np.zeros((0, 2))
     return np.array([f[k] for k in range(max(len(f) for f in found)) for f in found if k < len(f)])
@@ -1982,7 +1979,7 @@ class FlowTracker:
             # the whole frame: there its strongest corners.  Beyond the pad the ground, boxes and rims
             # are not its plane, and spread evenly over them the corners were mostly theirs (bench_v1's
             # flow_only, anchored once at 20 m: false accepts 372 -> 1473 read cell by cell)
-            corners = self.work(lambda: ("harris", tag), harris_corners, gray, 150, None, 1)
+            corners = self.work(lambda: ("harris", tag), harris_corners, gray, cells=1)
         kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners,
                            unroll=self.unroll)
         if kf is None:

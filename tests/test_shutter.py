@@ -297,9 +297,7 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
     last frame's, which at 5 Hz in a fast descent is 0.14 m farther from the pad than this one, so
     every shift came out ~15 % short.  The chain of keyframes drifted by that each frame (an unseen
     1280x960 scene at 5 Hz read in 29 ms: 12 mm sideways from 0.9 m down, and its poses refused at
-    0.2 m for their tilt).  Now it unrolls again at the frame's own first pose: within its stated 3
-    sigma (1.1 mm sideways; unrolled at the last pose alone it is 6-9 mm off, whichever corners the
-    keyframe has)."""
+    0.2 m for their tilt).  Now it unrolls again at the frame's own first pose."""
     from hvloc.phases import FlowTracker
 
     cam = Camera.from_hfov(400, 400, math.radians(50))
@@ -316,8 +314,8 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
     up_C = pose_at(0.0)[:3, :3].T @ np.array([0.0, 0.0, 1.0])
     res, n, why = tracker.track(view(0.2), prior_cam2pad=pose_at(0.0), up_C=up_C)
     assert res is not None, why
-    err = res.cam2pad[:3, 3] - pose_at(0.2)[:3, 3]
-    assert err @ np.linalg.solve(res.cov[:3, :3], err) < 14.16 and np.abs(err).max() < 0.003, np.round(err * 1000, 2)
+    err = np.abs(res.cam2pad[:3, 3] - pose_at(0.2)[:3, 3])
+    assert err.max() < 0.001, np.round(err * 1000, 2)
 
 
 def test_the_shutters_velocity_is_counted_uncertain_in_every_direction(pad, monkeypatch):
