@@ -62,6 +62,14 @@ PROFILE_SIGMA_PER_SMEAR = 0.04
 # 7-19 px of smear (as read): corners 0.3-1.9 smears off per axis, median 0.6 (stated 0.1, a pose at
 # 1.2 m 69 mm off with 13 mm stated: NEES 21, and the flow's keyframe made from it)
 HULL_SIGMA_PER_SMEAR = 0.6
+# a corner of sides an edge fit placed under more smear than it is made for (past SMEARED_PX, where
+# no centroid could place them: the pad cut by the image's edge, a stretch unread): fitted in display
+# values, a smeared edge's half level lies toward its dark side.  On 16 scenes (conditions and seven
+# unseen ones, 3,400 corners in view under 5-10 px of smear, against the raw labels) the larger
+# axis's error was 0.15 smears in the median, 0.3-0.4 at the 90th percentile (the centroid's 0.1
+# stated them at a third of that: unseen51's cut pad at 1 m, a side 3.8 px out under 9.7 px of
+# smear, its hidden corner 7 px out, stated 1 and 1.3 px: NEES 13)
+EDGE_SIGMA_PER_SMEAR = 0.2
 
 
 @dataclass
@@ -304,6 +312,8 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 smeared = smear = None
                 per_smear = CENTROID_SIGMA_PER_SMEAR
         if smeared is None:
+            if smear is not None and smear > SMEARED_PX:
+                per_smear = EDGE_SIGMA_PER_SMEAR
             # a blur of light (a soft lens, motion) shows in luma and is symmetric in light: the edge is
             # fitted there (fitted in display values, a 1 px lens blur put a 40 px pad's corners 3.7 %
             # of its half side out, 0.3 % in light: benchmarks/blur_bias.py); JPEG smears chroma in
