@@ -548,6 +548,17 @@ def _rms_share(rms_px: float, info: dict) -> float:
     return float(rms_px / side / math.sqrt(float(np.mean(scale**2))))
 
 
+def corner_sigma_px(info: dict) -> np.ndarray:
+    """The pixel noise of a detection's correspondences as its ``info`` states it: the found corner's
+    floor (:data:`PIXEL_SIGMA`), with the noise of a corner placed under motion smear
+    (``px_sigma_blur``), and for a corner out of view or hidden, where the lines of its sides'
+    stretches in view meet, as many times more as the stretches' error grows out there
+    (``px_sigma_scale``, per correspondence): whatever moved the lines, the smear too.  (unseen51's
+    cut pad under 9.7 px of smear: a hidden corner 7 px out where its sides' corners in view were
+    3.8 px, 2.7 times less sure by its stretches, was stated 1.3 px with the smear's noise unscaled.)"""
+    return np.hypot(PIXEL_SIGMA, info.get("px_sigma_blur") or 0.0) * np.asarray(info.get("px_sigma_scale", 1.0))
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -1184,13 +1195,7 @@ class HierarchicalLocalizer:
         if det is None:
             return None, why
         cfg = self.config
-        # a corner placed under motion smear is less sure, and a hidden one, where the lines of its sides'
-        # stretches in view meet, as many times less sure as the stretches' own error grows out there
-        # (whatever moved the lines: the smear too.  unseen51's cut pad under 9.7 px of smear: a hidden
-        # corner 7 px out where its sides' corners in view were 3.8 px, 2.7 times less sure by its
-        # stretches, stated 1.3 px with the smear's noise left unscaled)
-        sigma = np.hypot(PIXEL_SIGMA, det.info.get("px_sigma_blur") or 0.0) \
-            * np.asarray(det.info.get("px_sigma_scale", 1.0))
+        sigma = corner_sigma_px(det.info)
 
         def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
             g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)

@@ -1413,11 +1413,55 @@ def test_a_cut_pad_smeared_along_a_side_is_read_on_what_is_in_view(pad):
             q, s = _in_order_of(out.quad_px, truth)
             assert np.linalg.norm(q[seen] - truth[seen], axis=1).max() < 2.0, (G, axis, q - truth)
             assert out.sigma_scale is not None and out.smear_px > 10.0, (out.sigma_scale, out.smear_px)
-            sigma = np.hypot(0.3 * np.roll(out.sigma_scale, -s), CENTROID_SIGMA_PER_SMEAR * out.smear_px)
-            pose = solve_planar_pose(CAM, geo.outer_corners, q, up_C=up_in_camera(G), sigma_px=sigma)
-            err = pose.cam2pad[:3, 3] - G[:3, 3]
-            assert err @ np.linalg.solve(pose.cov[:3, :3], err) < 16.3, (G, axis, err)  # chi2(3), 99.9 %
+            assert out.sigma_per_smear <= CENTROID_SIGMA_PER_SMEAR, out.sigma_per_smear  # (placed by the centroid)
+            assert _nees_as_stated(out, geo, G) < 16.3, (G, axis)  # chi2(3), 99.9 %
     assert views == 56 and found >= 24, (views, found)
+
+
+def _nees_as_stated(out, geo, G, camera=CAM, sigma_of=None) -> float:
+    """The position NEES of the pose of a found outline ``out`` of the view at ``G``, named and weighed
+    as the localizer names and weighs it (:func:`name_outline`, :func:`corner_sigma_px`; ``sigma_of``:
+    the corners' noise from the detection's ``info`` instead)."""
+    from hvloc.localizer import corner_sigma_px
+
+    det, why = name_outline(out, geo, camera.project_from(G, geo.outer_corners)[0])
+    assert det is not None, why
+    pose = solve_planar_pose(camera, det.pts_P, det.px, up_C=up_in_camera(G),
+                             sigma_px=(sigma_of or corner_sigma_px)(det.info))
+    err = pose.cam2pad[:3, 3] - G[:3, 3]
+    return float(err @ np.linalg.solve(pose.cov[:3, :3], err))
+
+
+def test_a_cut_pad_edge_fitted_under_smear_states_the_fits_noise(pad):
+    """Where the border's centroid cannot place a pad cut by the image's edge under more smear than
+    :data:`SMEARED_PX`, its sides are edge-fitted in display values, in which a smeared edge's half
+    level lies toward its dark side: every corner 1.5-3 px out under 9-10 px of smear, the hidden
+    one further.  They were stated at the centroid's noise (0.1 px per px of smear), the hidden
+    corner's scale on the 0.3 px floor alone: unseen51's cut pad at 1 m under 9.7 px of smear was
+    posed 22 mm off stating 2 mm (NEES 24), and the flow anchored on it.  Over one-corner-hidden
+    views at 1.8 and 2.6 m smeared 9 px two ways, where the edge fit places the pad each pose holds
+    the truth within its 3 sigma as stated now; as stated before, most did not."""
+    from hvloc.phases import CENTROID_SIGMA_PER_SMEAR, EDGE_SIGMA_PER_SMEAR, SMEARED_PX
+
+    geo = pad.geometry
+    nees = []  # (as stated, as stated before)
+    for G, truth, seen, in_view in _one_corner_hidden_views(geo, (1.8, 2.6), 6, (0.0, 1.57, 3.14, 4.71, 0.8, 2.4),
+                                                             (0.2,)):
+        for ang in (0.0, 1.2):
+            img = _motion_blurred(pad, G, 9.0 * G[2, 3] / CAM.fx * np.array([math.cos(ang), math.sin(ang), 0.0]),
+                                  (120, 120, 125), n=16)
+            out, _ = find_outline(img, geo, CAM)
+            if out is None or out.sigma_per_smear != EDGE_SIGMA_PER_SMEAR:
+                continue
+            assert out.smear_px > SMEARED_PX and out.sigma_scale is not None, (out.smear_px, out.sigma_scale)
+            def before(info):
+                return np.hypot(0.3 * np.asarray(info["px_sigma_scale"]), CENTROID_SIGMA_PER_SMEAR * info["px_sigma_blur"]
+                                / EDGE_SIGMA_PER_SMEAR)
+
+            nees.append((_nees_as_stated(out, geo, G), _nees_as_stated(out, geo, G, sigma_of=before)))
+    assert len(nees) >= 6, nees
+    assert all(now < 14.16 for now, _ in nees), nees  # chi2(3), 3 sigma
+    assert sum(old > 14.16 for _, old in nees) >= 2, nees
 
 
 def test_an_outline_left_at_its_colour_hulls_corners_states_their_noise(pad):
