@@ -62,13 +62,15 @@ PROFILE_SIGMA_PER_SMEAR = 0.04
 # 7-19 px of smear (as read): corners 0.3-1.9 smears off per axis, median 0.6 (stated 0.1, a pose at
 # 1.2 m 69 mm off with 13 mm stated: NEES 21, and the flow's keyframe made from it)
 HULL_SIGMA_PER_SMEAR = 0.6
-# a corner of sides an edge fit placed under more smear than it is made for (past SMEARED_PX, where
-# no centroid could place them: the pad cut by the image's edge, a stretch unread): fitted in display
-# values, a smeared edge's half level lies toward its dark side.  On 16 scenes (conditions and seven
-# unseen ones, 3,400 corners in view under 5-10 px of smear, against the raw labels) the larger
-# axis's error was 0.15 smears in the median, 0.3-0.4 at the 90th percentile (the centroid's 0.1
-# stated them at a third of that: unseen51's cut pad at 1 m, a side 3.8 px out under 9.7 px of
-# smear, its hidden corner 7 px out, stated 1 and 1.3 px: NEES 13)
+# a corner of sides an edge fit placed under smear (past LIGHT_FIT_SMEAR_PX: where no centroid or
+# fitted profile placed them, the pad cut by the image's edge or a stretch unread): fitted in light
+# up to SMEARED_PX, in display values past it, where a smeared edge's half level lies toward its
+# dark side.  On 16 scenes (conditions and seven unseen ones, against the raw labels) the larger
+# axis's error of corners in view was 0.16 smears in the median, 0.32 at the 90th percentile under
+# 3-5 px of smear (1,369 corners), 0.15 and 0.3-0.4 under 5-10 px (3,400).  Stated at the centroid's
+# 0.1 past SMEARED_PX, at the 0.3 px floor alone below it: unseen51's cut pad at 1 m, a side 3.8 px
+# out under 9.7 px of smear, its hidden corner 7 px out, stated 1 and 1.3 px (NEES 13); unseen47's at
+# 2 m under 4.6 px, corners 2.2 px out stated 0.3 px (NEES 31)
 EDGE_SIGMA_PER_SMEAR = 0.2
 
 
@@ -312,7 +314,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 smeared = smear = None
                 per_smear = CENTROID_SIGMA_PER_SMEAR
         if smeared is None:
-            if smear is not None and smear > SMEARED_PX:
+            if smear is not None and smear > LIGHT_FIT_SMEAR_PX:
                 per_smear = EDGE_SIGMA_PER_SMEAR
             # a blur of light (a soft lens, motion) shows in luma and is symmetric in light: the edge is
             # fitted there (fitted in display values, a 1 px lens blur put a 40 px pad's corners 3.7 %
@@ -1203,11 +1205,12 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}
-    if found.smear_px > SMEARED_PX:
+    if found.smear_px > SMEARED_PX or found.sigma_per_smear == EDGE_SIGMA_PER_SMEAR:
         # placed by the border's centroid in linear light, which a tone curve not known exactly
         # (a camera's is not sRGB) moves by a share of the smear: ~0.5 px outward at 5-12 px of smear
         # on the conditions suite's gusty descent (the four corners' own 0.3 px made such poses'
-        # covariances 3-5x too tight); by its fitted profile, less (:func:`_deblurred`)
+        # covariances 3-5x too tight); by its fitted profile, less (:func:`_deblurred`); by an edge
+        # fit under smear, more (:data:`EDGE_SIGMA_PER_SMEAR`)
         info["px_sigma_blur"] = round(found.sigma_per_smear * found.smear_px, 3)
     if found.sigma_scale is not None:  # a pad cut by the image's edge: its hidden corner is less sure
         info.update(corners_seen=int(np.sum(found.sigma_scale == 1.0)),
