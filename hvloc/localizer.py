@@ -49,6 +49,9 @@ RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by
 # share of each one's own smear over the exposure, counted in the pose's covariance (:meth:`_smear_spread`) ...
 TRACK_SMEAR_DOUBT = 0.1
 TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
+# an outline whose sides an edge fit placed is not taken where the motion predicts over this many times the
+# smear read across one of them, and more than the edge fit holds to (:meth:`HierarchicalLocalizer._edge_fit_outrun`)
+EDGE_FIT_OUTRUN = 2.0
 TWIST_WINDOW_S = 0.45  # the shutter's velocity filter forgets after this long without a pose (the IMU's rows are kept as long)
 
 
@@ -1023,6 +1026,30 @@ class HierarchicalLocalizer:
         cov[:3, :3] += np.outer(delta, delta)
         return replace(pose, cov=cov)
 
+    def _edge_fit_outrun(self, pose: PoseResult, pts_P, read_px: float | None) -> str:
+        """Why an outline whose sides an edge fit placed (``read_px``: the smear read on the image,
+        which chose that fit; ``None`` for any other pose) cannot be taken, or ``""``: the last poses'
+        velocity and the gyro's rate predict more smear across one of its sides than the fit holds to
+        (:data:`hvloc.phases.EDGE_FIT_SMEAR_PX`) and over :data:`EDGE_FIT_OUTRUN` times what was read.
+        The smear is read on the white field's edge, as one kernel for each pair of sides; a turn or a
+        zoom smears each corner its own way, and a pad filling the view was read at 5-9 px under 20-40
+        px of smear across its sides (unseen55: a 40 ms exposure in a gusty turn), its sides fitted
+        7-21 px out and posed 98 mm off, beyond its 3 sigma."""
+        if read_px is None or pose.cov is None:
+            return ""
+        d = self._image_motion(pose.cam2pad, self._motion(), pts_P)
+        if d is None:
+            return ""
+        q = self.camera.project_from(pose.cam2pad, pts_P)
+        side = np.roll(q, -1, axis=0) - q  # side j from corner j to j + 1, smeared as its two ends are
+        n = np.stack([-side[:, 1], side[:, 0]], axis=1) / np.maximum(np.linalg.norm(side, axis=1), 1e-9)[:, None]
+        across = np.maximum(np.abs(np.sum(d * n, axis=1)), np.abs(np.sum(np.roll(d, -1, axis=0) * n, axis=1)))
+        worst = float(np.max(np.nan_to_num(across)))
+        if worst > max(ph.EDGE_FIT_SMEAR_PX, EDGE_FIT_OUTRUN * read_px):
+            return (f"its sides edge-fitted under {read_px:.1f} px of smear as read, but the motion predicts "
+                    f"{worst:.1f} px across one (> {ph.EDGE_FIT_SMEAR_PX:.0f})")
+        return ""
+
     def _rate_spread(self, pose: PoseResult, pts_P, px, solve) -> PoseResult:
         """``pose`` with what the gyro's rate, off by its doubt (:func:`imu_rate_doubt`) about each
         body axis, would move it, in its covariance: each axis solved again with that rate's
@@ -1257,7 +1284,7 @@ class HierarchicalLocalizer:
             pose = pose_of(P, px, sigma, weighed)
             if pose is None:
                 return None, "pose failed"
-        refusal = _mirror_refusal(pose)
+        refusal = _mirror_refusal(pose) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
         if refusal:
             return None, refusal
         info = dict(det.info)

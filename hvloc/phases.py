@@ -88,6 +88,7 @@ class OutlineQuad:
     sigma_scale: np.ndarray | None = None  # (4,) how much less sure each corner is than a seen one (:func:`_corner_sigma_scale`)
     smear_px: float = 0.0  # how far motion smears its edges (px, in luma: :func:`_smear_near`)
     sigma_per_smear: float = CENTROID_SIGMA_PER_SMEAR  # a smear-placed corner's noise (px) per px of smear (:func:`_deblurred`)
+    edge_fitted: bool = False  # its sides placed by an edge fit (no centroid, profile or hull): it holds to EDGE_FIT_SMEAR_PX
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -240,7 +241,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     the coarse side fit knows the border is brighter than what lies beyond it (:func:`_fit_sides`)."""
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
-    field = None
+    field, edge = None, False
     if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=EDGE_FIT_SMEAR_PX)):
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
@@ -314,6 +315,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 smeared = smear = None
                 per_smear = CENTROID_SIGMA_PER_SMEAR
         if smeared is None:
+            edge = True
             if smear is not None and smear > LIGHT_FIT_SMEAR_PX:
                 per_smear = EDGE_SIGMA_PER_SMEAR
             # a blur of light (a soft lens, motion) shows in luma and is symmetric in light: the edge is
@@ -351,23 +353,24 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 elif far:
                     return None, "its colour swells past its white field"
     return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
-                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear)
+                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge)
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
                   smear: float | None = None, fitted: np.ndarray | None = None,
-                  per_smear: float = CENTROID_SIGMA_PER_SMEAR) -> tuple:
+                  per_smear: float = CENTROID_SIGMA_PER_SMEAR, edge: bool = False) -> tuple:
     """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled;
     ``smear``: the motion smear already read around it (read here when ``None``); ``fitted``: the
     stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`);
-    ``per_smear``: the noise of a corner placed under smear, px per px of it (:func:`_deblurred`)."""
+    ``per_smear``: the noise of a corner placed under smear, px per px of it (:func:`_deblurred`);
+    ``edge``: its sides placed by an edge fit."""
     cue = _cue_scores(rgb, refined, geo, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape, fitted=fitted) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
     if smear is None:
         smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
-    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear, per_smear), "ok"
+    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear, per_smear, edge), "ok"
 
 
 def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -503,7 +506,8 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     scale_sigma = _corner_sigma_scale(refined, rgb.shape, visible)
     if not np.isfinite(scale_sigma).all():
         return None
-    return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma, smear)
+    return OutlineQuad(refined, _cue_scores(rgb, refined, geo, camera, visible), side_px, res, None, scale_sigma, smear,
+                       edge_fitted=True)
 
 
 def _corner_sigma_scale(quad_px: np.ndarray, shape, visible=None, fitted: np.ndarray | None = None) -> np.ndarray:
@@ -1205,6 +1209,8 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     if order is None:
         return None, f"pad found but its yaw cue is unreadable ({info_yellow}) and there is no prior"
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}
+    if found.edge_fitted:  # (the localizer checks the smear its IMU predicts against what an edge fit holds to)
+        info["edge_fit_smear_px"] = round(float(found.smear_px), 2)
     if found.smear_px > SMEARED_PX or found.sigma_per_smear == EDGE_SIGMA_PER_SMEAR:
         # placed by the border's centroid in linear light, which a tone curve not known exactly
         # (a camera's is not sRGB) moves by a share of the smear: ~0.5 px outward at 5-12 px of smear
