@@ -378,6 +378,49 @@ def test_flow_only_ablation_anchors_once_then_tracks_at_any_height(pad):
         assert dp < 0.02 and da < 0.5, f"frame {k}: {dp * 1000:.1f} mm, {da:.2f} deg"
 
 
+def test_an_edge_fitted_outline_is_not_taken_where_the_motion_smears_past_the_fits_reach(pad):
+    """The smear an outline's path is chosen by is read on the white field's edge, as one kernel
+    for each pair of sides; a turn smears each corner its own way, and a pad filling the view read
+    5.7-9.2 px where 20-40 px lay across its sides (unseen55's gusty turns, a 40 ms exposure): the
+    edge fit put its sides 7-21 px out, posed 98 mm off, "ok".  Where the last poses' velocity and
+    the gyro's rate predict more smear across a side than an edge fit holds to, and over twice what
+    was read, such an outline is refused; the predicted smear is each side's own (checked against
+    the same motion applied to the corners), and nothing is refused under a slow motion, with no
+    exposure known, or for an outline placed otherwise."""
+    import hvloc.localizer as L
+    from hvloc.phases import EDGE_FIT_SMEAR_PX
+
+    G = tilted(0.1, -0.05, 2.0, 0.3, 0.02, -0.01)
+    P = pad.geometry.outer_corners
+    pose = solve_planar_pose(CAM, P, CAM.project_from(G, P), up_C=up_in_camera(G), prev_cam2pad=G)
+
+    def across(v, w, e):  # the largest smear across a side, from the corners' own motion over the exposure
+        ends = []
+        for s in (-e / 2, e / 2):
+            T = G.copy()
+            T[:3, 3] += v * s
+            T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
+            ends.append(CAM.project_from(T, P))
+        d, q = ends[1] - ends[0], CAM.project_from(G, P)
+        side = np.roll(q, -1, axis=0) - q
+        n = np.stack([-side[:, 1], side[:, 0]], axis=1) / np.linalg.norm(side, axis=1)[:, None]
+        return float(np.max(np.maximum(np.abs(np.sum(d * n, 1)), np.abs(np.sum(np.roll(d, -1, axis=0) * n, 1)))))
+
+    v, w_C = np.array([0.4, -0.3, -0.9]), np.array([0.05, -0.05, 1.6])  # a descent turning at 1.6 rad/s
+    for exposure, slow in ((0.04, 1.0), (0.04, 0.1), (0.0, 1.0)):
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), exposure_s=exposure)
+        loc.velocity, loc.rate_B = slow * v, DEFAULT_T_B_C[:3, :3] @ (slow * w_C)
+        truth = across(slow * v, slow * w_C, 0.04)
+        if exposure > 0 and slow == 1.0:
+            assert truth > 1.5 * EDGE_FIT_SMEAR_PX, truth
+            why = loc._edge_fit_outrun(pose, P, 6.0)
+            assert why and abs(float(why.split("predicts ")[1].split(" px")[0]) - truth) < 0.1 * truth, (why, truth)
+            assert loc._edge_fit_outrun(pose, P, truth / 1.5) == ""  # read as much: the image is believed
+            assert loc._edge_fit_outrun(pose, P, None) == ""  # (placed otherwise)
+        else:
+            assert loc._edge_fit_outrun(pose, P, 2.0) == "", (exposure, slow, truth)
+
+
 def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
     """Lucas-Kanade's tracks in a smeared frame shift together along their smear (features alike
     land alike in a smeared patch); the pose takes that shared shift whole, and its covariance,
