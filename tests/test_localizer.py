@@ -378,6 +378,18 @@ def test_flow_only_ablation_anchors_once_then_tracks_at_any_height(pad):
         assert dp < 0.02 and da < 0.5, f"frame {k}: {dp * 1000:.1f} mm, {da:.2f} deg"
 
 
+def _image_motion(G, P, v, w, e):
+    """(N, 2) how far each of ``P`` moves in the image over an exposure ``e`` centred on the view at
+    ``G``, the camera moving at ``v`` (pad frame) and turning at ``w`` (camera frame)."""
+    ends = []
+    for s in (-e / 2, e / 2):
+        T = G.copy()
+        T[:3, 3] += v * s
+        T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
+        ends.append(CAM.project_from(T, P))
+    return ends[1] - ends[0]
+
+
 def test_an_edge_fitted_outline_is_not_taken_where_the_motion_smears_past_the_fits_reach(pad):
     """The smear an outline's path is chosen by is read on the white field's edge, as one kernel
     for each pair of sides; a turn smears each corner its own way, and a pad filling the view read
@@ -395,13 +407,7 @@ def test_an_edge_fitted_outline_is_not_taken_where_the_motion_smears_past_the_fi
     pose = solve_planar_pose(CAM, P, CAM.project_from(G, P), up_C=up_in_camera(G), prev_cam2pad=G)
 
     def across(v, w, e):  # the largest smear across a side, from the corners' own motion over the exposure
-        ends = []
-        for s in (-e / 2, e / 2):
-            T = G.copy()
-            T[:3, 3] += v * s
-            T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
-            ends.append(CAM.project_from(T, P))
-        d, q = ends[1] - ends[0], CAM.project_from(G, P)
+        d, q = _image_motion(G, P, v, w, e), CAM.project_from(G, P)
         side = np.roll(q, -1, axis=0) - q
         n = np.stack([-side[:, 1], side[:, 0]], axis=1) / np.linalg.norm(side, axis=1)[:, None]
         return float(np.max(np.maximum(np.abs(np.sum(d * n, 1)), np.abs(np.sum(np.roll(d, -1, axis=0) * n, 1)))))
@@ -443,13 +449,7 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
         return solve_planar_pose(CAM, P, px, up_C=up, prev_cam2pad=G)
 
     def smear(v, w, e):  # each point's image motion over the exposure
-        ends = []
-        for s in (-e / 2, e / 2):
-            T = G.copy()
-            T[:3, 3] += v * s
-            T[:3, :3] = T[:3, :3] @ so3_exp(w * s)
-            ends.append(CAM.project_from(T, P))
-        return ends[1] - ends[0]
+        return _image_motion(G, P, v, w, e)
 
     v, w_C = np.array([0.3, -0.5, -0.3]), np.array([0.2, -0.1, 0.3])
     for exposure, slow in ((0.03, 1.0), (0.03, 0.05), (0.0, 1.0)):
