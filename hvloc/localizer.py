@@ -1034,8 +1034,10 @@ class HierarchicalLocalizer:
         The smear is read on the white field's edge, as one kernel for each pair of sides; a turn or a
         zoom smears each corner its own way, and a pad filling the view was read at 5-9 px under 20-40
         px of smear across its sides (unseen55: a 40 ms exposure in a gusty turn), its sides fitted
-        7-21 px out and posed 98 mm off, beyond its 3 sigma."""
-        if read_px is None or pose.cov is None:
+        7-21 px out and posed 98 mm off, beyond its 3 sigma.  Only with a velocity from the last poses
+        (no motion is predicted whole without one: the first frame's gyro rate, a single row at a
+        descent's start, read 2.2 rad/s where the frame was smeared 9-11 px, and the pad was lost)."""
+        if read_px is None or pose.cov is None or self.velocity is None:
             return ""
         d = self._image_motion(pose.cam2pad, self._motion(), pts_P)
         if d is None:

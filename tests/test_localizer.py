@@ -423,6 +423,8 @@ def test_an_edge_fitted_outline_is_not_taken_where_the_motion_smears_past_the_fi
             assert why and abs(float(why.split("predicts ")[1].split(" px")[0]) - truth) < 0.1 * truth, (why, truth)
             assert loc._edge_fit_outrun(pose, P, truth / 1.5) == ""  # read as much: the image is believed
             assert loc._edge_fit_outrun(pose, P, None) == ""  # (placed otherwise)
+            loc.velocity = None  # the gyro's rate alone (the first frame): no motion predicted whole
+            assert loc._edge_fit_outrun(pose, P, 6.0) == ""
         else:
             assert loc._edge_fit_outrun(pose, P, 2.0) == "", (exposure, slow, truth)
 
