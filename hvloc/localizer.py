@@ -1037,14 +1037,12 @@ class HierarchicalLocalizer:
         7-21 px out and posed 98 mm off, beyond its 3 sigma.  Only with a velocity from the last poses
         (no motion is predicted whole without one: the first frame's gyro rate, a single row at a
         descent's start, read 2.2 rad/s where the frame was smeared 9-11 px, and the pad was lost)."""
-        if read_px is None or pose.cov is None or self.velocity is None:
+        if read_px is None or self.velocity is None:
             return ""
         d = self._image_motion(pose.cam2pad, self._motion(), pts_P)
         if d is None:
             return ""
-        q = self.camera.project_from(pose.cam2pad, pts_P)
-        side = np.roll(q, -1, axis=0) - q  # side j from corner j to j + 1, smeared as its two ends are
-        n = np.stack([-side[:, 1], side[:, 0]], axis=1) / np.maximum(np.linalg.norm(side, axis=1), 1e-9)[:, None]
+        n = ph.side_normals(self.camera.project_from(pose.cam2pad, pts_P))[1]  # side j smeared as its two ends are
         across = np.maximum(np.abs(np.sum(d * n, axis=1)), np.abs(np.sum(np.roll(d, -1, axis=0) * n, axis=1)))
         worst = float(np.max(np.nan_to_num(across)))
         if worst > max(ph.EDGE_FIT_SMEAR_PX, EDGE_FIT_OUTRUN * read_px):

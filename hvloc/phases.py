@@ -727,13 +727,19 @@ def _on_banded_edge(chan: np.ndarray, quad: np.ndarray, geo: PadGeometry, camera
     return _moved_sides(quad, e)
 
 
+def side_normals(quad: np.ndarray) -> tuple:
+    """``(sides (4, 2), unit normals (4, 2))`` of ``quad``: side j runs from corner j to j + 1, its
+    normal points inward."""
+    quad = np.asarray(quad, np.float64)
+    d = np.roll(quad, -1, axis=0) - quad
+    n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+    return d, n * np.sign(np.sum((quad.mean(axis=0) - quad) * n, axis=1))[:, None]
+
+
 def _moved_sides(quad: np.ndarray, e: np.ndarray) -> np.ndarray:
     """``quad`` with side j (corner j to j + 1) moved by ``e[j]`` px along its inward normal, the
     corners where the moved sides meet."""
-    lengths = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-    d = np.roll(quad, -1, axis=0) - quad
-    n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(lengths, 1e-9)[:, None]
-    n *= np.sign(np.sum((quad.mean(axis=0) - quad) * n, axis=1))[:, None]  # inward
+    n = side_normals(quad)[1]
     out = quad.copy()
     for j in range(4):  # corner j lies on sides j - 1 and j: move it onto both moved lines
         A = np.stack([n[j - 1], n[j]])
@@ -826,9 +832,7 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
         return None, smear, None, CENTROID_SIGMA_PER_SMEAR
     # each side through its stretches' edge points (the side's angle is as uncertain as its place);
     # with ``partial`` (a pad cut by the image's edge) through the first and last of those in view
-    d = np.roll(q, -1, axis=0) - q
-    n = np.stack([-d[:, 1], d[:, 0]], axis=1) / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
-    n *= np.sign(np.sum((q.mean(axis=0) - q) * n, axis=1))[:, None]  # inward
+    d, n = side_normals(q)
     p = q[:, None, :] + at[..., None] * d[:, None, :] + np.where(read, e, 0.0)[..., None] * n[:, None, :]
     first, last = read.argmax(axis=1), segments - 1 - read[:, ::-1].argmax(axis=1)
     a, u = p[np.arange(4), first], p[np.arange(4), last] - p[np.arange(4), first]
