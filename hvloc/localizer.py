@@ -19,7 +19,7 @@ from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp,
                        so3_log)
-from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
+from .pose import (PIXEL_SIGMA, TILT_CONSISTENT_CHI2, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
 from .work import ImageWork, array_key
@@ -1130,12 +1130,12 @@ class HierarchicalLocalizer:
             res, n, why = self.flow.track(gray, prior, up_C, self._predicted(t))
             if res is None:
                 return None, why
-            extras = {"keyframe_anchored": self.flow.kf.anchored}
+            extras = {"keyframe_anchored": self.flow.kf.anchored, "tilt_noise_scale": res.tilt_noise_scale}
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 def solve(px):
                     return solve_planar_pose(self.camera, P, px, up_C=up_C, prev_cam2pad=prior,
-                                             gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg)
+                                             gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
                 res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)

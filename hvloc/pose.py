@@ -35,6 +35,7 @@ class PoseResult:
     other_cam2pad: np.ndarray | None = None  # the rejected flip solution (None if none)
     mirror_normal_img_C: np.ndarray | None = None  # that solution's image-only pad normal in C (with an IMU)
     mirror_chi2_gap: float = float("inf")  # how much worse it fits than the chosen one, in squared noise units
+    tilt_noise_scale: float = 1.0          # how much the image's noise was widened for its tilt to meet gravity's
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -43,6 +44,10 @@ FLIP_APART = 0.05  # ... and further than this share of the height from the chos
 LEVEL_TILT_DEG = 30.0  # without an IMU, a pad within this of the mount's level up may be taken as lying level ...
 FLIP_LEVEL_GAP_DEG = 15.0  # ... when its mirror's pad lies this much further off
 LEVEL_SIGMA_DEG = 10.0  # without an IMU, how far from level a drone's body is tilted (1 sigma), as a soft prior
+# the squared disagreement, in its sigmas, an image's tilt may have with the IMU's gravity before the
+# image's noise is taken to be larger than its residuals show (``solve_planar_pose``'s ``tilt_chi2``):
+# two sigmas of the two together
+TILT_CONSISTENT_CHI2 = 4.0
 
 
 def _normals_along(cands, up_C: np.ndarray) -> np.ndarray:
@@ -257,16 +262,27 @@ def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
     With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
     gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too.
     ``shared``: errors groups of points share (:class:`SharedNoise`)."""
-    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
-    dof = max(r0.size - 6, 1)
-    r0, J = _whiten(_whitener(min_sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared), r0, J)
-    info = J.T @ J / max(float(r0 @ r0) / dof, 1.0)
+    r0, J, Jn = _whitened(camera, cam2pad, pts_P, px, min_sigma_px, shared)
+    info = J.T @ J / _residual_scale(r0) ** 2
     if up_C is not None and sigma_up_rad:
         info = info + Jn.T @ Jn / sigma_up_rad ** 2
     try:
         return np.linalg.inv(info)
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
+
+
+def _whitened(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px, sigma_px, shared) -> tuple:
+    """The pixel residuals and their Jacobian whitened by the noise, and the normal's Jacobian."""
+    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
+    r0, J = _whiten(_whitener(sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared), r0, J)
+    return r0, J, Jn
+
+
+def _residual_scale(r_white: np.ndarray) -> float:
+    """How much larger than stated the noise shows itself in whitened residuals: their RMS over
+    the degrees of freedom left (a pose takes 6), at least 1."""
+    return math.sqrt(max(float(r_white @ r_white) / max(r_white.size - 6, 1), 1.0))
 
 
 def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pts_P: np.ndarray) -> np.ndarray:
@@ -356,7 +372,7 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
                       prev_cam2pad: np.ndarray | None = None, refine: bool = True,
                       gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
                       sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None,
-                      level_up_C: np.ndarray | None = None) -> PoseResult | None:
+                      level_up_C: np.ndarray | None = None, tilt_chi2: float | None = None) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
     ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
     scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
@@ -370,6 +386,12 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     and ``level_up_C`` is given: the body's up seen through the mount, where a drone that flies
     level has the world's (:func:`_level_choice`; ``flip_choice`` "level", or "ambiguous" when it
     does not decide either, the lower error's pose returned).
+
+    ``tilt_chi2``, with ``up_C``: where the image-only tilt disagrees with the IMU's up by more than
+    this chi-square (two degrees of freedom, in the two's sigmas together), the image's noise is
+    widened until it does not (:func:`_tilt_noise_scale`), in the refinement and the covariance: the
+    image's errors are larger than its residuals show, and smooth (a bias that fits a homography,
+    as tracks between frames smeared differently do, leaves no residual).
     """
     pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
     px = np.asarray(px, np.float64).reshape(-1, 2)
@@ -415,6 +437,7 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     normal_img = mirror_normal = None
     mirror_gap = float("inf")
     image_rms = float("nan")
+    noise_scale = 1.0
     prior_up = up_C
     if up_C is None and level_up_C is not None and LEVEL_SIGMA_DEG:
         # without an IMU, a drone that flies nearly level has the body's up, seen through the mount,
@@ -433,13 +456,30 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         if other_T is not None and refine:
             mirror_normal = other_T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
             mirror_gap = _chi2(camera, other_T, obj, px, sigma_px) - _chi2(camera, T, obj, px, sigma_px)
+        k = _tilt_noise_scale(*tilt, gravity_sigma_deg, tilt_chi2) if tilt_chi2 and gravity_sigma_deg else 1.0
+        if k > 1.0:
+            # the tilt's sigma was the noise as the residuals showed it: widened from there
+            noise_scale = k * _residual_scale(_whitened(camera, T, obj, px, sigma_px, shared)[0])
+            sigma_px = np.asarray(sigma_px, np.float64) * noise_scale
+            sigma_px = float(sigma_px) if sigma_px.ndim == 0 else sigma_px
+            if shared is not None:
+                shared = SharedNoise(shared.groups, shared.shift * noise_scale, shared.dilation * noise_scale)
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T,
-                      mirror_normal, mirror_gap)
+                      mirror_normal, mirror_gap, noise_scale)
+
+
+def _tilt_noise_scale(angle_deg: float, sigma_deg: float, gravity_sigma_deg: float, chi2: float) -> float:
+    """By how much an image's tilt sigma must grow for its ``angle_deg`` from the IMU's up (whose
+    own sigma is ``gravity_sigma_deg``) to be within ``chi2`` of the two together; 1 if it is."""
+    if not (np.isfinite(angle_deg) and np.isfinite(sigma_deg) and sigma_deg > 0):
+        return 1.0
+    need = angle_deg ** 2 / chi2 - gravity_sigma_deg ** 2
+    return max(math.sqrt(max(need, 0.0)) / sigma_deg, 1.0)
 
 
 # how far the image-only refinement goes: far enough to reach the minimum of a far pad's flat tilt
