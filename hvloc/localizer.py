@@ -752,6 +752,9 @@ class HierarchicalLocalizer:
         self._update_phase(h)
         self.unposed += 1
         order = METHOD_ORDER[self.phase]
+        if self.flow.kf is not None and self.flow.kf.drawn and "texture" in order:
+            # tracks from a smeared keyframe: only where the pad's drawing no longer places the frame
+            order = tuple(m for m in order if m != "flow") + ("flow",)
         if cfg.anchor_once and self.flow.kf is not None:  # flow-only ablation: anchored once, then flow alone
             order = ("flow",)
         enabled = {"outline": cfg.use_outline and rgb is not None, "markers": cfg.use_markers, "flow": cfg.use_flow,
@@ -1426,8 +1429,16 @@ class HierarchicalLocalizer:
         return self.gates.check(est, R_W_B, self.last)
 
     def _after_accept(self, method: str, est: Estimate, gray) -> None:
-        """Keep the flow tracker ready near the ground: a keyframe from an anchored (markers or
-        outline) pose, renewed when the view has changed enough; flow poses advance the tracks."""
+        """Keep the flow tracker ready near the ground: a keyframe from an anchored (markers, outline,
+        texture) pose, renewed when the view has changed enough; flow poses advance the tracks.
+
+        A smeared drawing's pose (:mod:`hvloc.synthesis`) anchors one too, tried only after the
+        drawing (``Keyframe.drawn``): its frame's corners are smeared, and tracks from it were 5-11 mm
+        off at 0.5-0.8 m where the drawing was within a millimetre; but where the pad runs out of the
+        frame no drawing places it, and without such a keyframe every frame down to 0.5 m was lost
+        (unseen57: 15 frames of 78 in touchdown, the frames before posed by the drawing under 25-30
+        px of smear).  The tracks' poses are doubted for the smear they differ by from it
+        (:meth:`_smear_spread`, the keyframe's motion) and carry its covariance."""
         cfg = self.config
         h = est.height
         if not cfg.use_flow or (not cfg.anchor_once and h > cfg.touchdown_height_m * 1.5 + cfg.hysteresis_m):
@@ -1437,7 +1448,9 @@ class HierarchicalLocalizer:
         serial = None if f.kf is None else f.kf.serial
         if method == "flow":
             f.accept(est.cam2pad, est.rms_px, est.cov)
-        elif est.extras.get("by") != "synthesis":  # (a smeared frame: no keyframe for Lucas-Kanade)
+        elif est.extras.get("by") == "synthesis":  # (the flow is tried after it: its keyframe is kept the last frame)
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+        else:
             f.frames_since_kf += 1
             if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                     or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
@@ -1445,6 +1458,7 @@ class HierarchicalLocalizer:
                     f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
         if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
             f.kf.motion = self._motion()
+            f.kf.drawn = est.extras.get("by") == "synthesis"
 
 
 def _surer(kf, cov) -> bool:

@@ -1761,6 +1761,7 @@ class Keyframe:
     tag: object = None    # the frame it was made from, as :class:`ImageWork` names frames
     serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
     motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
+    drawn: bool = False   # its pose was the smeared drawing's (hvloc.synthesis): a fallback, tried after the drawing
 
 
 HARRIS_QUALITY = 0.005   # a corner's Harris response, at least this share of the strongest it is judged against
@@ -1927,6 +1928,13 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     return out
 
 
+# a frame's tracks agreeing on a homography, at least: where Lucas-Kanade lost most of a keyframe's
+# features (a zoom past its reach under 40 px of smear) the few that survive are those that slid
+# along their smear alike, and a homography fits them (8-14 such tracks posed frames 20-95 mm off,
+# stating a tenth of it; see test_a_flow_pose_needs_twenty_agreeing_tracks)
+FLOW_MIN_INLIERS = 20
+
+
 def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad: np.ndarray | None,
                      up_C=None, ransac_px: float = 2.0, gravity_sigma_deg: float = 0.5) -> tuple:
     """RANSAC homography between the keyframe's pad points and their tracked pixels, then the
@@ -1940,8 +1948,8 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
 
     ok = np.isfinite(px).all(axis=1)
-    if ok.sum() < 8:
-        return None, ok, f"{int(ok.sum())} tracks left"
+    if ok.sum() < FLOW_MIN_INLIERS:
+        return None, ok, f"{int(ok.sum())} tracks left (< {FLOW_MIN_INLIERS})"
     P = kf.pts_P[ok]
     xy = camera.normalized_from_pixels(px[ok])
     thr = ransac_px / camera.fx
@@ -1949,8 +1957,8 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     if H is None:
         return None, ok, "no homography"
     inl = inl[:, 0].astype(bool)
-    if inl.sum() < 8:
-        return None, ok, f"{int(inl.sum())} homography inliers"
+    if inl.sum() < FLOW_MIN_INLIERS:
+        return None, ok, f"{int(inl.sum())} homography inliers (< {FLOW_MIN_INLIERS})"
     mask = np.zeros(len(px), bool)
     mask[np.nonzero(ok)[0][inl]] = True
     res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad,
