@@ -19,8 +19,8 @@ from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp,
                        so3_log)
-from .pose import (PIXEL_SIGMA, TILT_CONSISTENT_CHI2, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
-                   solve_planar_pose)
+from .pose import (PIXEL_SIGMA, TILT_CONSISTENT_CHI2, PoseResult, SharedNoise, outlying_points, point_residuals,
+                   projection_sigma_px, solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
 from .work import ImageWork, array_key
 

@@ -1931,7 +1931,7 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
 # a frame's tracks agreeing on a homography, at least: where Lucas-Kanade lost most of a keyframe's
 # features (a zoom past its reach under 40 px of smear) the few that survive are those that slid
 # along their smear alike, and a homography fits them (8-14 such tracks posed frames 20-95 mm off,
-# stating a tenth of it; see test_a_flow_pose_needs_twenty_agreeing_tracks)
+# stating a tenth of it; test_a_smeared_touchdown_is_never_posed_on_a_few_surviving_tracks)
 FLOW_MIN_INLIERS = 20
 
 
