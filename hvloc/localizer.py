@@ -683,6 +683,7 @@ class HierarchicalLocalizer:
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
         self.flow.gravity_sigma_deg = self.config.ahrs_tilt_sigma_deg
+        self.flow.ground = self.config.anchor_once  # (the pad's own corners only: FlowTracker.ground)
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one

@@ -1987,6 +1987,11 @@ class FlowTracker:
         self.unroll = None  # (px, cam2pad, pts_P) -> px at the rolling shutter's reference row (make_keyframe)
         self.keyframes = 0  # keyframes made so far (each one's serial)
         self.gravity_sigma_deg = 0.5  # the AHRS's tilt error, which weighs its gravity in the tracks' poses
+        # whether a keyframe may take its corners from the whole frame where the pad gives too few: the
+        # ground beside the pad is its plane only for a pad lying on still ground (a deck moving at 0.7
+        # m/s, 0.4 m up, its pad a quarter in view at 1.8 m: a chain of the ground's corners drifted 35
+        # mm a frame, four poses 19-28 cm off accepted, unseen58); the flow-only ablation needs it
+        self.ground = True
         self.reset()
 
     def reset(self) -> None:
@@ -2010,8 +2015,11 @@ class FlowTracker:
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
             if corners is not None and len(corners) < self.min_tracks:
-                corners = None
+                if self.ground or len(corners) < FLOW_MIN_INLIERS:
+                    corners = None
         if corners is None:
+            if not self.ground and self.region_P is not None:
+                return False
             # the whole frame: there its strongest corners.  Beyond the pad the ground, boxes and rims
             # are not its plane, and spread evenly over them the corners were mostly theirs (bench_v1's
             # flow_only, anchored once at 20 m: false accepts 372 -> 1473 read cell by cell)
