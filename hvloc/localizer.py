@@ -19,8 +19,8 @@ from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp,
                        so3_log)
-from .pose import (PIXEL_SIGMA, TILT_CONSISTENT_CHI2, PoseResult, SharedNoise, outlying_points, point_residuals,
-                   projection_sigma_px, solve_planar_pose)
+from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
+                   solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
 from .work import ImageWork, array_key
 
@@ -1138,8 +1138,7 @@ class HierarchicalLocalizer:
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 def solve(px):
-                    return solve_planar_pose(self.camera, P, px, up_C=up_C, prev_cam2pad=prior,
-                                             gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
+                    return ph.tracks_pose(self.camera, P, px, up_C, prior, cfg.ahrs_tilt_sigma_deg)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
                 res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)

@@ -1945,8 +1945,6 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     homography would move them (unseen55: 150 tracks tilted the pose 1.7-2.4 degrees at 1 m, their
     residuals 0.4-0.7 px, the pose stating a tenth of its 30 mm sideways error).
     Returns ``(PoseResult | None, inlier mask, reason)``."""
-    from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
-
     ok = np.isfinite(px).all(axis=1)
     if ok.sum() < FLOW_MIN_INLIERS:
         return None, ok, f"{int(ok.sum())} tracks left (< {FLOW_MIN_INLIERS})"
@@ -1961,9 +1959,17 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
         return None, ok, f"{int(inl.sum())} homography inliers (< {FLOW_MIN_INLIERS})"
     mask = np.zeros(len(px), bool)
     mask[np.nonzero(ok)[0][inl]] = True
-    res = solve_planar_pose(camera, P[inl], px[ok][inl], up_C=up_C, prev_cam2pad=prev_cam2pad,
-                            gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
+    res = tracks_pose(camera, P[inl], px[ok][inl], up_C, prev_cam2pad, gravity_sigma_deg)
     return res, mask, "ok" if res is not None else "pose failed"
+
+
+def tracks_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C, prev_cam2pad, gravity_sigma_deg: float):
+    """The planar pose of tracked pad points as the flow solves it (its noise widened where gravity
+    contradicts its tilt): :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
+    from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
+
+    return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad,
+                             gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
 
 
 class FlowTracker:
@@ -2014,9 +2020,8 @@ class FlowTracker:
         corners = None
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
-            if corners is not None and len(corners) < self.min_tracks:
-                if self.ground or len(corners) < FLOW_MIN_INLIERS:
-                    corners = None
+            if corners is not None and len(corners) < (self.min_tracks if self.ground else FLOW_MIN_INLIERS):
+                corners = None
         if corners is None:
             if not self.ground and self.region_P is not None:
                 return False
