@@ -1448,7 +1448,11 @@ class HierarchicalLocalizer:
         serial = None if f.kf is None else f.kf.serial
         if method == "flow":
             f.accept(est.cam2pad, est.rms_px, est.cov)
-        elif est.extras.get("by") == "synthesis":  # (the flow is tried after it: its keyframe is kept the last frame)
+        elif est.extras.get("by") == "synthesis" or (f.kf is not None and f.kf.drawn):
+            # a drawn frame's keyframe is kept the last frame (the flow is tried after the drawing), and
+            # gives way to the first pose of another method: kept, the flow stayed behind the drawing
+            # (unseen59: a slow descent drawn at 1.6-2.8 m, 45 frames drawn after a markers pose that
+            # would have anchored a keyframe the flow tracked, 200+ ms a frame where the flow took 11)
             f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
         else:
             f.frames_since_kf += 1

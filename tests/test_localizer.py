@@ -2708,6 +2708,26 @@ def test_the_flow_falls_back_on_a_keyframe_of_the_drawn_frame(pad):
     assert not e.ok or _nees3(e, G) < 14.16
 
 
+def test_a_drawn_keyframe_gives_way_to_the_next_pose_of_another_method(pad):
+    """A keyframe of a drawn frame is a fallback: the flow is tried after the drawing while it is
+    the keyframe.  The first pose of another method (markers here) replaces it, so the flow comes
+    first again; kept (the rule for anchored keyframes: renewed only when out of reach or less sure),
+    a slow descent was drawn for 45 frames where the flow would have tracked (unseen59)."""
+    from hvloc.localizer import Estimate
+
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), exposure_s=0.03)
+    G = tilted(0.1, -0.05, 0.9, 0.4, 0.01, -0.01)
+    gray = cv2.cvtColor(warp_pad_view(pad, CAM, G, GROUND), cv2.COLOR_RGB2GRAY)
+    cov = np.diag([1e-4, 1e-4, 1e-4, 1e-6, 1e-6, 1e-6])
+    loc._after_accept("texture", Estimate(0.0, "touchdown", "ok", G, 20, 0.3, 4 * cov, extras={"by": "synthesis"}), gray)
+    assert loc.flow.kf is not None and loc.flow.kf.drawn
+    drawn = loc.flow.kf.serial
+    G2 = tilted(0.1, -0.05, 0.89, 0.4, 0.01, -0.01)  # the next frame, a little lower, posed by the markers
+    gray2 = cv2.cvtColor(warp_pad_view(pad, CAM, G2, GROUND), cv2.COLOR_RGB2GRAY)
+    loc._after_accept("markers", Estimate(0.033, "touchdown", "ok", G2, 40, 0.3, 9 * cov), gray2)
+    assert loc.flow.kf.serial > drawn and not loc.flow.kf.drawn and loc.flow.kf.anchored
+
+
 @pytest.mark.parametrize("h", [0.45, 0.8])
 def test_a_pad_smeared_past_every_feature_is_posed_by_its_drawing(pad, h):
     """A gust at touchdown: 50-70 px of smear (a 30 ms exposure, turning at 1.5 rad/s), the drone's
