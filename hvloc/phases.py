@@ -1993,13 +1993,30 @@ def keyframe_inheritance(camera: Camera, kf: Keyframe, inliers: np.ndarray, res,
     return inherited_covariance(camera, res.cam2pad, kf.pts_P[inliers], px, np.array(dP), res.sigma_px, up_C, g)
 
 
+# how many independent measurements a frame's tracks are worth, however many there are: Lucas-Kanade's
+# errors are smooth over the frame (a blur, a scale change or JPEG's blocks differing between the
+# keyframe and the frame bias neighbouring tracks alike), and a homography takes such errors as a
+# tilt.  Counted independent, 100-150 tracks fixed a chain's tilt to 0.04-0.1 degrees and each renewed
+# keyframe moved it 0.2-0.3 degrees (the smoke suite's tiny descent: 1.1 degrees off at 0.33 m, the
+# IMU's gravity, 0.5 degrees, outweighed ten times); their noise is widened to count as this many
+FLOW_INDEPENDENT_TRACKS = 6
+
+
 def tracks_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C, prev_cam2pad, gravity_sigma_deg: float):
     """The planar pose of tracked pad points as the flow solves it (its noise widened where gravity
     contradicts its tilt): :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
     from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
 
-    return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad,
+    return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad, sigma_px=tracks_sigma_px(len(px)),
                              gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
+
+
+def tracks_sigma_px(n: int) -> float:
+    """The pixel noise each of ``n`` tracks is counted with: a found corner's
+    (:data:`hvloc.pose.PIXEL_SIGMA`), widened so that they count as :data:`FLOW_INDEPENDENT_TRACKS`."""
+    from .pose import PIXEL_SIGMA
+
+    return PIXEL_SIGMA * math.sqrt(max(n / FLOW_INDEPENDENT_TRACKS, 1.0))
 
 
 class FlowTracker:
