@@ -1970,9 +1970,11 @@ def keyframe_inheritance(camera: Camera, kf: Keyframe, inliers: np.ndarray, res,
     so each of its error's axes moves them, and the solve moves with them
     (:func:`hvloc.pose.inherited_covariance`).  Not the keyframe's covariance whole: its height error
     places the points too far apart by a share of the height, and a pose half as high sees them so
-    at half the error; its tilt, the IMU's gravity re-solves.  (unseen50: a markers keyframe at 1.4 m,
-    12 mm off, stating 8.8 mm, gave poses down to 0.15 m that were 1 mm off, stating 15.7 mm.)
-    In-plane, its shift and turn are carried whole."""
+    at half the error (unseen50: a markers keyframe at 1.4 m, 12 mm off, stating 8.8 mm, gave poses
+    down to 0.15 m that were 1 mm off, stating 15.7 mm); its tilt shifts them sideways, which the
+    IMU's gravity undoes only as far as it outweighs the tracks; its shift and turn in the pad's
+    plane are carried whole; and where its camera was off together with its tilt, seeing the same
+    points, nothing moves them."""
     from .pose import inherited_covariance
 
     C = 0.5 * (kf.cov + kf.cov.T)
@@ -2003,12 +2005,14 @@ FLOW_INDEPENDENT_TRACKS = 6
 
 
 def tracks_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C, prev_cam2pad, gravity_sigma_deg: float):
-    """The planar pose of tracked pad points as the flow solves it (its noise widened where gravity
-    contradicts its tilt): :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
+    """The planar pose of tracked pad points as the flow solves it (their noise as
+    :func:`tracks_sigma_px` counts it, widened where gravity contradicts their tilt):
+    :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
     from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
 
-    return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad, sigma_px=tracks_sigma_px(len(px)),
-                             gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
+    return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad,
+                             sigma_px=tracks_sigma_px(len(px)), gravity_sigma_deg=gravity_sigma_deg,
+                             tilt_chi2=TILT_CONSISTENT_CHI2)
 
 
 def tracks_sigma_px(n: int) -> float:

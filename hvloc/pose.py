@@ -310,13 +310,13 @@ def inherited_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray,
     dP = np.asarray(dP, np.float64).reshape(-1, len(pts_P), 3)
     if not len(dP):
         return np.zeros((6, 6))
-    r0, J, Jn = _whitened(camera, cam2pad, pts_P, px, sigma_px, shared)
+    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
+    W = _whitener(sigma_px, px, shared)
+    moved = np.stack([(camera.project_from(cam2pad, pts_P + d) - px).ravel() - r0 for d in dP], axis=1)  # (2n, k)
+    J, moved = _whiten(W, r0, J)[1], _whiten(W, r0, moved)[1]
     A = J.T @ J
     if up_C is not None and sigma_up_rad:
         A = A + Jn.T @ Jn / sigma_up_rad ** 2
-    base = camera.project_from(cam2pad, pts_P)
-    moved = np.stack([(camera.project_from(cam2pad, pts_P + d) - base).ravel() for d in dP], axis=1)  # (2n, k)
-    _, moved = _whiten(_whitener(sigma_px, px, shared), r0, moved)
     try:
         D = -np.linalg.solve(A, J.T @ moved)  # (6, k): the pose's move under each pattern
     except np.linalg.LinAlgError:
