@@ -684,7 +684,6 @@ class HierarchicalLocalizer:
         self.flow.unroll = self._unrolled if self.shutter.active else None
         self.flow.gravity_sigma_deg = self.config.ahrs_tilt_sigma_deg
         self.flow.ground = self.config.anchor_once  # (the pad's own corners only: FlowTracker.ground)
-        self.flow.relief_var = (self.config.pad_relief_m / 2.0) ** 2
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one
@@ -1142,7 +1141,7 @@ class HierarchicalLocalizer:
                     return ph.tracks_pose(self.camera, P, px, up_C, prior, cfg.ahrs_tilt_sigma_deg)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
-                res = self._velocity_free(res, P, seen, solve, extras, self.flow.inherited, self.flow.kf.serial)
+                res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""
@@ -1447,24 +1446,20 @@ class HierarchicalLocalizer:
             return
         f = self.flow
         serial = None if f.kf is None else f.kf.serial
-        cov = est.cov
-        if cov is not None and f.relief_var:  # (the tracker adds the pad's relief to its poses once)
-            cov = cov.copy()
-            cov[:3, :3] -= np.eye(3) * f.relief_var
         if method == "flow":
-            f.accept(est.cam2pad, est.rms_px, cov)
+            f.accept(est.cam2pad, est.rms_px, est.cov)
         elif est.extras.get("by") == "synthesis" or (f.kf is not None and f.kf.drawn):
             # a drawn frame's keyframe is kept the last frame (the flow is tried after the drawing), and
             # gives way to the first pose of another method: kept, the flow stayed behind the drawing
             # (unseen59: a slow descent drawn at 1.6-2.8 m, 45 frames drawn after a markers pose that
             # would have anchored a keyframe the flow tracked, 200+ ms a frame where the flow took 11)
-            f.anchor(gray, est.cam2pad, anchored=True, cov=cov)
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
         else:
             f.frames_since_kf += 1
             if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                     or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
-                if not f.reaches(est.cam2pad) or _surer(f.kf, cov):  # (out of its reach it is renewed anyway)
-                    f.anchor(gray, est.cam2pad, anchored=True, cov=cov)
+                if not f.reaches(est.cam2pad) or _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
+                    f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
         if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
             f.kf.motion = self._motion()
             f.kf.drawn = est.extras.get("by") == "synthesis"

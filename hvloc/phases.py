@@ -1963,64 +1963,13 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     return res, mask, "ok" if res is not None else "pose failed"
 
 
-def keyframe_inheritance(camera: Camera, kf: Keyframe, inliers: np.ndarray, res, px: np.ndarray, up_C,
-                         gravity_sigma_deg: float) -> np.ndarray:
-    """6x6: the covariance a pose ``res`` solved from the keyframe's points ``inliers`` (seen at ``px``)
-    inherits from the keyframe's pose (``kf.cov``): the points are placed on the pad with that pose,
-    so each of its error's axes moves them, and the solve moves with them
-    (:func:`hvloc.pose.inherited_covariance`).  Not the keyframe's covariance whole: its height error
-    places the points too far apart by a share of the height, and a pose half as high sees them so
-    at half the error (unseen50: a markers keyframe at 1.4 m, 12 mm off, stating 8.8 mm, gave poses
-    down to 0.15 m that were 1 mm off, stating 15.7 mm); its tilt shifts them sideways, which the
-    IMU's gravity undoes only as far as it outweighs the tracks; its shift and turn in the pad's
-    plane are carried whole; and where its camera was off together with its tilt, seeing the same
-    points, nothing moves them."""
-    from .pose import inherited_covariance
-
-    C = 0.5 * (kf.cov + kf.cov.T)
-    if not np.isfinite(C).all():
-        return C.copy()
-    lam, V = np.linalg.eigh(C)
-    rays = kf.px[inliers]
-    base = _on_pad_plane(camera, kf.cam2pad, rays)[0]
-    dP = []
-    for s, v in zip(np.sqrt(np.maximum(lam, 0.0)), V.T):
-        if s == 0.0:
-            continue
-        T = kf.cam2pad.copy()
-        T[:3, 3] += s * v[:3]
-        T[:3, :3] = T[:3, :3] @ so3_exp(s * v[3:])
-        dP.append(_on_pad_plane(camera, T, rays)[0] - base)
-    g = math.radians(gravity_sigma_deg) if up_C is not None and gravity_sigma_deg else None
-    return inherited_covariance(camera, res.cam2pad, kf.pts_P[inliers], px, np.array(dP), res.sigma_px, up_C, g)
-
-
-# how many independent measurements a frame's tracks are worth, however many there are: Lucas-Kanade's
-# errors are smooth over the frame (a blur, a scale change or JPEG's blocks differing between the
-# keyframe and the frame bias neighbouring tracks alike), and a homography takes such errors as a
-# tilt.  Counted independent, 100-150 tracks fixed a chain's tilt to 0.04-0.1 degrees and each renewed
-# keyframe moved it 0.2-0.3 degrees (the smoke suite's tiny descent: 1.1 degrees off at 0.33 m, the
-# IMU's gravity, 0.5 degrees, outweighed ten times); their noise is widened to count as this many
-FLOW_INDEPENDENT_TRACKS = 6
-
-
 def tracks_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C, prev_cam2pad, gravity_sigma_deg: float):
-    """The planar pose of tracked pad points as the flow solves it (their noise as
-    :func:`tracks_sigma_px` counts it, widened where gravity contradicts their tilt):
-    :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
+    """The planar pose of tracked pad points as the flow solves it (its noise widened where gravity
+    contradicts its tilt): :func:`pose_from_tracks`'s and the localizer's spread solves' one solve."""
     from .pose import TILT_CONSISTENT_CHI2, solve_planar_pose
 
     return solve_planar_pose(camera, pts_P, px, up_C=up_C, prev_cam2pad=prev_cam2pad,
-                             sigma_px=tracks_sigma_px(len(px)), gravity_sigma_deg=gravity_sigma_deg,
-                             tilt_chi2=TILT_CONSISTENT_CHI2)
-
-
-def tracks_sigma_px(n: int) -> float:
-    """The pixel noise each of ``n`` tracks is counted with: a found corner's
-    (:data:`hvloc.pose.PIXEL_SIGMA`), widened so that they count as :data:`FLOW_INDEPENDENT_TRACKS`."""
-    from .pose import PIXEL_SIGMA
-
-    return PIXEL_SIGMA * math.sqrt(max(n / FLOW_INDEPENDENT_TRACKS, 1.0))
+                             gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
 
 
 class FlowTracker:
@@ -2049,10 +1998,6 @@ class FlowTracker:
         # m/s, 0.4 m up, its pad a quarter in view at 1.8 m: a chain of the ground's corners drifted 35
         # mm a frame, four poses 19-28 cm off accepted, unseen58); the flow-only ablation needs it
         self.ground = True
-        # the variance, per axis of position, of the pad's surface standing above its plane (the
-        # localizer's ``pad_relief_m``): every tracked pose is seen from that surface, as its keyframe's
-        # was; keyframe covariances are given without it
-        self.relief_var = 0.0
         self.reset()
 
     def reset(self) -> None:
@@ -2062,7 +2007,6 @@ class FlowTracker:
         self.tracks = None
         self.pending = None
         self.fitted = None
-        self.inherited = None  # the last tracked pose's covariance from its keyframe (6x6), or None
         self.frames_since_kf = 0
 
     @property
@@ -2125,13 +2069,10 @@ class FlowTracker:
             if again[0] is not None:
                 res, inl, why, seen = again
         self.fitted = (kf.pts_P[inl], seen[inl]) if res is not None else None  # what the pose was fitted to
-        self.inherited = None
         if res is not None and kf.cov is not None:
-            # the pad points were placed with the keyframe's pose: its error is in every tracked pose,
-            # as this frame's solve carries it (:func:`keyframe_inheritance`), and the pad's relief whole
-            self.inherited = keyframe_inheritance(self.camera, kf, inl, res, seen[inl], up_C, self.gravity_sigma_deg)
-            self.inherited[:3, :3] += np.eye(3) * self.relief_var
-            res.cov = res.cov + self.inherited
+            # the pad points were placed with the keyframe's pose: its error is in every tracked pose
+            # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
+            res.cov = res.cov + kf.cov
         return res, int(inl.sum()), why
 
     def _posed_tracks(self, px, at_cam2pad, prior_cam2pad, up_C) -> tuple:

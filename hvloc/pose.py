@@ -294,36 +294,6 @@ def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pt
     return np.sqrt(np.maximum(var, 0.0).mean(axis=1))
 
 
-def inherited_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, dP: np.ndarray,
-                         sigma_px, up_C: np.ndarray | None = None, sigma_up_rad: float | None = None,
-                         shared: SharedNoise | None = None) -> np.ndarray:
-    """6x6: what a pose solved from ``pts_P`` and their pixels ``px`` (as :func:`solve_planar_pose`
-    weighs them: ``sigma_px``, ``shared``, and the IMU's ``up_C`` known to ``sigma_up_rad``) inherits
-    from errors of the points themselves.  ``dP`` ``(k, n, 3)``: ``k`` independent one-sigma patterns
-    of the points' error (each moves all of them together: the tracker's points placed with a
-    keyframe pose that is off).  The weighted least squares' first-order response to each pattern,
-    ``-(J^T J)^-1 J^T dr`` at the solved pose, summed as outer products: exact for the solve to first
-    order, whatever the gravity prior removes (a keyframe's tilt) and whatever the new view scales
-    (a keyframe's height error, carried down in proportion to the height)."""
-    pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
-    px = np.asarray(px, np.float64).reshape(-1, 2)
-    dP = np.asarray(dP, np.float64).reshape(-1, len(pts_P), 3)
-    if not len(dP):
-        return np.zeros((6, 6))
-    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
-    W = _whitener(sigma_px, px, shared)
-    moved = np.stack([(camera.project_from(cam2pad, pts_P + d) - px).ravel() - r0 for d in dP], axis=1)  # (2n, k)
-    J, moved = _whiten(W, r0, J)[1], _whiten(W, r0, moved)[1]
-    A = J.T @ J
-    if up_C is not None and sigma_up_rad:
-        A = A + Jn.T @ Jn / sigma_up_rad ** 2
-    try:
-        D = -np.linalg.solve(A, J.T @ moved)  # (6, k): the pose's move under each pattern
-    except np.linalg.LinAlgError:
-        return np.full((6, 6), np.inf)
-    return D @ D.T
-
-
 def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
                         sigma_px: float, sigma_up_rad: float, iterations: int = 4,
                         shared: SharedNoise | None = None) -> np.ndarray:

@@ -165,39 +165,6 @@ def test_flow_drift_bounded_over_60_touchdown_frames_without_reanchoring(pad):
     assert dp < 0.005 and da < 1.0, f"drift {dp * 1000:.1f} mm, {da:.2f} deg over 60 frames"
 
 
-def test_tracked_poses_inherit_their_keyframes_error_as_it_reaches_them(pad):
-    """The tracker's pad points are placed with its keyframe's pose, so that pose's error is in every
-    tracked pose, but not whole: a height error places the points too far apart by a share of the
-    height, which a camera half as high sees as half the error; a tilt error shifts them sideways,
-    which the IMU's gravity does not undo.  Carried whole (the old rule) a chain from 1 m to 0.42 m
-    stated 8 mm in height where its poses spread 3 mm (unseen50: 1 mm off, 15.7 mm stated at 0.15
-    m), and 6 mm sideways where they spread 8.5.  Forty keyframes drawn from their covariance, each
-    tracked down the same frames: the last poses spread as they state, on every axis."""
-    cam = Camera.from_hfov(480, 480, math.radians(60))
-    poses = [tilted(0.04 + 0.003 * k, -0.02 + 0.002 * k, 0.93 ** k, 0.3 + 0.01 * k, 0.02 * math.sin(k / 3), 0.01)
-             for k in range(13)]
-    imgs = [cv2.cvtColor(warp_pad_view(pad, cam, T, GROUND), cv2.COLOR_RGB2GRAY) for T in poses]
-    S = np.diag([0.006, 0.006, 0.008, math.radians(0.3), math.radians(0.3), math.radians(0.2)])
-    rng = np.random.default_rng(0)
-    errs, stated = [], []
-    for _ in range(40):
-        d = S @ rng.normal(size=6)
-        T = poses[0].copy()
-        T[:3, 3] += d[:3]
-        T[:3, :3] = T[:3, :3] @ so3_exp(d[3:])
-        flow = FlowTracker(cam, region_P=pad.geometry.outer_corners)
-        assert flow.anchor(imgs[0], T, cov=S @ S)
-        for k in range(1, len(poses)):
-            res, n, why = flow.track(imgs[k], poses[k - 1], up_in_camera(poses[k]))
-            assert res is not None, (k, why)
-            flow.accept(res.cam2pad, res.rms_px, res.cov)  # a chain: keyframes renewed from its own poses
-        assert flow.kf.serial >= 4  # (the chain renewed its keyframe on the way down)
-        errs.append(res.cam2pad[:3, 3] - poses[-1][:3, 3])
-        stated.append(np.diag(res.cov[:3, :3]))
-    ratio = np.sqrt(np.mean(stated, axis=0)) / np.std(errs, axis=0)
-    assert np.all((0.7 < ratio) & (ratio < 1.4)), np.round(ratio, 2)
-
-
 def test_keyframe_corners_are_found_in_shadow_beside_a_sunlit_strip(pad):
     """At touchdown the drone's shadow may cover most of the view, with a strip of sunlit pad beside
     it: its corners' Harris response is hundreds of times the shadowed texture's, and judged
@@ -558,7 +525,7 @@ def test_tracks_whose_tilt_gravity_contradicts_widen_their_noise_until_it_does_n
     and says so."""
     from types import SimpleNamespace
 
-    from hvloc.phases import pose_from_tracks, tracks_sigma_px
+    from hvloc.phases import pose_from_tracks
 
     rng = np.random.default_rng(3)
     P = np.column_stack([rng.uniform(-0.45, 0.45, (140, 2)), np.zeros(140)])
@@ -580,7 +547,7 @@ def test_tracks_whose_tilt_gravity_contradicts_widen_their_noise_until_it_does_n
         up = up_in_camera(G)
         res = pose_from_tracks(CAM, kf, px, G, up)[0]
         old = solve_planar_pose(CAM, P, px, up_C=up, prev_cam2pad=G)  # as the tracks were posed before
-        assert res.tilt_err_deg > 1.7 and res.tilt_sigma_deg < 0.15  # the premise: sure and wrong
+        assert res.tilt_err_deg > 1.7 and res.tilt_sigma_deg < 0.1  # the premise: sure and wrong
         assert nees(old, G) > 50 and pose_error(old.cam2pad, G)[0] > 0.025, (yaw, nees(old, G))
         assert res.tilt_noise_scale > 3 and nees(res, G) < 11.3, (yaw, nees(res, G), res.tilt_noise_scale)
         assert pose_error(res.cam2pad, G)[0] < 0.5 * pose_error(old.cam2pad, G)[0]
@@ -590,7 +557,7 @@ def test_tracks_whose_tilt_gravity_contradicts_widen_their_noise_until_it_does_n
             up_n = so3_exp([tip[0], tip[1], 0.0]) @ up
             px = CAM.project_from(G, P) + rng.normal(0.0, 0.3, (len(P), 2))
             res = pose_from_tracks(CAM, kf, px, G, up_n)[0]
-            old = solve_planar_pose(CAM, P, px, up_C=up_n, prev_cam2pad=G, sigma_px=tracks_sigma_px(len(P)))
+            old = solve_planar_pose(CAM, P, px, up_C=up_n, prev_cam2pad=G)
             if res.tilt_noise_scale > 1.0:
                 widened += 1
                 assert nees(res, G) < 11.3, (yaw, j, nees(res, G), nees(old, G))
