@@ -702,13 +702,13 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
         rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
         if not rise.max() > 0:
             continue
-        # of the strong rises the nearest, at its peak; a shadow's edge further in is not it.  A rise
-        # that peaks beyond lo..hi is not one (its flank is all that is in reach, and it is no
-        # measure of strength: the pad's outer edge beyond ``lo`` outweighed the field's own rise)
+        # of the strong rises the nearest: a shadow's edge further in is not it.  A rise that peaks
+        # beyond lo..hi is none (its flank is all that is in reach, and it is no measure of strength:
+        # the pad's outer edge beyond ``lo`` outweighed the field's own rise)
         peak = (rise >= np.r_[np.inf, rise[:-1]]) & (rise >= np.r_[rise[1:], np.inf]) & (rise >= 0.3 * rise.max())
-        if peak.any():
-            peak &= rise >= 0.6 * rise[peak].max()
-        else:  # (no rise peaks in reach: its nearest strong point, as before)
-            peak = rise >= 0.6 * rise.max()
-        out[i] = at[peak][np.argmin(np.abs(at[peak]))]
+        strong = rise >= 0.6 * (rise[peak].max() if peak.any() else rise.max())
+        if peak.any():  # the strong stretches with a peak in them
+            run = np.cumsum(np.r_[True, strong[1:] != strong[:-1]])
+            strong &= np.isin(run, run[peak & strong])
+        out[i] = at[strong][np.argmin(np.abs(at[strong]))]
     return out
