@@ -678,17 +678,10 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
 def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = None, lo: float = -2.0,
                  hi: float = 5.0, span: float = 3.0, step: float = 0.25, trim: float = 0.25) -> np.ndarray:
     """(4,) where (px along each side's inward normal, within ``lo``..``hi``) the mean profile across
-    the middle of each side of ``quad_px``, rising over ``span`` px going inward, has its nearest
-    peak of the rises that peak in reach at 0.6 of the largest such (and 0.3 of its largest rise
-    anywhere): the edge of a bright inside, found before a narrow fit (0 for a side out of view).
-    Placed at its peak, and a rise that peaks beyond ``lo``..``hi`` is none: its flank is all that
-    is in reach, nearer than any peak, and stronger (the white field predicted 1.9-2.8 px outside a
-    glare-washed border: the pad's outer edge, 2.3-1.5 px beyond, was taken by its flank, its
-    strength hid the field's rise, and the field's side was fitted onto the pad's edge 4.3 px out,
-    the pose 7 % low and refused; fisheye_glare_deck at 14 m).  Where no rise peaks in reach, the
-    nearest point rising by 0.6 of the largest.  Rises are of log brightness: a hard shadow's edge
-    (a quarter of the light) rises less than white paper over a dark checker, in the shadow or out
-    of it."""
+    the middle of each side of ``quad_px`` rises over ``span`` px going inward by at least 0.6 of its
+    largest rise there, nearest the side: the edge of a bright inside, found before a narrow fit (0
+    for a side out of view).  Rises are of log brightness: a hard shadow's edge (a quarter of the
+    light) rises less than white paper over a dark checker, in the shadow or out of it."""
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
@@ -700,15 +693,6 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
             continue
         y = np.log(prof[seen].mean(axis=0) + 1.0)
         rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
-        if not rise.max() > 0:
-            continue
-        # of the strong rises the nearest: a shadow's edge further in is not it.  A rise that peaks
-        # beyond lo..hi is none (its flank is all that is in reach, and it is no measure of strength:
-        # the pad's outer edge beyond ``lo`` outweighed the field's own rise)
-        peak = (rise >= np.r_[np.inf, rise[:-1]]) & (rise >= np.r_[rise[1:], np.inf]) & (rise >= 0.3 * rise.max())
-        strong = rise >= 0.6 * (rise[peak].max() if peak.any() else rise.max())
-        if peak.any():  # the strong stretches with a peak in them
-            run = np.cumsum(np.r_[True, strong[1:] != strong[:-1]])
-            strong &= np.isin(run, run[peak & strong])
-        out[i] = at[strong][np.argmin(np.abs(at[strong]))]
+        strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
+        out[i] = at[strong][np.argmin(np.abs(at[strong]))] if rise.max() > 0 else 0.0
     return out
