@@ -676,12 +676,23 @@ def step_blur(gray: np.ndarray, quad_px: np.ndarray, at_px: np.ndarray, camera: 
 
 
 def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = None, lo: float = -2.0,
-                 hi: float = 5.0, span: float = 3.0, step: float = 0.25, trim: float = 0.25) -> np.ndarray:
+                 hi: float = 5.0, span: float = 3.0, step: float = 0.25, trim: float = 0.25,
+                 apart_px: float | None = None) -> np.ndarray:
     """(4,) where (px along each side's inward normal, within ``lo``..``hi``) the mean profile across
     the middle of each side of ``quad_px`` rises over ``span`` px going inward by at least 0.6 of its
     largest rise there, nearest the side: the edge of a bright inside, found before a narrow fit (0
     for a side out of view).  Rises are of log brightness: a hard shadow's edge (a quarter of the
-    light) rises less than white paper over a dark checker, in the shadow or out of it."""
+    light) rises less than white paper over a dark checker, in the shadow or out of it.
+
+    ``apart_px``: the width of a border around the bright inside, whose own outer edge rises too.
+    Where the rise taken is still climbing at ``lo`` (it peaks further out, its flank all that is
+    in reach) and another rise peaks in reach a border's width in from where that one peaks
+    (within a pixel, and at least 0.3 of the largest), that inner one is the inside's edge and
+    is taken, at its peak.  (fisheye_glare_deck at 14 m: the white field predicted 1.9-2.8 px
+    outside a glare-washed border; the pad's outer edge, 4.2 px further out than the field's, was
+    taken by its flank, and the field's side fitted on it, the pose 7 % low and refused.  Where
+    no such inner rise is there, the flank is taken as before: an outline whose colour lies a
+    few px inside the pad puts the field's own edge beyond ``lo``.)"""
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
@@ -693,6 +704,28 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
             continue
         y = np.log(prof[seen].mean(axis=0) + 1.0)
         rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
+        if not rise.max() > 0:
+            continue
         strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
-        out[i] = at[strong][np.argmin(np.abs(at[strong]))] if rise.max() > 0 else 0.0
+        j = np.flatnonzero(strong)[np.argmin(np.abs(at[strong]))]
+        out[i] = at[j]
+        if apart_px and strong[:j + 1].all() and rise[0] >= rise[1]:
+            inner = _inner_edge(g, q, i, rise, at, lo, apart_px, k, step, m, trim, camera)
+            if inner is not None:
+                out[i] = inner
     return out
+
+
+def _inner_edge(g, q, i, rise, at, lo, apart_px, k, step, m, trim, camera):
+    """For :func:`rise_offsets`: the peak of a rise in reach ``apart_px`` (within a pixel) in from
+    where side ``i``'s outermost rise peaks beyond ``lo``, read further out; ``None`` when none."""
+    r = np.arange(lo - apart_px - 2.0 - k * step, lo + k * step + 1e-9, step)
+    prof, seen = _cross_profiles(g, q, [r] * 4, m, trim, camera)[i]
+    if seen.sum() < 3:
+        return None
+    y = np.log(prof[seen].mean(axis=0) + 1.0)
+    out_rise, out_at = y[2 * k:] - y[:-2 * k], r[k:-k]
+    p_out = out_at[np.argmax(out_rise)]
+    peak = (rise >= np.r_[np.inf, rise[:-1]]) & (rise >= np.r_[rise[1:], np.inf])
+    peak &= (rise >= 0.3 * max(rise.max(), out_rise.max())) & (np.abs(at - p_out - apart_px) <= 1.0)
+    return float(at[peak][np.argmin(np.abs(at[peak] - p_out - apart_px))]) if peak.any() else None

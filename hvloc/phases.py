@@ -1116,7 +1116,9 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     gray = gray8.astype(np.float32)
     # the swollen outline puts the guess pixels outside the field, beyond the fit's narrow window
     # (it must stay inside the checker): each side starts at the nearest strong rise into the white
-    start = _moved_sides(guess, rise_offsets(gray, guess, camera, hi=reach_px))
+    # (the border's width: its outer edge rises into it, and may lie nearer than the field's edge)
+    start = _moved_sides(guess, rise_offsets(gray, guess, camera, hi=reach_px,
+                                             apart_px=side_px * geo.border_m / geo.side_m))
     half = float(np.clip(0.45 * checker_px, 1.0, 2.5))
     fitted, rms = refine_quad(gray, start, half_width=half, camera=camera)
     if fitted is None:
