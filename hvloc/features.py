@@ -688,9 +688,10 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
     Where the rise taken is still climbing at ``lo`` (it peaks further out, its flank all that is
     in reach) and another rise peaks in reach a border's width in from where that one peaks
     (within a pixel, and at least 0.3 of the largest), that inner one is the inside's edge and
-    is taken, at its peak.  (fisheye_glare_deck at 14 m: the white field predicted 1.9-2.8 px
-    outside a glare-washed border; the pad's outer edge, 4.2 px further out than the field's, was
-    taken by its flank, and the field's side fitted on it, the pose 7 % low and refused.  Where
+    is taken, at its peak.  (fisheye_glare_deck at 14 m: a swollen colour outline predicted the
+    white field 1.9-2.8 px outside its edge, in a border washed bright by glare; the pad's outer
+    edge, 4.2 px further out, was taken by its flank, and the field's side fitted on it, the pose
+    7 % low and refused.  Where
     no such inner rise is there, the flank is taken as before: an outline whose colour lies a
     few px inside the pad puts the field's own edge beyond ``lo``.)"""
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
