@@ -691,41 +691,47 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
     is taken, at its peak.  (fisheye_glare_deck at 14 m: a swollen colour outline predicted the
     white field 1.9-2.8 px outside its edge, in a border washed bright by glare; the pad's outer
     edge, 4.2 px further out, was taken by its flank, and the field's side fitted on it, the pose
-    7 % low and refused.  Where
-    no such inner rise is there, the flank is taken as before: an outline whose colour lies a
-    few px inside the pad puts the field's own edge beyond ``lo``.)"""
+    7 % low and refused.  Where no such inner rise is there, the flank is taken as before: an
+    outline whose colour lies a few px inside the pad puts the field's own edge beyond ``lo``.)"""
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     m = int(np.clip(np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1).max() * (1 - 2 * trim), 6, 40))
     k = max(1, int(round(span / 2 / step)))
     r = np.arange(lo - k * step, hi + k * step + 1e-9, step)
+    beyond = None  # each side's rise read outward of ``lo`` (only where some side needs it: once)
     out = np.zeros(4)
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, [r] * 4, m, trim, camera)):
-        if seen.sum() < 3:
-            continue
-        y = np.log(prof[seen].mean(axis=0) + 1.0)
-        rise, at = y[2 * k:] - y[:-2 * k], r[k:-k]
-        if not rise.max() > 0:
+        rise, at = _rises(prof, seen, r, k)
+        if rise is None or not rise.max() > 0:
             continue
         strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
         j = np.flatnonzero(strong)[np.argmin(np.abs(at[strong]))]
         out[i] = at[j]
         if apart_px and strong[:j + 1].all() and rise[0] >= rise[1]:
-            inner = _inner_edge(g, q, i, rise, at, lo, apart_px, k, step, m, trim, camera)
+            if beyond is None:
+                r_out = np.arange(lo - apart_px - 2.0 - k * step, lo + k * step + 1e-9, step)
+                beyond = [_rises(p, s, r_out, k) for p, s in _cross_profiles(g, q, [r_out] * 4, m, trim, camera)]
+            inner = _inner_edge(rise, at, *beyond[i], apart_px)
             if inner is not None:
                 out[i] = inner
     return out
 
 
-def _inner_edge(g, q, i, rise, at, lo, apart_px, k, step, m, trim, camera):
-    """For :func:`rise_offsets`: the peak of a rise in reach ``apart_px`` (within a pixel) in from
-    where side ``i``'s outermost rise peaks beyond ``lo``, read further out; ``None`` when none."""
-    r = np.arange(lo - apart_px - 2.0 - k * step, lo + k * step + 1e-9, step)
-    prof, seen = _cross_profiles(g, q, [r] * 4, m, trim, camera)[i]
+def _rises(prof: np.ndarray, seen: np.ndarray, r: np.ndarray, k: int) -> tuple:
+    """``(rise, at)``: the mean of the ``seen`` profiles, in log brightness, rising over ``2 k``
+    samples of ``r``, at the middle of each; ``(None, None)`` where fewer than 3 are seen."""
     if seen.sum() < 3:
-        return None
+        return None, None
     y = np.log(prof[seen].mean(axis=0) + 1.0)
-    out_rise, out_at = y[2 * k:] - y[:-2 * k], r[k:-k]
+    return y[2 * k:] - y[:-2 * k], r[k:-k]
+
+
+def _inner_edge(rise, at, out_rise, out_at, apart_px: float) -> float | None:
+    """For :func:`rise_offsets`: the peak of a rise in reach (``rise`` at ``at``) ``apart_px`` (within
+    a pixel) in from where the side's outermost rise peaks, read beyond ``lo`` (``out_rise`` at
+    ``out_at``); ``None`` when there is none."""
+    if out_rise is None:
+        return None
     p_out = out_at[np.argmax(out_rise)]
     peak = (rise >= np.r_[np.inf, rise[:-1]]) & (rise >= np.r_[rise[1:], np.inf])
     peak &= (rise >= 0.3 * max(rise.max(), out_rise.max())) & (np.abs(at - p_out - apart_px) <= 1.0)
