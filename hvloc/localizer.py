@@ -675,6 +675,8 @@ class HierarchicalLocalizer:
         self.velocity: np.ndarray | None = None  # camera velocity in P (m/s), from the last two accepted poses
         self.frame_dt: float | None = None       # the usual time between frames (a running estimate)
         self.gap = False                         # this frame follows a gap (dropped or missing frames)
+        self.attitude: np.ndarray | None = None  # the AHRS's attitude R_W_B this frame (its own, as read)
+        self.last_attitude: np.ndarray | None = None  # ... at the last accepted pose (_predicted)
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
@@ -712,13 +714,30 @@ class HierarchicalLocalizer:
         return note
 
     def _predicted(self, t: float):
-        """The pose expected at ``t`` after a gap: the last accepted one moved at the last velocity
-        (rotation held); ``None`` when there was no gap or nothing to predict from."""
-        if not self.gap or self.last is None or self.velocity is None:
+        """The pose expected at ``t``, from which the flow guesses where its features are: the last
+        accepted one turned as the AHRS turned since (the pad itself does not turn), and after a gap
+        also moved at the last velocity; ``None`` where neither applies (no attitude, no gap).
+
+        The turn is taken every frame: between two frames a gusty drone turns a few degrees, 30-90
+        px of a 1080p frame, past what Lucas-Kanade's pyramid follows on a pad's checker, whose
+        cells repeat every 35-75 px there; its tracks slipped a cell together and agreed on a pose
+        a cell off (unseen61: a 10 Hz camera pitched 25 degrees, tracks 74-98 px apart frame to
+        frame at 0.7 m; 28 poses 65-88 mm off accepted, NEES 87-156).  The AHRS's own error drifts
+        slowly; its noise between two frames is a tenth of a degree (about yaw 0.4), a few pixels.
+        Not the velocity as well: from two poses' difference it carries their noise (there, poses
+        from the outline 17 mm off at 1.4 m put the guess past half a cell: 12-24 mm off where
+        the turn alone gave 1-17 mm)."""
+        if self.last is None:
             return None
-        T = self.last.cam2pad.copy()
-        T[:3, 3] += self.velocity * (t - self.last.t)
-        return T if T[2, 3] > 0.05 else None
+        T, guessed = self.last.cam2pad.copy(), False
+        if self.gap and self.velocity is not None:
+            T[:3, 3] += self.velocity * (t - self.last.t)
+            guessed = True
+        if self.attitude is not None and self.last_attitude is not None:
+            R_B_C = self.T_B_C[:3, :3]
+            T[:3, :3] = T[:3, :3] @ R_B_C.T @ self.last_attitude.T @ self.attitude @ R_B_C
+            guessed = True
+        return T if guessed and T[2, 3] > 0.05 else None
 
     def _process(self, image, t: float, imu) -> Estimate:
         clock = self._clock(t)
@@ -739,6 +758,7 @@ class HierarchicalLocalizer:
     def _estimate(self, image, t: float, R_W_B, R_W_B_raw=None) -> Estimate:
         """``R_W_B``: the attitude the phases and gates use (the AHRS's, its learnt tilt error taken
         out); ``R_W_B_raw``: the AHRS's own, which that error is learnt against."""
+        self.attitude = R_W_B_raw if R_W_B_raw is not None else R_W_B
         rgb, gray, why = self.work(lambda: ("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
@@ -799,6 +819,7 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
+            self.last_attitude = self.attitude
             if self.shutter.active:  # (only the rolling shutter's correction reads it)
                 cov = est.extras.get("still_cov")
                 if cov is None:  # a pose with no covariance: counted 1 % of its height off
