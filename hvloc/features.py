@@ -701,7 +701,7 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
     beyond = None  # each side's rise read outward of ``lo`` (only where some side needs it: once)
     out = np.zeros(4)
     for i, (prof, seen) in enumerate(_cross_profiles(g, q, [r] * 4, m, trim, camera)):
-        rise, at = _rises(prof, seen, r, k)
+        rise, at, level = _rises(prof, seen, r, k)
         if rise is None or not rise.max() > 0:
             continue
         strong = rise >= 0.6 * rise.max()  # of the strong rises the nearest: a shadow's edge further in is not it
@@ -711,28 +711,40 @@ def rise_offsets(gray: np.ndarray, quad_px: np.ndarray, camera: Camera | None = 
             if beyond is None:
                 r_out = np.arange(lo - apart_px - 2.0 - k * step, lo + k * step + 1e-9, step)
                 beyond = [_rises(p, s, r_out, k) for p, s in _cross_profiles(g, q, [r_out] * 4, m, trim, camera)]
-            inner = _inner_edge(rise, at, *beyond[i], apart_px)
+            inner = _inner_edge(rise, at, level, j, k, *beyond[i][:2], apart_px)
             if inner is not None:
                 out[i] = inner
     return out
 
 
 def _rises(prof: np.ndarray, seen: np.ndarray, r: np.ndarray, k: int) -> tuple:
-    """``(rise, at)``: the mean of the ``seen`` profiles, in log brightness, rising over ``2 k``
-    samples of ``r``, at the middle of each; ``(None, None)`` where fewer than 3 are seen."""
+    """``(rise, at, level)``: the mean of the ``seen`` profiles, in log brightness, rising over ``2 k``
+    samples of ``r``, at the middle of each, and its level there; ``(None,) * 3`` where fewer than
+    3 are seen."""
     if seen.sum() < 3:
-        return None, None
+        return None, None, None
     y = np.log(prof[seen].mean(axis=0) + 1.0)
-    return y[2 * k:] - y[:-2 * k], r[k:-k]
+    return y[2 * k:] - y[:-2 * k], r[k:-k], y[k:-k]
 
 
-def _inner_edge(rise, at, out_rise, out_at, apart_px: float) -> float | None:
-    """For :func:`rise_offsets`: the peak of a rise in reach (``rise`` at ``at``) ``apart_px`` (within
-    a pixel) in from where the side's outermost rise peaks, read beyond ``lo`` (``out_rise`` at
-    ``out_at``); ``None`` when there is none."""
+def _inner_edge(rise, at, level, j: int, k: int, out_rise, out_at, apart_px: float) -> float | None:
+    """For :func:`rise_offsets`: the peak of a rise in reach (``rise`` at ``at``, the log brightness
+    ``level`` there) ``apart_px`` (within a pixel) in from where the side's outermost rise peaks, read
+    beyond ``lo`` (``out_rise`` at ``out_at``), and leading into an inside brighter than all the
+    profile reaches between the flank taken (index ``j``) and it (``k``: the samples a rise spans
+    either side of its middle); ``None`` when there is none.
+
+    (Without the last: in unseen61's first frame, a 70 px pad under 6.6 px of smear, the rise
+    peaking just beyond ``lo`` was the white field's own edge, the profile white 2 px in; a rise
+    out of a black shape in the field, a border's width further in and no brighter, was taken
+    for the field's edge, and the outline refused as swollen.)"""
     if out_rise is None:
         return None
     p_out = out_at[np.argmax(out_rise)]
     peak = (rise >= np.r_[np.inf, rise[:-1]]) & (rise >= np.r_[rise[1:], np.inf])
     peak &= (rise >= 0.3 * max(rise.max(), out_rise.max())) & (np.abs(at - p_out - apart_px) <= 1.0)
-    return float(at[peak][np.argmin(np.abs(at[peak] - p_out - apart_px))]) if peak.any() else None
+    for i in np.flatnonzero(peak)[np.argsort(np.abs(at[peak] - p_out - apart_px), kind="stable")]:
+        inside = level[min(i + k, len(level) - 1)]
+        if level[j:max(i - k, j) + 1].max() < inside:
+            return float(at[i])
+    return None

@@ -1891,6 +1891,27 @@ def test_a_pads_colour_bled_into_a_grey_deck_is_refused_or_placed_by_its_field(p
     assert refused >= 2, refused  # (the premise: the bleed is as bad as the scene's)
 
 
+def test_a_rise_a_borders_width_in_is_the_fields_edge_only_where_it_leads_into_brighter(pad):
+    """unseen61's first frames at 12 m (kept losslessly in tests/data: a 0.6 m glossy pad 70 px
+    across on a grey deck, JPEG 60, frame 0 under 6.6 px of smear).  The white field's edge rises
+    just beyond the search's outward reach, and a border's width in from it a black shape in the
+    field ends in a rise as well; that rise, into no brighter a level than the field already
+    reached, was taken for the field's edge (rise_offsets' ``apart_px``, 2d854e1) and the outlines
+    were refused ("its colour swells past its white field", "its border band is missing").  An
+    inner rise is the field's edge only where it leads into an inside brighter than anything
+    between: all three are found, posed within 2 % of the height."""
+    from hvloc.phases import detect_outline
+
+    doc, views = _crop_views("smeared_small_pad_field", 128)
+    geo = make_pad(doc["pad_spec"]).geometry
+    for crop, cam, fr in views:
+        G = np.array(fr["cam2pad"])
+        det, why = detect_outline(crop, geo, cam)
+        assert det is not None, (fr["frame"], why)
+        pose = solve_planar_pose(cam, det.pts_P, det.px, up_in_camera(G))
+        assert pose_error(pose.cam2pad, G)[0] < 0.02 * fr["height_m"], fr["frame"]
+
+
 def _box_over(img, G, geo, k, f1, f2, corners=1, soften_px=0.8):
     """``img`` (the view at ``G``) with a grey box's edge across the pad from ``f1`` of the way
     along one side to ``f2`` along another, hiding corner ``k`` (``corners=2``: corners ``k`` and
