@@ -233,6 +233,38 @@ def imu_check(imu) -> tuple:
     return a, ""
 
 
+GYRO_TURN_MAX_GAP_S = 0.05  # rows further apart than this: the turn between them is not known
+
+
+def gyro_turn(imu, since_t: float | None, R: np.ndarray | None) -> tuple:
+    """``(R_B0_B1 or None, time)``: the body's turn ``R`` (from B0, the body when the turn began)
+    carried on over a block's gyro rows after IMU time ``since_t``, each row's rate held since the
+    row before; and the last row's time, which the next block's rows follow.  ``None`` (the turn
+    unknown until it begins again) where there is none to carry on, ``since_t`` is not known, or the
+    block has no usable rows, rows not in time order or rows too far apart
+    (:data:`GYRO_TURN_MAX_GAP_S`): a block of rows only (a bare attitude or one row says no turn)."""
+    try:
+        a = np.asarray(imu, np.float64)
+    except (TypeError, ValueError):
+        return None, None
+    if a.ndim != 2 or a.shape[1] != IMU_ROW or len(a) < 2:
+        return None, None
+    t, g = a[:, 0], a[:, 1:4]
+    if not (np.isfinite(t).all() and np.isfinite(g).all()) or np.any(np.diff(t) <= 0.0) \
+            or np.any(np.linalg.norm(g, axis=1) > GYRO_MAX_RAD_S):
+        return None, None
+    last = float(t[-1])
+    if R is None or since_t is None or not since_t <= last:
+        return None, last
+    new = t > since_t
+    dt = np.diff(np.r_[since_t, t[new]])
+    if np.any(dt > GYRO_TURN_MAX_GAP_S):
+        return None, last
+    for w, d in zip(g[new], dt):
+        R = R @ so3_exp(w * d)
+    return R, last
+
+
 def imu_rate(imu, span_s: float = 0.0) -> np.ndarray | None:
     """The body's angular rate (rad/s, FLU) of an imu.csv row (its gyro), or ``None`` for a bare
     attitude or a row whose gyro is not finite or past any gyro's range (:data:`GYRO_MAX_RAD_S`).
@@ -677,6 +709,8 @@ class HierarchicalLocalizer:
         self.gap = False                         # this frame follows a gap (dropped or missing frames)
         self.attitude: np.ndarray | None = None  # the AHRS's attitude R_W_B this frame (its own, as read)
         self.last_attitude: np.ndarray | None = None  # ... at the last accepted pose (_predicted)
+        self.turn_B: np.ndarray | None = None    # the gyro's turn of the body since the last accepted pose (gyro_turn)
+        self.gyro_t: float | None = None         # the IMU time of the last gyro row taken into it
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
@@ -715,27 +749,39 @@ class HierarchicalLocalizer:
 
     def _predicted(self, t: float):
         """The pose expected at ``t``, from which the flow guesses where its features are: the last
-        accepted one turned as the AHRS turned since (the pad itself does not turn), and after a gap
-        also moved at the last velocity; ``None`` where neither applies (no attitude, no gap).
+        accepted one turned as the gyro turned since (the pad itself does not turn; where no gyro
+        rows came, as the AHRS's attitude did) and placed where the velocity filter predicts it
+        (the poses' positions carried by the IMU's accelerations, :class:`hvloc.shutter.VelocityFilter`;
+        before it has two poses, and only after a gap, moved at the last two poses' velocity);
+        ``None`` where nothing is known of the motion.
 
-        The turn is taken every frame: between two frames a gusty drone turns a few degrees, 30-90
-        px of a 1080p frame, past what Lucas-Kanade's pyramid follows on a pad's checker, whose
-        cells repeat every 35-75 px there; its tracks slipped a cell together and agreed on a pose
-        a cell off (unseen61: a 10 Hz camera pitched 25 degrees, tracks 74-98 px apart frame to
-        frame at 0.7 m; 28 poses 65-88 mm off accepted, NEES 87-156).  The AHRS's own error drifts
-        slowly; its noise between two frames is a tenth of a degree (about yaw 0.4), a few pixels.
-        Not the velocity as well: from two poses' difference it carries their noise (there, poses
-        from the outline 17 mm off at 1.4 m put the guess past half a cell: 12-24 mm off where
-        the turn alone gave 1-17 mm)."""
+        Every frame, not only after a gap: at 10 Hz a gusty drone over a drifting deck moves the
+        pad 70-100 px between two 1080p frames near the ground, past what Lucas-Kanade's pyramid
+        follows on the border's checker, whose cells repeat every 35-75 px there.  The tracks
+        slipped a cell together and agreed on a pose a cell off (unseen61, a camera pitched 25
+        degrees: 28 poses 65-88 mm off accepted at 0.7-0.15 m, NEES 87-156).  The gyro's turn, not
+        the AHRS's: the generator's AHRS errs by a third of its error afresh each sample, 0.15-1
+        degree between two frames (3-30 px), where the gyro's rows integrate to within 0.01-0.02
+        degree.  The filter's position, not the last velocity: two poses' difference carries their
+        noise (outline poses 17 mm off at 1.4 m put such a guess half a cell off, and the chain
+        stayed 12-24 mm off), and a gust turns it within a frame; the filter weighs the poses by
+        their covariance and carries the IMU's accelerations between them."""
         if self.last is None:
             return None
         T, guessed = self.last.cam2pad.copy(), False
-        if self.gap and self.velocity is not None:
+        pred = self.vfilter.pred
+        if pred is not None and self.vfilter.n >= 2 and abs(pred[0] - t) < 1e-9:
+            T[:3, 3] = pred[1][:3]
+            guessed = True
+        elif self.gap and self.velocity is not None:
             T[:3, 3] += self.velocity * (t - self.last.t)
             guessed = True
-        if self.attitude is not None and self.last_attitude is not None:
+        turn = self.turn_B
+        if turn is None and self.attitude is not None and self.last_attitude is not None:
+            turn = self.last_attitude.T @ self.attitude
+        if turn is not None:
             R_B_C = self.T_B_C[:3, :3]
-            T[:3, :3] = T[:3, :3] @ R_B_C.T @ self.last_attitude.T @ self.attitude @ R_B_C
+            T[:3, :3] = T[:3, :3] @ R_B_C.T @ turn @ R_B_C
             guessed = True
         return T if guessed and T[2, 3] > 0.05 else None
 
@@ -744,10 +790,11 @@ class HierarchicalLocalizer:
         if not self.config.imu_rows:
             imu = imu_last_row(imu)
         R_W_B, imu_why = imu_check(imu)
+        self.turn_B, self.gyro_t = gyro_turn(imu, self.gyro_t, self.turn_B)
         self.rate_B, self.rate_doubt = imu_turn(imu, self.rate_span_s) if R_W_B is not None else (None, None)
-        if self.shutter.active:  # the accelerations since the shutter's velocity was last read (_update_twist)
-            self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
-                           + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
+        # the accelerations since the velocity filter last predicted (_update_twist)
+        self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
+                       + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
         est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
         if clock:
             est.extras["clock"] = clock
@@ -819,13 +866,13 @@ class HierarchicalLocalizer:
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
             self.last = est
-            self.last_attitude = self.attitude
-            if self.shutter.active:  # (only the rolling shutter's correction reads it)
-                cov = est.extras.get("still_cov")
-                if cov is None:  # a pose with no covariance: counted 1 % of its height off
-                    cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
-                self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
-                                    est.extras.get("still_shared", (None, None)), est.extras.get("still_dv"))
+            self.last_attitude, self.turn_B = self.attitude, np.eye(3)
+            # the velocity filter (the rolling shutter's correction reads it, and the flow's guess: _predicted)
+            cov = est.extras.get("still_cov")
+            if cov is None:  # a pose with no covariance: counted 1 % of its height off
+                cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
+            self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
+                                est.extras.get("still_shared", (None, None)), est.extras.get("still_dv"))
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
@@ -869,16 +916,16 @@ class HierarchicalLocalizer:
         Nothing without the IMU's attitude this frame (``imu``): poses without gravity are too
         loose to tell the velocity (bench_v2's no_imu ablation on its two rolling-shutter datasets:
         107 -> 109 false accepts and touchdown 2.2 -> 5.7 mm with the velocity's correction)."""
-        if not self.shutter.active:
-            return
         if not imu:
             self.twist = None
             self.vfilter.pred = None
             return
-        w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         if self.vfilter.t is not None:
             motion = self._imu_motion(self.vfilter.t, t)
             self.vfilter.predict(t, motion and motion[:2], motion[2] if motion else 0.0)
+        if not self.shutter.active:
+            return
+        w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         v = self.vfilter.velocity
         self.twist = None if v is None and w is None else Twist(v, w)
 

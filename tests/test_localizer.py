@@ -636,8 +636,9 @@ def test_the_flow_follows_a_gusty_turn_over_the_pads_checker_by_the_ahrss_turn(p
     features where they were, Lucas-Kanade's pyramid does not reach the next frame's on the
     checker, and every frame below the markers' reach was lost (6, then 0 tracks left; on
     unseen61's 1080p frames the tracks slipped a cell together instead and 28 poses 65-88 mm off
-    were accepted).  The features are guessed where the AHRS's turn since the last pose puts them
-    (``HierarchicalLocalizer._predicted``); the texture is off, so only the flow can pose them."""
+    were accepted).  The features are guessed where the turn since the last pose puts them
+    (``HierarchicalLocalizer._predicted``; here a bare attitude, the AHRS's, says it); the texture
+    is off, so only the flow can pose them."""
     loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(use_texture=False))
     flows = []
     for k in range(16):

@@ -192,6 +192,41 @@ def test_the_readouts_rate_is_joined_with_the_rows_before_it_unless_they_lag_a_t
     assert np.allclose(imu_turn(quiet, span)[0], imu_rate(quiet, span))
 
 
+def test_the_gyros_turn_is_carried_over_blocks_of_rows_and_lost_where_rows_are_missing():
+    """The flow's guess turns the last pose by the gyro's rows since (``HierarchicalLocalizer.
+    _predicted``): each row's rate held since the row before, block after block.  A turn that
+    changes rate row by row integrates to the rotation the rates make; where it cannot be known
+    (no start, a row past the gap, rows out of order, a bare attitude) it is ``None``."""
+    from hvloc.geometry import rotation_angle
+    from hvloc.localizer import gyro_turn
+
+    def rows(t0, n, w_of):  # 200 Hz rows after t0, rate w_of(t)
+        t = t0 + 0.005 * np.arange(1, n + 1)
+        out = np.zeros((n, 11))
+        out[:, 0] = t
+        out[:, 1:4] = [w_of(s) for s in t]
+        out[:, 10] = 1.0
+        return out
+
+    w_of = lambda s: np.array([0.8 * math.sin(7 * s), 1.5, -0.6 + s])  # noqa: E731
+    truth, R, t = np.eye(3), np.eye(3), 0.0
+    for k in range(5):  # five frames at 10 Hz
+        blk = rows(t, 20, w_of)
+        for s in blk[:, 0]:
+            truth = truth @ so3_exp(w_of(s) * 0.005)
+        R, t = gyro_turn(blk, t, R)
+        assert t == blk[-1, 0] and R is not None
+    assert math.degrees(rotation_angle(R, truth)) < 1e-9 and math.degrees(rotation_angle(R, np.eye(3))) > 30
+    blk = rows(t, 20, w_of)
+    assert gyro_turn(blk, None, np.eye(3)) == (None, blk[-1, 0])  # no start: the next block carries on
+    assert gyro_turn(blk, t, None)[0] is None
+    assert gyro_turn(rows(t + 0.1, 20, w_of), t, np.eye(3))[0] is None  # 0.105 s without a row
+    assert gyro_turn(blk[::-1], t, np.eye(3)) == (None, None)  # out of time order
+    assert gyro_turn(blk[-1], t, np.eye(3)) == (None, None) and gyro_turn(np.eye(3), t, np.eye(3)) == (None, None)
+    late = gyro_turn(np.vstack([blk[:5], blk]), t, np.eye(3))  # rows already taken come again: not in order
+    assert late == (None, None)
+
+
 def test_the_gyros_doubt_is_its_rows_scatter_about_the_turn_over_the_readouts_rows():
     rng = np.random.default_rng(7)
     ts = np.arange(0.0, 0.2, 0.005)  # 40 rows since the last frame, 6 of them within a 28 ms readout
