@@ -184,8 +184,12 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             # under noon glare); then the colour is read relative to brightness everywhere, as in shadow
             # (the checker's dark cells wash out first: the ring may be the solid band alone)
             band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
-            other = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb), pad_geometry,
-                               cut_edges, min_share=0.5 * band, scale=scale)
+            for bright in (None, GLARE_MIN_CHROMA):  # the washed-out pale last (GLARE_MIN_CHROMA)
+                other = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb,
+                                                    bright_chroma=bright), pad_geometry,
+                                   cut_edges, min_share=0.5 * band, scale=scale)
+                if other is not None:
+                    break
         tries += [] if other is None else [other]
     if not tries:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
@@ -1304,13 +1308,25 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     return int(np.argmax(scores)), scores
 
 
-def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chroma: float = 0.15) -> np.ndarray:
+# glare's chroma: a glossy pad under a high sun mirrors the sky's white light over its colour, which
+# keeps the colour's chroma and raises its value: unseen61's magenta border at noon read sRGB
+# (236, 207, 229), chroma 0.08-0.14 of its value, where the shadow's bar is 0.15.  Bright pixels only
+# (value 128 and more): in the dark a few levels of noise are that much of the value.  Tried only
+# where the shadow's bar finds no ring: with it first, a milder glare's lobe over the pad's rim
+# swelled a ring the bar of 0.15 reads exactly (test_outline_is_found_under_glare.., 2.1 px)
+GLARE_MIN_CHROMA = 0.07
+GLARE_MIN_VALUE = 128
+
+
+def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chroma: float = 0.15,
+                     bright_chroma: float | None = None) -> np.ndarray:
     """Pixels whose chromaticity relative to their own brightness says ``colour_rgb``, lit or not.
 
     In a hard shadow the pad is lit by the sky alone: darker and much less saturated (the border is
     sRGB (67, 51, 64) where it is (230, 40, 200) in the sun), below the segmentation range ``rng``.
     Kept: the colour's hue (+-2x the range's half-width), chroma along the colour's direction (for
-    the magenta border about ``(R + B) / 2 - G``) at least ``min_chroma`` of the pixel's value, and
+    the magenta border about ``(R + B) / 2 - G``) at least ``min_chroma`` of the pixel's value
+    (``bright_chroma`` where the value is :data:`GLARE_MIN_VALUE` or more: a glare-washed pad), and
     a value of at least 16.  All in uint8 OpenCV passes (it runs on every Approaching frame)."""
     lo_h, hi_h = float(rng.lo[0]), float(rng.hi[0])
     half = ((hi_h - lo_h) % 180.0) / 2.0
@@ -1319,7 +1335,10 @@ def _colour_evidence(rgb: np.ndarray, hsv: np.ndarray, rng, colour_rgb, min_chro
     hue_ok = _hsv_mask(hsv, wide)
     d = _colour_direction(colour_rgb, np.float32)
     chroma = cv2.transform(np.ascontiguousarray(rgb), d[None, :].astype(np.float32))  # uint8, negatives at 0
-    need = cv2.multiply(np.ascontiguousarray(hsv[..., 2]), min_chroma, dtype=cv2.CV_8U)
+    value = np.ascontiguousarray(hsv[..., 2])
+    need = cv2.multiply(value, min_chroma, dtype=cv2.CV_8U)
+    if bright_chroma is not None:
+        need = np.where(value >= GLARE_MIN_VALUE, cv2.multiply(value, bright_chroma, dtype=cv2.CV_8U), need)
     ev = cv2.bitwise_and(hue_ok, cv2.compare(chroma.reshape(need.shape), need, cv2.CMP_GE))
     # lone specks of it (sensor noise on grey ground) are no shadowed pad: 2x2 opening
     return cv2.morphologyEx(ev, cv2.MORPH_OPEN, np.ones((2, 2), np.uint8))
