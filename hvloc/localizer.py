@@ -899,7 +899,9 @@ class HierarchicalLocalizer:
         IMU's accelerations since the last pose carry (:meth:`_imu_motion`) and each accepted pose's
         velocity-free position corrects, as sure as its covariance says (a flow pose's keyframe's
         doubt told apart: the same in every pose of that keyframe, a jump where it changes).  A
-        velocity once two poses are in, at most :data:`TWIST_WINDOW_S` apart.
+        velocity once two poses are in, at most :data:`TWIST_WINDOW_S` apart.  The filter predicts
+        for every camera (the flow's guess reads its position, :meth:`_predicted`); the twist is
+        set only where the shutter rolls.
 
         It was the slope of a line through the last 0.45 s of poses, carried from the line's mean
         time by the rows: every pose weighed alike.  On the airframe suite's 5 Hz camera (read in
