@@ -1921,20 +1921,34 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     if ok.sum() < 4:
         return out
     p0 = prev_px[ok].astype(np.float32).reshape(-1, 1, 2)
-    H = None
-    if guess_px is not None:  # the previous frame warped to where the prediction puts it: LK then sees
-        g = guess_px[ok]      # patches of the right scale and turn, displaced by the prediction's error
+    H, start = None, None
+    if guess_px is not None:
+        g = guess_px[ok]
         fin = np.isfinite(g).all(axis=1)
         if fin.sum() >= 8:
             H, _ = cv2.findHomography(p0[fin, 0].astype(np.float64), g[fin].astype(np.float64), 0)
+        if H is not None and not _reshapes_patches(H, p0[fin, 0].mean(axis=0)):
+            # LK starts where the prediction puts each feature, on the frame as it is: the patches
+            # keep their shape, and a warp's interpolation would soften them (bench_v1's field1080,
+            # guesses 0.1-0.3 px off: touchdown 0.15 -> 0.25 mm median warped, 0.15 started so)
+            start = np.where(fin[:, None], g, p0[:, 0]).astype(np.float32).reshape(-1, 1, 2)
+            H = None
     src = prev_gray
-    if H is not None:  # (the forward-backward check then holds in the warped frame)
+    if H is not None:  # the previous frame warped to where the prediction puts it: LK then sees patches
+        # of the right scale and turn, displaced by the prediction's error (the forward-backward
+        # check then holds in the warped frame)
         src = cv2.warpPerspective(prev_gray, H, (gray.shape[1], gray.shape[0]), flags=cv2.INTER_LINEAR)
         p0 = cv2.perspectiveTransform(p0, H).astype(np.float32)
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, None, **LK_PARAMS)
+    if start is None:
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, None, **LK_PARAMS)
+    else:
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, start.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **LK_PARAMS)
     if p1 is None:
         return out
-    pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
+    if start is None:
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
+    else:
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **LK_PARAMS)
     fb = np.linalg.norm((pb - p0)[:, 0, :], axis=1)
     good = (st[:, 0] == 1) & (stb[:, 0] == 1) & (fb < fb_max_px)
     # refine against the keyframe (drift control)
@@ -1947,6 +1961,25 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     idx = np.nonzero(ok)[0]
     out[idx[good]] = p1[good, 0, :]
     return out
+
+
+RESHAPE_SCALE = 1.1       # a predicted warp that scales patches more than this, or ...
+RESHAPE_TURN_DEG = 5.0    # ... turns them more, is applied to the previous frame before LK (track_to_keyframe)
+
+
+def _reshapes_patches(H: np.ndarray, at: np.ndarray) -> bool:
+    """Whether the homography ``H`` scales or turns the image about pixel ``at`` past what
+    Lucas-Kanade's translational window follows (:data:`RESHAPE_SCALE`, :data:`RESHAPE_TURN_DEG`):
+    a 0.6 s gap near the ground, not a frame's turn and descent."""
+    x, y = float(at[0]), float(at[1])
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    if not abs(w) > 1e-12:
+        return True
+    u, v = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w, (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
+    J = np.array([[H[0, 0] - u * H[2, 0], H[0, 1] - u * H[2, 1]], [H[1, 0] - v * H[2, 0], H[1, 1] - v * H[2, 1]]]) / w
+    s = np.linalg.svd(J, compute_uv=False)
+    turn = math.degrees(math.atan2(J[1, 0] - J[0, 1], J[0, 0] + J[1, 1]))
+    return bool(s[0] > RESHAPE_SCALE or s[1] < 1 / RESHAPE_SCALE or abs(turn) > RESHAPE_TURN_DEG)
 
 
 # a frame's tracks agreeing on a homography, at least: where Lucas-Kanade lost most of a keyframe's
