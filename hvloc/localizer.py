@@ -243,17 +243,12 @@ def gyro_turn(imu, since_t: float | None, R: np.ndarray | None) -> tuple:
     unknown until it begins again) where there is none to carry on, ``since_t`` is not known, or the
     block has no usable rows, rows not in time order or rows too far apart
     (:data:`GYRO_TURN_MAX_GAP_S`): a block of rows only (a bare attitude or one row says no turn)."""
-    try:
-        a = np.asarray(imu, np.float64)
-    except (TypeError, ValueError):
+    rows = _gyro_rows(imu, 0.0)  # (its usable rows: a corrupt one leaves a gap, checked below)
+    if rows is None or len(rows[0]) < 2 or np.any(np.diff(rows[1]) <= 0.0):
         return None, None
-    if a.ndim != 2 or a.shape[1] != IMU_ROW or len(a) < 2:
-        return None, None
-    t, g = a[:, 0], a[:, 1:4]
-    if not (np.isfinite(t).all() and np.isfinite(g).all()) or np.any(np.diff(t) <= 0.0) \
-            or np.any(np.linalg.norm(g, axis=1) > GYRO_MAX_RAD_S):
-        return None, None
-    last = float(t[-1])
+    g, tt, _ = rows
+    last = float(np.asarray(imu, np.float64)[-1, 0])
+    t = last + tt
     if R is None or since_t is None or not since_t <= last:
         return None, last
     new = t > since_t

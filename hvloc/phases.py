@@ -1939,16 +1939,12 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
         # check then holds in the warped frame)
         src = cv2.warpPerspective(prev_gray, H, (gray.shape[1], gray.shape[0]), flags=cv2.INTER_LINEAR)
         p0 = cv2.perspectiveTransform(p0, H).astype(np.float32)
-    if start is None:
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, None, **LK_PARAMS)
-    else:
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, start.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **LK_PARAMS)
+    # started at the guess, the backward check is started where the features were
+    flags = 0 if start is None else cv2.OPTFLOW_USE_INITIAL_FLOW
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(src, gray, p0, None if start is None else start, flags=flags, **LK_PARAMS)
     if p1 is None:
         return out
-    if start is None:
-        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None, **LK_PARAMS)
-    else:
-        pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **LK_PARAMS)
+    pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, src, p1, None if start is None else p0.copy(), flags=flags, **LK_PARAMS)
     fb = np.linalg.norm((pb - p0)[:, 0, :], axis=1)
     good = (st[:, 0] == 1) & (stb[:, 0] == 1) & (fb < fb_max_px)
     # refine against the keyframe (drift control)
