@@ -2402,6 +2402,65 @@ def test_shared_marker_errors_are_in_the_pose_covariance():
     assert 1.5 < np.median(nees[True]) < 3.5 and np.mean(np.array(nees[True]) > 14.16) < 0.03, np.median(nees[True])
 
 
+def _placed_by(T, px):
+    """Pad-plane points where the rays of pixels ``px`` from camera pose ``T`` meet z = 0."""
+    xy = CAM.normalized_from_pixels(px)
+    d = T[:3, :3] @ np.column_stack([xy, np.ones(len(xy))]).T
+    return (T[:3, 3][:, None] - T[2, 3] / d[2] * d).T
+
+
+def test_a_tracked_pose_inherits_its_keyframes_error_as_its_solve_carries_it():
+    """The flow's pad points are placed by its keyframe's pose, so every tracked pose carries that
+    pose's error, but not as it was: a keyframe's error is a plane map of the points.  Its height
+    error scales them about the ground below it, and a pose lower down is off by the same share of
+    its own height (taken whole, the keyframe's doubt read a pose at 0.6 m under one at 1.5 m 2.5
+    times too unsure in height); its tilt error slides them sideways by its height times the tilt,
+    which a pose with gravity held carries whole (taken whole, the keyframe's position doubt has
+    none of it).  Drawn from a keyframe covariance with every cross term, the poses solved from the
+    moved points lie as far off as ``inherited_covariance`` says."""
+    from hvloc.pose import inherited_covariance
+
+    rng = np.random.default_rng(3)
+    kf = tilted(0.05, -0.03, 1.5, 0.3, roll=0.03, pitch=-0.02)
+    now = tilted(0.12, 0.04, 0.6, 0.45, roll=-0.02, pitch=0.04)
+    grid = np.stack(np.meshgrid(np.linspace(120, 680, 12), np.linspace(120, 680, 12)), -1).reshape(-1, 2)
+    P = _placed_by(kf, grid)
+    px = CAM.project_from(now, P)
+    seen = (px > 0).all(axis=1) & (px < 800).all(axis=1)
+    grid, P, px = grid[seen], P[seen], px[seen]
+    assert len(P) > 30
+    up = up_in_camera(now)
+
+    def off_by(d):  # the pose solved from the points a keyframe off by d (position, rotation) placed
+        T = kf.copy()
+        T[:3, 3] += d[:3]
+        T[:3, :3] = kf[:3, :3] @ so3_exp(d[3:])
+        return solve_planar_pose(CAM, _placed_by(T, grid), px, up_C=up, gravity_sigma_deg=0.5).cam2pad[:3, 3] - now[:3, 3]
+
+    # 3 mm high: the points scaled by 1 + 0.003 / 1.5 about the ground below it, the pose 1.2 mm high at
+    # 0.6 m and moved from there by that share of its offset from the keyframe's nadir
+    for d, expected in (([0, 0, 0.003, 0, 0, 0], 0.002 * np.array([0.12 - 0.05, 0.04 + 0.03, 0.6])),
+                        ([0, 0, 0, 0.002, 0, 0], None)):  # 2 mrad of tilt: ~3 mm sideways at any height
+        e = off_by(np.array(d, np.float64))
+        if expected is not None:
+            np.testing.assert_allclose(e, expected, atol=5e-5)
+        else:
+            assert 0.0025 < np.linalg.norm(e[:2]) < 0.0035, e
+        C = inherited_covariance(CAM, now, kf, np.outer(d, d), P, up, 0.3, math.radians(0.5))
+        np.testing.assert_allclose(np.sqrt(np.diag(C)[:3]), np.abs(e), atol=5e-5)
+
+    A = rng.normal(size=(6, 6)) * np.array([2e-3, 2e-3, 3e-3, 2e-3, 2e-3, 4e-3])
+    S = A @ A.T / 6.0  # position (m) and rotation (rad) errors, correlated
+    C = inherited_covariance(CAM, now, kf, S, P, up, 0.3, math.radians(0.5))
+    nees = []
+    for _ in range(150):
+        e = off_by(rng.multivariate_normal(np.zeros(6), S))
+        nees.append(float(e @ np.linalg.solve(C[:3, :3], e)))
+    # NEES of an honest 3-D covariance: median 2.37, 0.27 % beyond 14.16
+    assert 1.6 < np.median(nees) < 3.3, np.median(nees)
+    assert np.mean(np.array(nees) > 14.16) < 0.03
+
+
 @pytest.mark.parametrize("names, shared_px, pull_px", [(("Top", "Right"), 0.3, 0.0), (("Top", "Right", "Bottom"), 1.0, 4.0)])
 def test_a_pose_of_two_markers_says_how_good_it_is(pad, names, shared_px, pull_px):
     """Two markers' pose is not weighed by its residual (too few markers to show the noise): its
