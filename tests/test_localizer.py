@@ -2461,6 +2461,45 @@ def test_a_tracked_pose_inherits_its_keyframes_error_as_its_solve_carries_it():
     assert np.mean(np.array(nees) > 14.16) < 0.03
 
 
+@pytest.mark.parametrize("pitch_deg", [0.0, 30.0])
+def test_a_chained_keyframes_untold_tilt_reaches_the_poses_below_it_as_a_slide(pitch_deg):
+    """Tracks err smoothly over the frame, which a homography reads as a tilt their fit does not
+    state; a keyframe renewed from tracked poses carries CHAIN_TILT_SIGMA_DEG of it, about both axes
+    across the pad's normal (a camera pitched 30 degrees: not about its own x and y), and a pose
+    tracked from it states what that tilt does to it: the points it placed slide sideways, by
+    about the keyframe's height times the tilt (2.3 mm at 0.9 m and 4.3 mm at 0.5 m under a
+    keyframe at 1.2 m: seen wider, more of the slide's stretch is taken up as a tilt), as the
+    pose solved from points a keyframe so tilted placed is off."""
+    from hvloc.phases import CHAIN_TILT_SIGMA_DEG, _chain_tilted
+    from hvloc.pose import inherited_covariance
+
+    kf = tilted(0.0, 0.0, 1.2, 0.4, pitch=math.radians(pitch_deg))
+    added = _chain_tilted(np.zeros((6, 6)), kf)
+    n = up_in_camera(kf)
+    s2 = math.radians(CHAIN_TILT_SIGMA_DEG) ** 2
+    assert np.allclose(added[:3], 0.0) and np.allclose(added[:, :3], 0.0)
+    assert n @ added[3:, 3:] @ n == pytest.approx(0.0, abs=1e-12)  # no turn about the normal (the yaw)
+    assert np.trace(added[3:, 3:]) == pytest.approx(2 * s2)
+    assert _chain_tilted(None, kf) is None
+    grid = np.stack(np.meshgrid(np.linspace(150, 650, 8), np.linspace(150, 650, 8)), -1).reshape(-1, 2)
+    across = np.linalg.svd(np.eye(3) - np.outer(n, n))[0][:, :2].T  # two axes across the normal
+    for h in (0.9, 0.5):
+        now = tilted(0.03, 0.02, h, 0.5, pitch=math.radians(pitch_deg))
+        px = CAM.project_from(now, _placed_by(kf, grid))
+        seen = np.isfinite(px).all(axis=1) & (px > 0).all(axis=1) & (px < 800).all(axis=1)
+        C = inherited_covariance(CAM, now, kf, added, _placed_by(kf, grid[seen]), up_in_camera(now), 0.3,
+                                 math.radians(0.5))
+        off = []
+        for axis in across:  # the keyframe tilted by the sigma about each: the poses its points give
+            T = kf.copy()
+            T[:3, :3] = kf[:3, :3] @ so3_exp(math.radians(CHAIN_TILT_SIGMA_DEG) * axis)
+            res = solve_planar_pose(CAM, _placed_by(T, grid[seen]), px[seen], up_C=up_in_camera(now), gravity_sigma_deg=0.5)
+            off.append(res.cam2pad[:3, 3] - now[:3, 3])
+        np.testing.assert_allclose(np.sqrt(np.diag(C)[:3]), np.sqrt(np.sum(np.square(off), axis=0)), rtol=0.05, atol=2e-5)
+        assert 0.4 * 1.2 * math.radians(CHAIN_TILT_SIGMA_DEG) < math.sqrt(np.trace(C[:2, :2]) / 2) \
+            < 1.2 * 1.2 * math.radians(CHAIN_TILT_SIGMA_DEG)
+
+
 @pytest.mark.parametrize("names, shared_px, pull_px", [(("Top", "Right"), 0.3, 0.0), (("Top", "Right", "Bottom"), 1.0, 4.0)])
 def test_a_pose_of_two_markers_says_how_good_it_is(pad, names, shared_px, pull_px):
     """Two markers' pose is not weighed by its residual (too few markers to show the noise): its
