@@ -714,7 +714,6 @@ class HierarchicalLocalizer:
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
         self.flow.gravity_sigma_deg = self.config.ahrs_tilt_sigma_deg
-        self.flow.surface_sigma_m = self.config.pad_relief_m / 2.0  # what every pose from the pad carries (_posed)
         self.flow.ground = self.config.anchor_once  # (the pad's own corners only: FlowTracker.ground)
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
@@ -1207,7 +1206,7 @@ class HierarchicalLocalizer:
                     return ph.tracks_pose(self.camera, P, px, up_C, prior, cfg.ahrs_tilt_sigma_deg)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
-                res = self._velocity_free(res, P, seen, solve, extras, self.flow.inherited, self.flow.kf.serial)
+                res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""
@@ -1419,7 +1418,7 @@ class HierarchicalLocalizer:
             info["px_sigma"] = round(float(pose.sigma_px), 3)
         if self.config.pad_relief_m > 0 and pose.cov is not None:
             # every pose from the pad is seen from its surface, not the plane it lies on (the tracker's
-            # poses carry this as their keyframe did: FlowTracker.track); a copy: the pose may be shared image work
+            # poses inherit this from their keyframe); a copy: the pose may be shared image work
             cov = pose.cov.copy()
             cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
             pose = replace(pose, cov=cov)

@@ -16,7 +16,6 @@ from .features import (_inside, band_centroid_offsets, banded_edge_offsets, band
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
-from .pose import PIXEL_SIGMA, inherited_covariance
 from .work import ImageWork, array_key
 
 
@@ -1784,7 +1783,6 @@ class Keyframe:
     serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
     motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
     drawn: bool = False   # its pose was the smeared drawing's (hvloc.synthesis): a fallback, tried after the drawing
-    on_pad: bool = True   # its corners are the pad's, and so were its chain's (not the whole frame's: FlowTracker.anchor)
 
 
 HARRIS_QUALITY = 0.005   # a corner's Harris response, at least this share of the strongest it is judged against
@@ -2024,24 +2022,6 @@ def tracks_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C, prev_ca
                              gravity_sigma_deg=gravity_sigma_deg, tilt_chi2=TILT_CONSISTENT_CHI2)
 
 
-CHAIN_TILT_SIGMA_DEG = 0.25  # a chained keyframe's tilt error that its tracks' fit does not state (below)
-
-
-def _chain_tilted(cov: np.ndarray | None, cam2pad: np.ndarray) -> np.ndarray | None:
-    """``cov`` of a tracked pose made a keyframe, with :data:`CHAIN_TILT_SIGMA_DEG` of tilt (about
-    both axes across the pad's normal) that its fit leaves out.  Tracks err smoothly over the
-    frame (smear, scale change and the lens move neighbours alike), which a homography reads as a
-    tilt: each renewed keyframe moved the chain's tilt 0.2-0.3 degrees where 100-150 tracks stated
-    0.04-0.1 (cd0ba9a's note), and every pose tracked from it carries that tilt as a slide of the
-    points it places (:func:`hvloc.pose.inherited_covariance`), about the keyframe's height times it."""
-    if cov is None:
-        return None
-    n = cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # the pad's normal in the camera
-    out = np.array(cov, np.float64, copy=True)
-    out[3:, 3:] += math.radians(CHAIN_TILT_SIGMA_DEG) ** 2 * (np.eye(3) - np.outer(n, n))
-    return out
-
-
 class FlowTracker:
     """Touchdown: features of a keyframe on the pad plane, tracked into every frame.
 
@@ -2063,7 +2043,6 @@ class FlowTracker:
         self.unroll = None  # (px, cam2pad, pts_P) -> px at the rolling shutter's reference row (make_keyframe)
         self.keyframes = 0  # keyframes made so far (each one's serial)
         self.gravity_sigma_deg = 0.5  # the AHRS's tilt error, which weighs its gravity in the tracks' poses
-        self.surface_sigma_m = 0.0  # how far the pad's surface may stand off its plane (per axis, in every pose's covariance)
         # whether a keyframe may take its corners from the whole frame where the pad gives too few: the
         # ground beside the pad is its plane only for a pad lying on still ground (a deck moving at 0.7
         # m/s, 0.4 m up, its pad a quarter in view at 1.8 m: a chain of the ground's corners drifted 35
@@ -2078,7 +2057,6 @@ class FlowTracker:
         self.tracks = None
         self.pending = None
         self.fitted = None
-        self.inherited = None  # the last tracked pose's share of its keyframe's error (its covariance's)
         self.frames_since_kf = 0
 
     @property
@@ -2089,7 +2067,7 @@ class FlowTracker:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose."""
         tag = self.work.frame if tag is None else tag
-        corners, on_pad = None, True
+        corners = None
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
             if corners is not None and len(corners) < (self.min_tracks if self.ground else FLOW_MIN_INLIERS):
@@ -2100,14 +2078,12 @@ class FlowTracker:
             # the whole frame: there its strongest corners.  Beyond the pad the ground, boxes and rims
             # are not its plane, and spread evenly over them the corners were mostly theirs (bench_v1's
             # flow_only, anchored once at 20 m: false accepts 372 -> 1473 read cell by cell)
-            corners, on_pad = self.work(lambda: ("harris", tag), harris_corners, gray, cells=1), False
+            corners = self.work(lambda: ("harris", tag), harris_corners, gray, cells=1)
         kf = make_keyframe(gray, cam2pad, self.camera, anchored=anchored, cov=cov, corners_px=corners,
                            unroll=self.unroll)
         if kf is None:
             return False
-        # (a chain that once stood on the ground's corners carries their error on: chained keyframes take
-        # their pose from tracks that stood on them)
-        kf.tag, kf.on_pad = tag, on_pad and (anchored or self.kf is None or self.kf.on_pad)
+        kf.tag = tag
         self.keyframes += 1
         kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
@@ -2143,27 +2119,10 @@ class FlowTracker:
             if again[0] is not None:
                 res, inl, why, seen = again
         self.fitted = (kf.pts_P[inl], seen[inl]) if res is not None else None  # what the pose was fitted to
-        self.inherited = None
         if res is not None and kf.cov is not None:
-            # the pad points were placed with the keyframe's pose: its error is in every tracked pose,
-            # as that pose's own solve carries it from the points it moved (taken whole, a keyframe's
-            # height error was a pose's however far below: touchdown's tracked poses stated twice to
-            # three times their error).  Not the pad surface's standing off its plane: the tracks see
-            # that surface as the keyframe did, and carry its offset whole.  Nor where the keyframe's
-            # corners are the ground's, which is the pad's plane only in part (boxes, rims, terrain):
-            # that error nothing models, and carried as the solve does the flow-only ablation's chain
-            # over the ground from 20 m stated a quarter of its error (bench_v1's sim800: beyond 3
-            # sigma 0 -> 100 % in Adjustment); carried whole, it is covered as it was
-            if kf.on_pad:
-                surface = np.zeros((6, 6))
-                surface[:3, :3] = np.eye(3) * self.surface_sigma_m**2
-                self.inherited = surface + inherited_covariance(
-                    self.camera, res.cam2pad, kf.cam2pad, kf.cov - surface, kf.pts_P[inl], up_C,
-                    res.sigma_px if res.sigma_px is not None else PIXEL_SIGMA,
-                    math.radians(self.gravity_sigma_deg) if up_C is not None else None)
-            else:
-                self.inherited = kf.cov
-            res.cov = res.cov + self.inherited
+            # the pad points were placed with the keyframe's pose: its error is in every tracked pose
+            # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
+            res.cov = res.cov + kf.cov
         return res, int(inl.sum()), why
 
     def _posed_tracks(self, px, at_cam2pad, prior_cam2pad, up_C) -> tuple:
@@ -2192,7 +2151,7 @@ class FlowTracker:
         self.frames_since_kf += 1
         n_ok = int(np.isfinite(px).all(axis=1).sum())
         if n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not self.reaches(cam2pad) or rms_px > 0.5:
-            if self.anchor(gray, cam2pad, anchored=False, cov=_chain_tilted(cov, cam2pad), tag=tag):
+            if self.anchor(gray, cam2pad, anchored=False, cov=cov, tag=tag):
                 return
         self.tracks, self.prev_gray, self.prev_tag = px, gray, tag
 

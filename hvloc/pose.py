@@ -285,45 +285,6 @@ def _residual_scale(r_white: np.ndarray) -> float:
     return math.sqrt(max(float(r_white @ r_white) / max(r_white.size - 6, 1), 1.0))
 
 
-def inherited_covariance(camera: Camera, cam2pad: np.ndarray, kf_cam2pad: np.ndarray, kf_cov: np.ndarray,
-                         pts_P: np.ndarray, up_C: np.ndarray | None = None, sigma_px=PIXEL_SIGMA,
-                         sigma_up_rad: float | None = None, eps: float = 1e-6) -> np.ndarray:
-    """6x6: what a pose ``cam2pad``, solved from pad points ``pts_P`` that a keyframe placed (its
-    pixels' rays from ``kf_cam2pad`` met with the pad's plane), inherits of the keyframe pose's
-    error ``kf_cov``, to first order: ``M kf_cov M^T``, ``M`` how the solve (least squares on the
-    pixels, with the gravity prior where ``up_C`` and ``sigma_up_rad`` are given) moves the pose
-    for each of the keyframe's six errors, the points it moves.
-
-    Not ``kf_cov`` itself: a keyframe's error is a plane map of the points it placed, and what it
-    does to a pose depends on where that pose is.  The keyframe's height error scales the points
-    about the ground below it, which moves a pose below it by the same share of its own height (a
-    keyframe 3 mm high at 1.5 m leaves a pose at 0.15 m 0.3 mm high, not 3); a sideways error moves
-    every pose as much; a turn, by the lever from the keyframe's nadir."""
-    pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
-    Ts = _perturbed(np.asarray(kf_cam2pad, np.float64), eps)
-    rays_C = (pts_P - kf_cam2pad[:3, 3]) @ kf_cam2pad[:3, :3]  # each point's ray in the keyframe's camera
-    rays = np.einsum("kij,nj->kni", Ts[:, :3, :3], rays_C)  # ... in P, from each perturbed keyframe pose
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lam = -Ts[:, None, 2, 3] / rays[..., 2]
-    moved = Ts[:, None, :3, 3] + lam[..., None] * rays  # (7, n, 3): the points each pose places
-    Pc = (moved - cam2pad[:3, 3]) @ cam2pad[:3, :3]
-    proj = camera.project(Pc.reshape(-1, 3)).reshape(7, -1, 2)
-    dr = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T  # (2n, 6): the pixels' residuals per keyframe error
-    _, J, _, Jn = _linearised(camera, cam2pad, pts_P, np.zeros((len(pts_P), 2)))
-    w = 1.0 / _row_sigmas(sigma_px, len(pts_P))
-    Jw = J * w[:, None]
-    info = Jw.T @ Jw
-    if up_C is not None and sigma_up_rad:
-        info = info + Jn.T @ Jn / sigma_up_rad**2
-    if not (np.isfinite(dr).all() and np.isfinite(info).all()):
-        return np.asarray(kf_cov, np.float64).copy()
-    try:
-        M = -np.linalg.solve(info, Jw.T @ (dr * w[:, None]))
-    except np.linalg.LinAlgError:
-        return np.asarray(kf_cov, np.float64).copy()
-    return M @ kf_cov @ M.T
-
-
 def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pts_P: np.ndarray) -> np.ndarray:
     """``(N,)`` how far (px, RMS over x and y) the images of pad points ``pts_P`` may lie from where
     the pose ``cam2pad`` puts them, by its covariance ``cov`` (:func:`pose_covariance`'s)."""
