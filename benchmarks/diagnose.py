@@ -2,6 +2,7 @@
 gates' inputs (the vision-only tilt against the IMU's gravity), summarised per ground-truth phase.
 
     python -m benchmarks.diagnose DATASET [--config CFG] [--frames N] [--show-false]
+    python -m benchmarks.diagnose DATASET --corners [EVERY]   # the outline's corners against the labels
 
 A development tool: it runs hvloc's localizer in process and keeps ``Estimate.extras``, which the
 estimates files do not carry.
@@ -95,6 +96,65 @@ def summarise(rows) -> str:
     return "\n".join(lines)
 
 
+CORNER_SIZES = (0.0, 25.0, 40.0, 80.0, float("inf"))  # pad sides (px) the corner report groups frames by
+
+
+def outline_corners(root, max_frames: int | None = None, every: int = 1) -> list:
+    """Rows ``(seq, k, height, side px, corners used, error px (4,) | None, reason)``: the outline
+    :func:`hvloc.phases.find_outline` finds in the whole frame (no prior, no region), against the
+    labels, in every ``every``-th frame whose pad is whole in view and hidden by nothing.  The
+    corners it posed by: the white field's where it uses them (against the field's labelled
+    corners), else the outline's.  Found corners are matched to the labelled ones by the cyclic
+    order, either way round, that lies nearest (an outline is not named here)."""
+    from hvloc.phases import find_outline
+    from render.dataset import Dataset
+
+    rows = []
+    for seq in Dataset(root):
+        geo = seq.pad.geometry
+        n = len(seq) if max_frames is None else min(len(seq), max_frames)
+        for k in range(0, n, max(1, every)):
+            f = seq.frame(k)
+            if not f.pad_fully_visible:
+                continue
+            found, why = find_outline(seq.image(k), geo, seq.camera)
+            if found is None:
+                rows.append((seq.id, k, f.height_above_pad, float("nan"), "", None, why))
+                continue
+            orders = [np.roll(np.arange(4), s)[::d] for s in range(4) for d in (1, -1)]
+            best = min(orders, key=lambda o: float(np.linalg.norm(found.quad_px[o] - f.corners_px, axis=1).sum()))
+            if found.field_px is not None:
+                used, px, truth = "field", found.field_px[best], seq.camera.project_from(f.cam2pad, geo.field_corners)
+            else:
+                used, px, truth = "outline", found.quad_px[best], f.corners_px
+            rows.append((seq.id, k, f.height_above_pad, float(found.side_px), used,
+                         np.linalg.norm(px - truth, axis=1), "ok"))
+    return rows
+
+
+def summarise_corners(rows) -> str:
+    """Per pad size: frames, found, the corners' error (median and p90, px and % of the side), the
+    worst corner of each frame's (median, p90), which corners were used, and why the rest were lost."""
+    lines = []
+    for lo, hi in zip(CORNER_SIZES[:-1], CORNER_SIZES[1:]):
+        found = [r for r in rows if r[5] is not None and lo <= r[3] < hi]
+        if not found:
+            continue
+        err = np.concatenate([r[5] for r in found])
+        share = np.concatenate([r[5] / r[3] * 100.0 for r in found])
+        worst = np.array([r[5].max() for r in found])
+        used = collections.Counter(r[4] for r in found)
+        lines.append(f"side {lo:3.0f}-{hi:3.0f} px: {len(found):4d} found ({used['field']} by the field); corner error "
+                     f"median {np.median(err):.2f} px ({np.median(share):.1f} % of the side), p90 "
+                     f"{np.percentile(err, 90):.2f} px; worst corner median {np.median(worst):.2f}, "
+                     f"p90 {np.percentile(worst, 90):.2f} px")
+    lost = [r for r in rows if r[5] is None]
+    lines.append(f"lost: {len(lost)} of {len(rows)} frames with the pad whole in view")
+    for why, n in collections.Counter(reason_kind(r[6]) for r in lost).most_common(5):
+        lines.append(f"    {n:4d}  {why}")
+    return "\n".join(lines)
+
+
 def main(argv=None, prog: str = "python -m benchmarks.diagnose") -> int:
     p = ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
     p.add_argument("dataset", help="dataset folder")
@@ -102,7 +162,12 @@ def main(argv=None, prog: str = "python -m benchmarks.diagnose") -> int:
     p.add_argument("--frames", type=int, help="at most this many frames per sequence")
     p.add_argument("--no-imu", action="store_true", help="do not give the localizer the AHRS attitude")
     p.add_argument("--show-false", action="store_true", help="list every false accept and wrongly rejected frame")
+    p.add_argument("--corners", type=int, metavar="EVERY", nargs="?", const=1,
+                   help="instead: the outline's corners against the labels, per pad size (every EVERY-th frame)")
     a = p.parse_args(argv)
+    if a.corners is not None:
+        print(summarise_corners(outline_corners(a.dataset, a.frames, a.corners)))
+        return 0
     rows = diagnose(a.dataset, load_config(a.config) if a.config else None, a.frames, not a.no_imu)
     print(summarise(rows))
     if a.show_false:
