@@ -97,6 +97,7 @@ def summarise(rows) -> str:
 
 
 CORNER_SIZES = (0.0, 25.0, 40.0, 80.0, float("inf"))  # pad sides (px) the corner report groups frames by
+ELSEWHERE_SHARE = 0.5  # a found outline whose worst corner is this share of its side off is another quad than the pad
 
 
 def outline_corners(root, max_frames: int | None = None, every: int = 1) -> list:
@@ -134,10 +135,13 @@ def outline_corners(root, max_frames: int | None = None, every: int = 1) -> list
 
 def summarise_corners(rows) -> str:
     """Per pad size: frames, found, the corners' error (median and p90, px and % of the side), the
-    worst corner of each frame's (median, p90), which corners were used, and why the rest were lost."""
+    worst corner of each frame's (median, p90), which corners were used; then the outlines found
+    elsewhere (another quad than the pad: a decoy, searched for with no prior, as a first frame is),
+    kept out of the accuracy, and why the rest were lost."""
     lines = []
+    elsewhere = [r for r in rows if r[5] is not None and not r[5].max() < ELSEWHERE_SHARE * r[3]]
     for lo, hi in zip(CORNER_SIZES[:-1], CORNER_SIZES[1:]):
-        found = [r for r in rows if r[5] is not None and lo <= r[3] < hi]
+        found = [r for r in rows if r[5] is not None and lo <= r[3] < hi and r[5].max() < ELSEWHERE_SHARE * r[3]]
         if not found:
             continue
         err = np.concatenate([r[5] for r in found])
@@ -148,6 +152,9 @@ def summarise_corners(rows) -> str:
                      f"median {np.median(err):.2f} px ({np.median(share):.1f} % of the side), p90 "
                      f"{np.percentile(err, 90):.2f} px; worst corner median {np.median(worst):.2f}, "
                      f"p90 {np.percentile(worst, 90):.2f} px")
+    if elsewhere:
+        lines.append(f"found elsewhere: {len(elsewhere)} (worst corner over {ELSEWHERE_SHARE:g} of the side off; "
+                     f"median {np.median([r[5].max() for r in elsewhere]):.0f} px)")
     lost = [r for r in rows if r[5] is None]
     lines.append(f"lost: {len(lost)} of {len(rows)} frames with the pad whole in view")
     for why, n in collections.Counter(reason_kind(r[6]) for r in lost).most_common(5):
