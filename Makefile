@@ -12,7 +12,7 @@ demo: install
 	$(VENV)/bin/hvloc demo --out $(OUT)
 
 test: install
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q -n auto --dist worksteal
 
 bench: install
 	$(VENV)/bin/python -m benchmarks.speed

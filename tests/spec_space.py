@@ -37,6 +37,7 @@ def _int(lo, hi):
 
 def _artwork_files() -> tuple:
     """Two small artwork images (an artwork pad's spec names a file), made once per machine."""
+    import os
     import tempfile
     from pathlib import Path
 
@@ -45,11 +46,13 @@ def _artwork_files() -> tuple:
     out = []
     for i, colour in enumerate(((40, 120, 20), (200, 40, 40))):
         p = Path(tempfile.gettempdir()) / f"hvloc_spec_space_artwork_{i}.png"
-        if not p.is_file():
+        if not p.is_file():  # written whole, then renamed: the test workers import this at once
             img = np.full((256, 256, 3), 230, np.uint8)
             cv2.rectangle(img, (0, 0), (255, 255), colour, 24)
             cv2.circle(img, (128, 128), 60, (30, 30, 30), -1)
-            cv2.imwrite(str(p), img)
+            part = p.with_name(f"{p.stem}.{os.getpid()}.png")
+            cv2.imwrite(str(part), img)
+            os.replace(part, p)
         out.append(str(p))
     return tuple(out)
 
