@@ -607,7 +607,9 @@ class FalsePoseGates:
         cfg = self.config
         if not cfg.false_pose_detection:
             return ""
-        if not np.isfinite(est.rms_px) or est.rms_px > cfg.max_reprojection_px:
+        if not np.isfinite(est.rms_px):  # a fit that did not converge (a quad folded to a line), not a large RMS
+            return f"reprojection RMS not finite ({est.rms_px}): the fit failed"
+        if est.rms_px > cfg.max_reprojection_px:
             return f"reprojection RMS {est.rms_px:.2f} px > {cfg.max_reprojection_px}"
         share = outline_rms_share(est)
         if share > cfg.max_outline_rms_share:

@@ -2137,6 +2137,10 @@ def test_an_outline_pose_whose_corners_are_no_square_is_rejected(pad):
             gates.reset()
         assert verdicts[0.0][0] == "" and verdicts[0.04][0] == "", verdicts
         assert "no square" in verdicts[0.22][0] and verdicts[0.22][1] > 0.03, verdicts
+    # a fit that did not converge says so (it read "reprojection RMS nan px > 3.0", as if measured)
+    for bad in (float("nan"), float("inf")):
+        est = Estimate(0.0, "approaching", "ok", pose.cam2pad, 4, bad, None, method="outline", extras=dict(det.info))
+        assert gates.check(est, None, None) == f"reprojection RMS not finite ({bad}): the fit failed"
 
 
 @pytest.mark.parametrize("h", [0.25, 0.5, 0.9])
