@@ -111,6 +111,7 @@ SWOLLEN_WHEN = ("its sides and its colour hull disagree", "its border band is mi
                 "its border band is missing beside a corner", "its colour swells past its white field")
 MISREAD_WHEN = ("its sides and its colour hull disagree", "its border band is missing along a side")
 SIDES_NOT_FOUND = "its sides not found, and nothing smears them"
+NO_QUADRILATERAL = "its sides, as placed, make no quadrilateral"
 OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing along a side",
                  "its border band is missing beside a corner", "its sides and its colour hull disagree",
                  SIDES_NOT_FOUND)
@@ -281,6 +282,11 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # (placed by the centroid: the border's profile is fitted once, where it is read again below)
         smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False,
                                                   min_blur_px=LIGHT_FIT_SMEAR_PX)
+        if not _quad_shaped(smeared):
+            # centroids that fold the quad placed nothing: a small pad's noise read as smear (unseen47's
+            # 21 px pads at dusk under JPEG 45 and a 1 px lens blur read 7 px, with 0.5 px of motion, and
+            # one side's centroid fell across the pad: a quad with two corners at one pixel, "found")
+            smeared = None
         reach = smeared is not None and smear <= SMEARED_PX  # (within an edge fit's reach: placed if fitted)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
@@ -298,6 +304,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
             again, smear_again, _, per_again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
+            again = again if _quad_shaped(again) else None
             if reach:
                 # within an edge fit's reach the border's fitted profile places it (an edge fit in light
                 # put a small pad's corners 1-2.5 px off under 4.5 px of motion, its solid band 1.7 px
@@ -368,6 +375,8 @@ def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px
     stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`);
     ``per_smear``: the noise of a corner placed under smear, px per px of it (:func:`_deblurred`);
     ``edge``: its sides placed by an edge fit."""
+    if not _quad_shaped(refined):  # (whichever way its sides were placed)
+        return None, NO_QUADRILATERAL
     cue = _cue_scores(rgb, refined, geo, camera)
     scale_sigma = _corner_sigma_scale(refined, rgb.shape, fitted=fitted) if cut else None
     if scale_sigma is not None and not np.isfinite(scale_sigma).all():
@@ -482,8 +491,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
         return None
 
     side_px = _mean_side(quad)
-    sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-    if side_px < 12 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
+    if side_px < 12 or not _quad_shaped(quad):
         return None
     refined, res, _, _, (bx0, by0) = _fit_sides(rgb, quad, side_px, geo, camera, visible)
     if refined is None or res > 0.5:
@@ -646,10 +654,10 @@ def _best_ring(mask: np.ndarray, pad_geometry: PadGeometry, cut_edges=(False,) *
                     continue  # a piece of a ring cut by the edge, which the cue's gap split: read as cut
         if quad is None:
             continue
+        if not _quad_shaped(quad):
+            continue
         qa = abs(_signed_area(quad))
         sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
-        if qa <= 0 or sides.min() / sides.max() < 0.4 or not cv2.isContourConvex(quad.astype(np.float32).reshape(-1, 1, 2)):
-            continue
         share = _mask_share(full, quad)
         if not ((0.5 * ring_share if min_share is None else min_share) <= share <= _ring_share_ceiling(pad_geometry, scale * sides.mean())):
             continue  # a solid patch of the colour, or a thin frame: not the pad
@@ -687,6 +695,16 @@ def _along_cut(hull: np.ndarray, shape, cut_edges) -> float:
     on = _at_cut(pts, shape, cut_edges)
     along = np.any(on & np.roll(on, -1, axis=0), axis=1)
     return float(np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)[along].sum())
+
+
+def _quad_shaped(quad: np.ndarray | None, min_ratio: float = 0.4) -> bool:
+    """A quadrilateral a pad's outline can be, seen from any view it is found in: finite, convex,
+    not folded, its shortest side at least ``min_ratio`` of its longest."""
+    if quad is None or not np.isfinite(quad).all() or abs(_signed_area(quad)) <= 0:
+        return False
+    sides = np.linalg.norm(np.roll(quad, -1, axis=0) - quad, axis=1)
+    return bool(sides.min() >= min_ratio * sides.max()
+                and cv2.isContourConvex(np.asarray(quad, np.float32).reshape(-1, 1, 2)))
 
 
 def _mean_side(quad: np.ndarray) -> float:
