@@ -282,11 +282,6 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # (placed by the centroid: the border's profile is fitted once, where it is read again below)
         smeared, smear, _, per_smear = _deblurred(rgb, refined + [bx0, by0], pad_geometry, camera, profile=False,
                                                   min_blur_px=LIGHT_FIT_SMEAR_PX)
-        if not _quad_shaped(smeared):
-            # centroids that fold the quad placed nothing: a small pad's noise read as smear (unseen47's
-            # 21 px pads at dusk under JPEG 45 and a 1 px lens blur read 7 px, with 0.5 px of motion, and
-            # one side's centroid fell across the pad: a quad with two corners at one pixel, "found")
-            smeared = None
         reach = smeared is not None and smear <= SMEARED_PX  # (within an edge fit's reach: placed if fitted)
         if smeared is None and _near_edge(refined + [bx0, by0], rgb.shape, 20.0):
             # the cross-profiles of some stretch run out of the image: the stretches in view
@@ -304,7 +299,6 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is not None:  # (the band's check reads half a band either side of a sharp edge)
             # once more from there: a smeared side that was pixels out shifted the others' stretches
             again, smear_again, _, per_again = _deblurred(rgb, smeared, pad_geometry, camera, min_blur_px=0.0)
-            again = again if _quad_shaped(again) else None
             if reach:
                 # within an edge fit's reach the border's fitted profile places it (an edge fit in light
                 # put a small pad's corners 1-2.5 px off under 4.5 px of motion, its solid band 1.7 px
@@ -799,7 +793,10 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     ``profile``, where its blurred profile is fitted (:func:`banded_profile_offsets`) if the border is
     resolved (:data:`RESOLVED_SMEAR`, :data:`RESOLVED_WIDTH`), when some side is smeared by more than ``min_blur_px``
     (beyond the reach of an edge fit's window); ``None`` when no side is, or when a side cannot be
-    read or would move further than its smear explains.  The smear is what :func:`_smear_near` read
+    read or would move further than its smear explains, or when the sides so moved meet in no
+    quadrilateral a pad can be (:func:`_quad_shaped`: unseen47's 21 px pads at dusk under JPEG 45 and a
+    1 px lens blur read 7 px of smear, with 0.5 px of motion, and one side's centroid fell across the
+    pad: two corners at one pixel, "found").  The smear is what :func:`_smear_near` read
     around ``quad_px`` (kept with the outline: it is read once); ``fitted``: from where to where
     (fractions of each side, from its first corner) the side's line was fitted; noise per smear: a
     corner's pixel noise per px of smear, as placed (:data:`CENTROID_SIGMA_PER_SMEAR`,
@@ -865,6 +862,8 @@ def _deblurred(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
             return None, smear, None, CENTROID_SIGMA_PER_SMEAR
         s = np.linalg.solve(A, a[j] - a[j - 1])
         out[j] = a[j - 1] + s[0] * u[j - 1]
+    if not _quad_shaped(out):
+        return None, smear, None, CENTROID_SIGMA_PER_SMEAR
     return out + lo, smear, np.stack([at[np.arange(4), first], at[np.arange(4), last]], axis=1), per_smear
 
 

@@ -1050,19 +1050,29 @@ def test_an_outline_whose_sides_fold_is_never_found(pad, monkeypatch):
     a quad with two corners at one pixel came back as found, in 44 of 224 frames an outline more
     than half its side off (its cue then unreadable, or its pose refused with a NaN RMS).  However
     its sides were placed, an outline is a quadrilateral a pad can be, or it is not found; here
-    the centroids are made to fold it, and the outline is placed as a sharp one instead."""
+    the smear is read as there and the centroids turn one side across the pad (each offset within
+    what that smear explains), and the outline is placed as a sharp one instead."""
     import hvloc.phases as ph
 
     geo = pad.geometry
-    real = ph._deblurred
+    real_smear = ph._smear_near
 
-    def folding(rgb, quad_px, *a, **kw):  # what the centroids gave there: one corner onto another
-        q, smear, fitted, per = real(rgb, quad_px, *a, **kw)
-        folded = np.array(quad_px, np.float64).copy()
-        folded[3] = folded[0]
-        return folded, max(smear or 0.0, 6.9), fitted, ph.CENTROID_SIGMA_PER_SMEAR
+    def misread(*a, **kw):  # 7 px of smear read where the pad is sharp
+        lin, lo, smear, pairs = real_smear(*a, **kw)
+        return lin, lo, max(smear, 6.9), pairs
 
-    monkeypatch.setattr(ph, "_deblurred", folding)
+    def folding(chan, quad_px, bands, levels, camera=None, segments=2, **kw):  # side 0 turned across the pad
+        at = np.tile((np.arange(segments) + 0.5) / segments * 0.5 + 0.25, (4, 1))
+        e = np.zeros((4, segments))
+        e[0] = np.linspace(4.0, -4.0, segments)
+        return e, np.full((4, segments), 6.9), at
+
+    monkeypatch.setattr(ph, "_smear_near", misread)
+    monkeypatch.setattr(ph, "band_centroid_offsets", folding)
+    G = tilted(0.3, -0.2, 30.0, 0.4, 0.03, -0.02)
+    img = _jpeg(warp_pad_view(pad, CAM, G, (112, 116, 124)), 60)
+    c = CAM.project_from(G, geo.outer_corners)
+    assert ph._deblurred(img, c, geo, CAM, min_blur_px=3.0, profile=False)[0] is None  # the shared placement refuses it
     found_n = 0
     for yaw in (0.4, 1.9, 3.3):
         G = tilted(0.3, -0.2, 30.0, yaw, 0.03, -0.02)  # a 23 px pad
