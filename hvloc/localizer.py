@@ -1205,7 +1205,7 @@ class HierarchicalLocalizer:
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 def solve(px):
-                    return ph.tracks_pose(self.camera, P, px, up_C, prior, cfg.ahrs_tilt_sigma_deg)
+                    return ph.tracks_pose(self.camera, P, px, up_C, prior, self.flow.gravity_sigma)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
                 res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)
@@ -1520,16 +1520,26 @@ class HierarchicalLocalizer:
             # gives way to the first pose of another method: kept, the flow stayed behind the drawing
             # (unseen59: a slow descent drawn at 1.6-2.8 m, 45 frames drawn after a markers pose that
             # would have anchored a keyframe the flow tracked, 200+ ms a frame where the flow took 11)
-            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
         else:
             f.frames_since_kf += 1
             if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                     or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
                 if not f.reaches(est.cam2pad) or _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
-                    f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov)
+                    f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
         if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
             f.kf.motion = self._motion()
             f.kf.drawn = est.extras.get("by") == "synthesis"
+
+
+def ahrs_off_deg(est: "Estimate") -> float:
+    """How far the IMU's gravity is off, at the least, by what ``est``'s image alone fixes of the pad's
+    tilt: its disagreement less two of its sigmas (degrees; 0 where it says nothing, as a far pad's
+    four corners or a pose made without an IMU).  Markers below a metre fix the tilt to a few
+    hundredths of a degree; an AHRS stated 0.5 degrees was 0.7-1.2 off there (unseen48)."""
+    err, sigma = est.extras.get("tilt_err_deg", float("nan")), est.extras.get("tilt_sigma_deg", float("nan"))
+    off = float(err) - 2.0 * float(sigma)
+    return off if math.isfinite(off) and off > 0.0 else 0.0
 
 
 def _surer(kf, cov) -> bool:

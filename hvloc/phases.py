@@ -1800,6 +1800,9 @@ class Keyframe:
     serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
     motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
     drawn: bool = False   # its pose was the smeared drawing's (hvloc.synthesis): a fallback, tried after the drawing
+    # how far the IMU's gravity was off, at the least, where its anchoring pose's image fixed the
+    # tilt (degrees; 0 where it could not tell): kept by the keyframes chained from it (FlowTracker.gravity_sigma)
+    ahrs_off_deg: float = 0.0
 
 
 HARRIS_QUALITY = 0.005   # a corner's Harris response, at least this share of the strongest it is judged against
@@ -2080,10 +2083,14 @@ class FlowTracker:
     def ready(self) -> bool:
         return self.kf is not None and self.prev_gray is not None
 
-    def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None) -> bool:
+    def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None,
+               ahrs_off_deg: float | None = None) -> bool:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
-        :class:`ImageWork` is at) and its pose."""
+        :class:`ImageWork` is at) and its pose; ``ahrs_off_deg``: how far that pose's image saw the
+        IMU's gravity off (:attr:`gravity_sigma`), by default the keyframe's it renews (0 for none)."""
         tag = self.work.frame if tag is None else tag
+        if ahrs_off_deg is None:
+            ahrs_off_deg = 0.0 if self.kf is None else self.kf.ahrs_off_deg
         corners = None
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
@@ -2100,7 +2107,7 @@ class FlowTracker:
                            unroll=self.unroll)
         if kf is None:
             return False
-        kf.tag = tag
+        kf.tag, kf.ahrs_off_deg = tag, float(ahrs_off_deg)
         self.keyframes += 1
         kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
@@ -2111,6 +2118,16 @@ class FlowTracker:
         """Harris corners where the pad is seen (:func:`pad_region_mask`), or ``None``."""
         mask = pad_region_mask(self.camera, cam2pad, self.region_P, gray.shape)
         return None if mask is None else harris_corners(gray, 150, mask)
+
+    @property
+    def gravity_sigma(self) -> float:
+        """The IMU gravity's tilt error (degrees) that its tracks' poses weigh it with, and judge their
+        own tilt against (:func:`tracks_pose`): the AHRS's stated one, and as far as the keyframe's
+        anchoring pose saw it off.  Tracks are right or wrong relative to their keyframe; judged
+        against an AHRS 1.1 degrees off where it states 0.5, right ones were widened 22-fold and the
+        pose went with the AHRS (unseen48 at 0.6 m, a 40 degree mount: the markers' keyframe 0.07
+        degrees off, its tracks' pose 0.68, the height 0.2 -> 1.4 % high down to touchdown)."""
+        return math.hypot(self.gravity_sigma_deg, self.kf.ahrs_off_deg if self.kf is not None else 0.0)
 
     def track(self, gray, prior_cam2pad=None, up_C=None, predicted_cam2pad=None):
         """``(PoseResult | None, n_inliers, reason)`` for ``gray``; ``predicted_cam2pad``: the pose
@@ -2151,7 +2168,7 @@ class FlowTracker:
             fin = np.isfinite(px).all(axis=1)
             seen = px.copy()
             seen[fin] = self.unroll(px[fin], at_cam2pad, kf.pts_P[fin])
-        g = self.gravity_sigma_deg
+        g = self.gravity_sigma
         res, inl, why = self.work(lambda: ("tracks_pose", array_key(kf.pts_P), array_key(seen), array_key(up_C),
                                            array_key(prior_cam2pad) if up_C is None else None, g),
                                   pose_from_tracks, self.camera, kf, seen, prior_cam2pad, up_C, gravity_sigma_deg=g)
