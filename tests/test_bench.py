@@ -615,6 +615,32 @@ def test_diagnose_measures_the_outlines_corners_against_the_labels(smoke, monkey
     assert f"found elsewhere: {len(rows)} " in text and "corner error median 1.00 px" in text, text
 
 
+def test_diagnose_says_when_the_ahrs_is_further_off_than_the_localizer_is_told():
+    """Where the image fixes the pad's tilt far better than the AHRS (markers and tracks near the
+    ground), its disagreement with the AHRS's gravity is the AHRS's error: unseen48's, stated 0.5
+    degrees, was 0.65-1.2.  diagnose reports it from the right poses that fix the tilt so well, and
+    says to state more where it is further off than the localizer was told; far poses (a tilt
+    sigma of degrees) and false accepts are no evidence of it."""
+    from benchmarks.diagnose import summarise
+
+    rng = np.random.default_rng(5)
+
+    def rows(size_deg, sigma_deg=0.03, wrong=False):
+        # a 2-D tilt error of size_deg per axis: its size is Rayleigh-distributed
+        err = np.hypot(*rng.normal(0.0, size_deg, (2, 200)))
+        return [("s", k, "touchdown", 0.5, "ok", "markers", 0.001, 0.1, wrong, "",
+                 {"tilt_err_deg": float(e), "tilt_sigma_deg": sigma_deg}, 0.0) for k, e in enumerate(err)]
+
+    told = summarise(rows(0.8), 0.5)
+    assert "AHRS gravity where 200 right poses fixed the tilt" in told and "told 0.5" in told, told
+    assert "further off than the localizer is told: state ahrs_tilt_sigma_deg of at least 0.8" in told, told
+    within = summarise(rows(0.4), 0.5)
+    assert "AHRS gravity where 200 right poses" in within and "further off" not in within, within
+    assert "further off" not in summarise(rows(0.8), 1.0)  # told the whole of it
+    # no evidence: far poses whose image cannot fix the tilt, or false accepts
+    assert "AHRS gravity" not in summarise(rows(0.8, sigma_deg=1.5) + rows(3.0, wrong=True), 0.5)
+
+
 def test_diagnose_counts_refusals_by_their_cause_not_their_first_words():
     """The summary grouped reasons by their first three words: every refused outline read "outline:
     rejected, the" (unseen46), whatever refused it.  Now by the first method's verdict and the first
