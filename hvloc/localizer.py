@@ -1513,6 +1513,10 @@ class HierarchicalLocalizer:
             return
         f = self.flow
         serial = None if f.kf is None else f.kf.serial
+
+        def anchor():  # a keyframe from this pose, with how far off its image saw the AHRS
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
+
         if method == "flow":
             f.accept(est.cam2pad, est.rms_px, est.cov)
         elif est.extras.get("by") == "synthesis" or (f.kf is not None and f.kf.drawn):
@@ -1520,13 +1524,13 @@ class HierarchicalLocalizer:
             # gives way to the first pose of another method: kept, the flow stayed behind the drawing
             # (unseen59: a slow descent drawn at 1.6-2.8 m, 45 frames drawn after a markers pose that
             # would have anchored a keyframe the flow tracked, 200+ ms a frame where the flow took 11)
-            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
+            anchor()
         else:
             f.frames_since_kf += 1
             if (method == "texture" or f.kf is None or not f.kf.anchored or f.frames_since_kf > 10
                     or not (1 / 1.1 < f.kf.cam2pad[2, 3] / max(h, 1e-6) < 1.1)):
                 if not f.reaches(est.cam2pad) or _surer(f.kf, est.cov):  # (out of its reach it is renewed anyway)
-                    f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
+                    anchor()
         if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
             f.kf.motion = self._motion()
             f.kf.drawn = est.extras.get("by") == "synthesis"
