@@ -193,6 +193,24 @@ class _Guarded:
         return guarded_process(self.inner.process, image, t, imu_for(self.inner, imu), "")
 
 
+UNREADABLE = "image unreadable: "  # the reason of a frame whose file could not be read (frame_image)
+
+
+def frame_image(seq, k: int) -> tuple:
+    """``(image | None, why)``: frame ``k``'s image as stored.  In a dataset read without its
+    checksums (``--no-verify``: the user takes it as it is) a file that cannot be read or decoded is
+    a frame without an image, which every localizer gives ``lost`` with ``why``; the frames before
+    it and after it are localized as any others.  (It ended the whole run, with exit 2, and the
+    sequence's estimates so far unwritten.)  Read with its checksums, a file that differs from them
+    is a damaged dataset, refused as before."""
+    try:
+        return seq.image(k), ""
+    except InputError as err:
+        if getattr(seq, "expected", None) is not None:
+            raise
+        return None, str(err)
+
+
 def localize_sequence(seq, config: LocalizerConfig, use_imu: bool = True, progress=None,
                       kind: str = "hierarchical", on_estimate=None) -> list:
     return localize_sequence_many(seq, [(config, use_imu, kind, False)], progress, on_estimate)[0]
@@ -214,13 +232,16 @@ def localize_sequence_many(seq, setups: list, progress=None, on_estimate=None, s
     t_last = None
     for k in range(len(seq)):
         t = float(seq.t[k])
-        img = seq.image(k)
+        img, unreadable = frame_image(seq, k)
         if work is not None:
             work.begin(k)
         samples = {c: imu_since(imu, t_last, t, seq.imu_time_offset_s) for c, imu in imus.items()}
         t_last = t
         for i, (loc, (_, use_imu, *_)) in enumerate(zip(locs, setups)):
-            out[i].append(loc.process(img, t, samples[scales[i]] if use_imu else None))
+            e = loc.process(img, t, samples[scales[i]] if use_imu else None)
+            if unreadable:  # (whatever a localizer from elsewhere made of no image)
+                e = Estimate(e.t, e.phase, "lost", None, ms=e.ms, reason=f"{UNREADABLE}{unreadable}")
+            out[i].append(e)
         if on_estimate is not None:
             on_estimate(out[0][-1])
         if progress:
@@ -374,6 +395,11 @@ def localize_main(argv: list) -> int:
     n_ok = sum(e.status == "ok" for v in res["sequences"].values() for e in v)
     print(f"{a.out}: {len(res['sequences'])} sequence(s), {res['frames']} frames, {n_ok} poses ok "
           f"({res['seconds']:.1f} s)" + (f"; {res['mavlink_sent']} LANDING_TARGET to {a.mavlink}" if a.mavlink else ""))
+    unreadable = [e.reason[len(UNREADABLE):] for v in res["sequences"].values() for e in v
+                  if e.reason.startswith(UNREADABLE)]
+    if unreadable:  # (said where it cannot be missed: the run went on past them)
+        print(f"{len(unreadable)} image(s) unreadable, localized as lost: {'; '.join(unreadable[:3])}"
+              + (f"; and {len(unreadable) - 3} more" if len(unreadable) > 3 else ""), file=sys.stderr)
     return 0
 
 
