@@ -793,8 +793,9 @@ class HierarchicalLocalizer:
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
                        + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
         est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
-        if clock:
+        if clock:  # said in the reason, whatever the frame's status (DESIGN.md), after a failure's own
             est.extras["clock"] = clock
+            est.reason = f"{est.reason}; {clock}" if est.reason else clock
         if imu_why:
             est.extras["imu"] = imu_why + ": vision alone"
         return est
