@@ -75,15 +75,24 @@ def _camera_matrix(K, where: str) -> tuple:
     return float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
 
 
-def _checked(w: int, h: int, fx: float, fy: float, cx: float, cy: float, dist: tuple, source: str,
-             where: str, model: str = "pinhole") -> Calibration:
+def check_intrinsics(camera: Camera, where: str) -> Camera:
+    """``camera``, or an :class:`InputError` naming ``where`` for a size, focal length or
+    coefficient no camera has: a calibration read in, or a dataset's ``camera.json``."""
+    w, h, fx, fy = camera.width, camera.height, camera.fx, camera.fy
     if w < 16 or h < 16:
         raise InputError(f"{where}: image size {w}x{h} is too small")
     if not (fx > 0 and fy > 0 and math.isfinite(fx) and math.isfinite(fy)):
         raise InputError(f"{where}: focal lengths must be positive (fx {fx}, fy {fy})")
-    if not all(math.isfinite(v) for v in (cx, cy, *dist)):
-        raise InputError(f"{where}: the calibration has a number that is not finite")
-    return Calibration(Camera(w, h, fx, fy, cx, cy, dist, model), source)
+    bad = [n for n, v in (("cx", camera.cx), ("cy", camera.cy), *((f"dist[{i}]", d) for i, d in enumerate(camera.dist)))
+           if not math.isfinite(v)]
+    if bad:
+        raise InputError(f"{where}: {', '.join(bad)} of the calibration not finite")
+    return camera
+
+
+def _checked(w: int, h: int, fx: float, fy: float, cx: float, cy: float, dist: tuple, source: str,
+             where: str, model: str = "pinhole") -> Calibration:
+    return Calibration(check_intrinsics(Camera(w, h, fx, fy, cx, cy, dist, model), where), source)
 
 
 def _kalibr(doc: dict, name: str | None, path: str) -> Calibration:

@@ -336,6 +336,30 @@ def files_differing(root: Path, files: dict) -> list:
 
 # ----------------------------------------------------------------------------- writer
 
+def _check_camera_info(camera: Camera, fps: float, T_B_C: np.ndarray, info: dict, where) -> None:
+    """An :class:`InputError` naming the field of a ``camera.json`` that no camera has: intrinsics
+    (as a calibration read in: :func:`render.calibration.check_intrinsics`), a rate, a mount that
+    is not a rigid transform, a shutter or clock offset that is not a number.  (A NaN in ``dist``
+    or a ``T_B_C`` scaled by 2 was read without a word, and every frame of the sequence lost or
+    rejected.)"""
+    from .calibration import check_intrinsics
+
+    check_intrinsics(camera, str(where))
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"{where}: fps {fps} is not a frame rate")
+    R = T_B_C[:3, :3]
+    if not (np.isfinite(T_B_C).all() and np.abs(R @ R.T - np.eye(3)).max() < 1e-6 and np.linalg.det(R) > 0
+            and np.abs(T_B_C[3] - [0.0, 0.0, 0.0, 1.0]).max() < 1e-9):
+        raise InputError(f"{where}: T_B_C is not a rigid transform (a rotation and a translation): {T_B_C.tolist()}")
+    for key in ("exposure_s", "rolling_shutter_line_s", "imu_time_offset_s", "rolling_shutter_ref_row"):
+        v = info.get(key, 0.0)
+        if v is None and key == "exposure_s":  # (an imported flight's: not known)
+            continue
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)) or \
+                (key != "imu_time_offset_s" and v < 0):
+            raise InputError(f"{where}: {key} {v!r} is not a {'time' if key.endswith('_s') else 'row'}")
+
+
 class SequenceWriter:
     """Writes one sequence into a temporary folder; the renderer hands it named layers, and this
     alone decides what goes to disk (images are encoded on a background thread)."""
@@ -450,6 +474,7 @@ class Sequence:
             self.meta = json.loads((self.root / "meta.json").read_text())
         except (ValueError, KeyError, TypeError) as err:
             raise InputError(f"{self.root}: camera.json or meta.json cannot be read ({err})") from None
+        _check_camera_info(self.camera, self.fps, self.T_B_C, info, self.root / "camera.json")
         self.camera_info = info
         self._imu = None
         self._pad = None

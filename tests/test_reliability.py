@@ -190,3 +190,34 @@ def test_a_worker_that_dies_fails_the_run_instead_of_hanging_it():
         list(run_units(_unit_that_dies, [(i,) for i in range(6)], workers=2))
     assert time.time() - t0 < 120
     assert sorted(run_units(_unit_that_dies, [(i,) for i in (0, 1, 3)], workers=2)) == [0, 1, 3]
+
+
+@pytest.mark.parametrize("field,value,names", [
+    ("dist", [float("nan"), 0.0, 0.0, 0.0, 0.0], "dist[0]"),
+    ("fx", -300.0, "fx, fy must be positive"),
+    ("fps", 0.0, "fps 0.0 is not a frame rate"),
+    ("T_B_C", [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], "T_B_C is not a rigid transform"),
+    ("T_B_C", [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]], "T_B_C is not a rigid transform"),
+    ("exposure_s", -0.01, "exposure_s -0.01 is not a time"),
+    ("rolling_shutter_line_s", "fast", "rolling_shutter_line_s 'fast' is not a time"),
+    ("imu_time_offset_s", float("inf"), "imu_time_offset_s inf is not a time"),
+])
+def test_a_camera_no_camera_has_is_refused_in_one_line_naming_its_field(clean, tmp_path, field, value, names):
+    """camera.json taken as it is (--no-verify) with a number no camera has: a NaN lens
+    coefficient, a mount scaled or mirrored, no frame rate, a negative exposure, a shutter or clock
+    offset that is no number.  Read without a word, a NaN in dist or a scaled T_B_C lost or rejected
+    every frame of the sequence; each is now one line naming the file and the field, exit 2, and
+    nothing written.  An imported flight's unknown exposure (null) is no error."""
+    root = tmp_path / "ds"
+    shutil.copytree(clean, root)
+    path = root / "seq_0000" / "camera.json"
+    info = json.loads(path.read_text())
+    info[field] = value
+    path.write_text(json.dumps(info))
+    r = run_cli("localize", root, "--out", tmp_path / "est", "--quiet", "--no-verify")
+    assert_input_error(r, names)
+    assert "seq_0000" in r.stderr and "camera.json" in r.stderr and not (tmp_path / "est" / "seq_0000").exists()
+    info = json.loads((clean / "seq_0000" / "camera.json").read_text())
+    path.write_text(json.dumps({**info, "exposure_s": None}))
+    r = run_cli("localize", root, "--out", tmp_path / "est2", "--quiet", "--no-verify")
+    assert r.returncode == 0, r.stderr
