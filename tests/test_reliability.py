@@ -221,3 +221,23 @@ def test_a_camera_no_camera_has_is_refused_in_one_line_naming_its_field(clean, t
     path.write_text(json.dumps({**info, "exposure_s": None}))
     r = run_cli("localize", root, "--out", tmp_path / "est2", "--quiet", "--no-verify")
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("damage,names", [("swap", "t goes back at row 4"), ("nan", "row 3's t is nan, not a time")])
+def test_imu_rows_out_of_time_order_are_refused_in_one_line_naming_the_row(clean, tmp_path, damage, names):
+    """imu.csv taken as it is (--no-verify) with two rows swapped, or a time that is no number:
+    every reader takes the rows in time order, and shuffled they were read without a word (22 of
+    107 frames rejected).  One line naming the file and the first bad row, exit 2."""
+    root = tmp_path / "ds"
+    shutil.copytree(clean, root)
+    path = root / "seq_0000" / "imu.csv"
+    lines = path.read_text().splitlines()
+    if damage == "swap":  # data rows 3 and 4 (lines 4 and 5)
+        lines[3], lines[4] = lines[4], lines[3]
+    else:
+        cells = lines[3].split(",")
+        lines[3] = ",".join(["nan"] + cells[1:])
+    path.write_text("\n".join(lines) + "\n")
+    r = run_cli("localize", root, "--out", tmp_path / "est", "--quiet", "--no-verify")
+    assert_input_error(r, names)
+    assert "seq_0000/imu.csv" in r.stderr and not (tmp_path / "est" / "seq_0000").exists()
