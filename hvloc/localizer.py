@@ -793,11 +793,12 @@ class HierarchicalLocalizer:
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
                        + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
         est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
-        if clock:  # said in the reason, whatever the frame's status (DESIGN.md), after a failure's own
-            est.extras["clock"] = clock
-            est.reason = f"{est.reason}; {clock}" if est.reason else clock
-        if imu_why:
-            est.extras["imu"] = imu_why + ": vision alone"
+        # said in the reason too, whatever the frame's status (DESIGN.md for the clock), after a
+        # failure's own reasons: estimates.csv does not carry the extras
+        for key, note in (("clock", clock), ("imu", imu_why and imu_why + ": vision alone")):
+            if note:
+                est.extras[key] = note
+                est.reason = f"{est.reason}; {note}" if est.reason else note
         return est
 
     def _estimate(self, image, t: float, R_W_B, R_W_B_raw=None) -> Estimate:

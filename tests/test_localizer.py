@@ -801,6 +801,7 @@ def test_an_unusable_imu_sample_means_vision_alone(pad, imu):
         e = loc.process(img, 0.1 * k, imu)
         assert e.ok, e.reason
         assert "vision alone" in e.extras.get("imu", "")
+        assert e.reason.endswith(e.extras["imu"])  # said where estimates.csv shows it
         assert pose_error(e.cam2pad, G)[0] < 0.05
 
 
