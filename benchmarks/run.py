@@ -332,9 +332,7 @@ def score_dataset(root, results) -> dict:
         path = Path(results) / seq.id / "estimates.csv"
         if not path.is_file():
             raise InputError(f"{path}: missing (localize {root} into {results} first)")
-        est = read_estimates(path)
-        if len(est["frame"]) != len(seq):
-            raise InputError(f"{path}: {len(est['frame'])} frames, the dataset's {seq.id} has {len(seq)}")
+        est = read_estimates(path, seq.columns["frame"])
         fes.append(M.frame_errors(seq.columns, est))
         no_gt = int(sum(1 for p in seq.columns["phase_gt"] if p not in M.PHASES))
         if no_gt:
@@ -347,10 +345,43 @@ def score_dataset(root, results) -> dict:
     return {"summary": summary, "notes": notes}
 
 
-def read_estimates(path) -> dict:
+ESTIMATE_TEXT_COLUMNS = ("phase", "status", "method", "reason")
+ESTIMATE_REQUIRED = ("frame", "t", "status", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+STATUSES = ("ok", "rejected", "lost")
+
+
+def read_estimates(path, frames=None) -> dict:
+    """An ``estimates.csv`` as ``{column: array}``, or an :class:`InputError` naming the row and
+    column of what no localizer's output holds: a number that is not one, a status other than
+    ``ok``, ``rejected`` or ``lost``, an ``ok`` without a finite pose; with ``frames`` (the dataset's
+    ``frame`` column), rows that are not its frames in its order.  (A localizer from elsewhere
+    writes this file: a word in ``tx`` ended ``hvloc bench score`` in a traceback, and two rows
+    swapped, an unknown status or an ``ok`` without a pose were scored without a word, each frame
+    against another's labels or counted available.)"""
     from render.dataset import read_csv_columns
 
-    return read_csv_columns(Path(path))
+    path = Path(path)
+    c = read_csv_columns(path, ESTIMATE_TEXT_COLUMNS)
+    missing = [k for k in ESTIMATE_REQUIRED if k not in c]
+    if missing:
+        raise InputError(f"{path}: lacks columns {missing}")
+    bad = [k for k, s in enumerate(c["status"]) if s not in STATUSES]
+    if bad:
+        raise InputError(f"{path}: row {bad[0] + 2}'s status is {c['status'][bad[0]]!r}, not one of {', '.join(STATUSES)}")
+    pose = np.column_stack([c[k] for k in ESTIMATE_REQUIRED[3:]])
+    bad = np.nonzero((c["status"] == "ok") & ~np.isfinite(pose).all(axis=1))[0]
+    if len(bad):
+        raise InputError(f"{path}: row {bad[0] + 2} is ok without a finite pose (tx..qw)")
+    if frames is not None:
+        want = np.asarray(frames, np.float64)
+        if len(c["frame"]) != len(want):
+            raise InputError(f"{path}: {len(c['frame'])} frames, the dataset's sequence has {len(want)}")
+        bad = np.nonzero(c["frame"] != want)[0]
+        if len(bad):
+            k = int(bad[0])
+            raise InputError(f"{path}: row {k + 2} is frame {c['frame'][k]:g}, the dataset's row {k + 2} frame "
+                             f"{want[k]:g} (an estimate per frame, in the dataset's order)")
+    return c
 
 
 def localize_main(argv: list) -> int:

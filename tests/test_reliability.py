@@ -241,3 +241,43 @@ def test_imu_rows_out_of_time_order_are_refused_in_one_line_naming_the_row(clean
     r = run_cli("localize", root, "--out", tmp_path / "est", "--quiet", "--no-verify")
     assert_input_error(r, names)
     assert "seq_0000/imu.csv" in r.stderr and not (tmp_path / "est" / "seq_0000").exists()
+
+
+@pytest.mark.parametrize("damage,names", [
+    ("swap", "row 3 is frame 2, the dataset's row 3 frame 1"),
+    ("tx=abc", "column 'tx' holds 'abc', not a number"),
+    ("status=great", "row 3's status is 'great', not one of ok, rejected, lost"),
+    ("frame=77", "row 3 is frame 77"),
+    ("drop", "2 frames, the dataset's sequence has "),
+    ("ok without pose", "row 3 is ok without a finite pose"),
+])
+def test_a_localizers_estimates_no_localizer_writes_are_refused_by_score_naming_the_row(clean, tmp_path, damage,
+                                                                                          names):
+    """``hvloc bench score`` reads an estimates.csv that any localizer may have written.  A word
+    in a number's column ended it in a traceback; two rows swapped, a frame number that is not the
+    dataset's, an unknown status or an ``ok`` without a pose were scored without a word (each frame
+    against another's labels, or counted available).  Each is one line naming the file and row."""
+    from benchmarks.run import ESTIMATE_COLUMNS
+    from render.dataset import read_csv_columns, write_csv
+
+    root = tmp_path / "ds"
+    shutil.copytree(clean, root)
+    assert run_cli("localize", root, "--out", tmp_path / "est", "--quiet").returncode == 0
+    path = tmp_path / "est" / "seq_0000" / "estimates.csv"
+    c = read_csv_columns(path, ("phase", "status", "method", "reason"))
+    rows = [[c[k][i] for k in ESTIMATE_COLUMNS] for i in range(len(c["frame"]))]
+    assert len(rows) >= 3
+    col = {k: i for i, k in enumerate(ESTIMATE_COLUMNS)}
+    if damage == "swap":
+        rows[1], rows[2] = rows[2], rows[1]
+    elif damage == "drop":
+        rows = rows[:2]
+    elif damage == "ok without pose":
+        rows[1][col["status"]], rows[1][col["tx"]] = "ok", float("nan")
+    else:
+        key, value = damage.split("=")
+        rows[1][col[key]] = value
+    write_csv(path, ESTIMATE_COLUMNS, rows)
+    r = run_cli("bench", "score", root, tmp_path / "est")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert names in r.stderr and "seq_0000/estimates.csv" in r.stderr, r.stderr
