@@ -336,44 +336,6 @@ def files_differing(root: Path, files: dict) -> list:
 
 # ----------------------------------------------------------------------------- writer
 
-def _check_imu_times(t: np.ndarray, where) -> None:
-    """An :class:`InputError` naming the first row of an ``imu.csv`` whose time is not a number, or
-    goes back: every reader takes the rows in time order (the samples since a frame, the attitude
-    at one).  (Shuffled, they were read without a word, and 22 of 107 frames rejected.)"""
-    bad = np.nonzero(~np.isfinite(t))[0]
-    if len(bad):
-        raise InputError(f"{where}: row {bad[0] + 1}'s t is {t[bad[0]]}, not a time")
-    back = np.nonzero(np.diff(t) < 0)[0]
-    if len(back):
-        i = int(back[0]) + 1
-        raise InputError(f"{where}: t goes back at row {i + 1} ({t[i]:.6g} s after {t[i - 1]:.6g} s): the IMU's rows "
-                         "must be in time order")
-
-
-def _check_camera_info(camera: Camera, fps: float, T_B_C: np.ndarray, info: dict, where) -> None:
-    """An :class:`InputError` naming the field of a ``camera.json`` that no camera has: intrinsics
-    (as a calibration read in: :func:`render.calibration.check_intrinsics`), a rate, a mount that
-    is not a rigid transform, a shutter or clock offset that is not a number.  (A NaN in ``dist``
-    or a ``T_B_C`` scaled by 2 was read without a word, and every frame of the sequence lost or
-    rejected.)"""
-    from .calibration import check_intrinsics
-
-    check_intrinsics(camera, str(where))
-    if not (math.isfinite(fps) and fps > 0):
-        raise InputError(f"{where}: fps {fps} is not a frame rate")
-    R = T_B_C[:3, :3]
-    if not (np.isfinite(T_B_C).all() and np.abs(R @ R.T - np.eye(3)).max() < 1e-6 and np.linalg.det(R) > 0
-            and np.abs(T_B_C[3] - [0.0, 0.0, 0.0, 1.0]).max() < 1e-9):
-        raise InputError(f"{where}: T_B_C is not a rigid transform (a rotation and a translation): {T_B_C.tolist()}")
-    for key in ("exposure_s", "rolling_shutter_line_s", "imu_time_offset_s", "rolling_shutter_ref_row"):
-        v = info.get(key, 0.0)
-        if v is None and key == "exposure_s":  # (an imported flight's: not known)
-            continue
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)) or \
-                (key != "imu_time_offset_s" and v < 0):
-            raise InputError(f"{where}: {key} {v!r} is not a {'time' if key.endswith('_s') else 'row'}")
-
-
 class SequenceWriter:
     """Writes one sequence into a temporary folder; the renderer hands it named layers, and this
     alone decides what goes to disk (images are encoded on a background thread)."""
@@ -455,6 +417,44 @@ def interpolate_pose(times: np.ndarray, pose_of_frame, t: float) -> np.ndarray:
     A, B = pose_of_frame(k), pose_of_frame(min(k + 1, len(times) - 1))
     R = A[:3, :3] @ so3_exp(a * so3_log(A[:3, :3].T @ B[:3, :3]))
     return make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3])
+
+
+def _check_imu_times(t: np.ndarray, where) -> None:
+    """An :class:`InputError` naming the first row of an ``imu.csv`` whose time is not a number, or
+    goes back: every reader takes the rows in time order (the samples since a frame, the attitude
+    at one).  (Shuffled, they were read without a word, and 22 of 107 frames rejected.)"""
+    bad = np.nonzero(~np.isfinite(t))[0]
+    if len(bad):
+        raise InputError(f"{where}: row {bad[0] + 1}'s t is {t[bad[0]]}, not a time")
+    back = np.nonzero(np.diff(t) < 0)[0]
+    if len(back):
+        i = int(back[0]) + 1
+        raise InputError(f"{where}: t goes back at row {i + 1} ({t[i]:.6g} s after {t[i - 1]:.6g} s): the IMU's rows "
+                         "must be in time order")
+
+
+def _check_camera_info(camera: Camera, fps: float, T_B_C: np.ndarray, info: dict, where) -> None:
+    """An :class:`InputError` naming the field of a ``camera.json`` that no camera has: intrinsics
+    (as a calibration read in: :func:`render.calibration.check_intrinsics`), a rate, a mount that
+    is not a rigid transform, a shutter or clock offset that is not a number.  (A NaN in ``dist``
+    or a ``T_B_C`` scaled by 2 was read without a word, and every frame of the sequence lost or
+    rejected.)"""
+    from .calibration import check_intrinsics
+
+    check_intrinsics(camera, str(where))
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"{where}: fps {fps} is not a frame rate")
+    R = T_B_C[:3, :3]
+    if not (np.isfinite(T_B_C).all() and np.abs(R @ R.T - np.eye(3)).max() < 1e-6 and np.linalg.det(R) > 0
+            and np.abs(T_B_C[3] - [0.0, 0.0, 0.0, 1.0]).max() < 1e-9):
+        raise InputError(f"{where}: T_B_C is not a rigid transform (a rotation and a translation): {T_B_C.tolist()}")
+    for key in ("exposure_s", "rolling_shutter_line_s", "imu_time_offset_s", "rolling_shutter_ref_row"):
+        v = info.get(key, 0.0)
+        if v is None and key == "exposure_s":  # (an imported flight's: not known)
+            continue
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)) or \
+                (key != "imu_time_offset_s" and v < 0):
+            raise InputError(f"{where}: {key} {v!r} is not a {'time' if key.endswith('_s') else 'row'}")
 
 
 class Sequence:
