@@ -585,8 +585,10 @@ def corner_sigma_px(info: dict) -> np.ndarray:
     stretches in view meet, as many times more as the stretches' error grows out there
     (``px_sigma_scale``, per correspondence): whatever moved the lines, the smear too.  (unseen51's
     cut pad under 9.7 px of smear: a hidden corner 7 px out where its sides' corners in view were
-    3.8 px, 2.7 times less sure by its stretches, was stated 1.3 px with the smear's noise unscaled.)"""
-    return np.hypot(PIXEL_SIGMA, info.get("px_sigma_blur") or 0.0) * np.asarray(info.get("px_sigma_scale", 1.0))
+    3.8 px, 2.7 times less sure by its stretches, was stated 1.3 px with the smear's noise unscaled.)
+    A white field placed by a loose fit carries its lines' scatter (``px_sigma_field``)."""
+    base = math.hypot(PIXEL_SIGMA, info.get("px_sigma_blur") or 0.0, info.get("px_sigma_field") or 0.0)
+    return base * np.asarray(info.get("px_sigma_scale", 1.0))
 
 
 class FalsePoseGates:

@@ -89,6 +89,7 @@ class OutlineQuad:
     smear_px: float = 0.0  # how far motion smears its edges (px, in luma: :func:`_smear_near`)
     sigma_per_smear: float = CENTROID_SIGMA_PER_SMEAR  # a smear-placed corner's noise (px) per px of smear (:func:`_deblurred`)
     edge_fitted: bool = False  # its sides placed by an edge fit (no centroid, profile or hull): it holds to EDGE_FIT_SMEAR_PX
+    field_sigma_px: float = 0.0  # the noise field_px's corners carry beyond a found corner's (a loose fit's scatter)
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -246,7 +247,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     the coarse side fit knows the border is brighter than what lies beyond it (:func:`_fit_sides`)."""
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
-    field, edge = None, False
+    field, edge, field_noise = None, False, 0.0
     if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=EDGE_FIT_SMEAR_PX)):
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
@@ -346,7 +347,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         # the pad: unseen49's 76 px pads at 10 m through JPEG 55 under 3.3-3.8 px of smear, placed by
         # the border's fitted profile, were posed 2.4-2.9 % of the height off, by the field 0.7-0.9 %)
         if (smeared is None or reach) and field is None:
-            field, far, fitted, outside = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
+            field, far, fitted, outside, field_noise = _field_quad(f, refined - [bx0, by0], pad_geometry, cam_s)
             if field is None and not cut and outside > max(FIELD_OUTSIDE_PX, FIELD_OUTSIDE_SHARE * side_px):
                 return None, f"its white field lies {outside:.1f} px outside where its colour puts it"
             if (far or fitted is None) and not cut:
@@ -354,16 +355,17 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 # was out of the fit's reach: the field, found further in, says where the pad is
                 rescued = _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is not None:
-                    refined, field, smear = rescued[0] + [bx0, by0], rescued[1], None
+                    refined, field, smear, field_noise = rescued[0] + [bx0, by0], rescued[1], None, 0.0
                 elif far:
                     return None, "its colour swells past its white field"
     return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
-                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge)
+                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge,
+                         field_sigma=field_noise if field is not None else 0.0)
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
                   smear: float | None = None, fitted: np.ndarray | None = None,
-                  per_smear: float = CENTROID_SIGMA_PER_SMEAR, edge: bool = False) -> tuple:
+                  per_smear: float = CENTROID_SIGMA_PER_SMEAR, edge: bool = False, field_sigma: float = 0.0) -> tuple:
     """``(OutlineQuad | None, reason)`` of a quad found: the cue read, a hidden corner's noise scaled;
     ``smear``: the motion smear already read around it (read here when ``None``); ``fitted``: the
     stretch of each side its line was fitted on, when not all of it in view (:func:`_deblurred`);
@@ -377,7 +379,7 @@ def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px
         return None, "pad cut by the image's edge, a side of its hidden corner out of view"
     if smear is None:
         smear = _smear_near(rgb, refined, geo, camera, 12.0)[2]
-    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear, per_smear, edge), "ok"
+    return OutlineQuad(refined, cue, side_px, res, field, scale_sigma, smear, per_smear, edge, field_sigma), "ok"
 
 
 def _seen(px: np.ndarray, shape, visible=None) -> np.ndarray:
@@ -1071,6 +1073,7 @@ FIELD_FIT_ROUNDS = 3
 # patch of the border's hue beside a clean 45 px pad, 1.6 px (test_a_dark_patch_of_the_border_hue_...)
 FIELD_OUTSIDE_PX = 2.0
 FIELD_OUTSIDE_SHARE = 0.05
+LOOSE_FIELD_SURER = 3.0
 
 
 def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
@@ -1090,10 +1093,11 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     a pitched JPEG-70 scene): the largest corner error's median 1.68 -> 0.62 px, p90 3.71 -> 2.92 px
     on the JPEG frames; never used on the others.
 
-    Returns ``(corners or None, swollen past, the field's fit or None, outside px)``: the second says
-    the field fitted well but lies further inside than a corner's move may mend (the outline is then
-    suspect: :func:`_field_rescue`), the third is the field fitted, used or not, the fourth how far
-    its furthest corner lies outside the prediction (0 when inside, or with no clean fit)."""
+    Returns ``(corners or None, swollen past, the field's fit or None, outside px, noise px)``: the
+    second says the field fitted well but lies further inside than a corner's move may mend (the
+    outline is then suspect: :func:`_field_rescue`), the third is the field fitted, used or not, the
+    fourth how far its furthest corner lies outside the prediction (0 when inside, or with no clean
+    fit), the fifth the noise its corners carry beyond a found corner's (a loose fit's scatter)."""
     side_px = _mean_side(quad_px)
     # a field fitted less cleanly still says whether the outline swelled past it (a dark patch of
     # the border's hue beside the pad: its lines fit to 0.42 px, and the swollen outline went on)
@@ -1105,17 +1109,25 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
     got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), max_rms_px,
                      rounds=FIELD_FIT_ROUNDS, loose_rms_px=FIELD_SAYS_SWOLLEN_RMS_PX, refit_when=used)
     if got is None:
-        return None, False, None, 0.0
+        return None, False, None, 0.0, 0.0
     field, move, swollen, rms, guess = got
     far = bool(swollen and move > limit)
     if rms > max_rms_px:
         # too loose a fit to place the pad by, but it still says how far the colour swelled: more
         # than a corner's share the height may be off by is refused as far (the synthetic bleed of
         # test_a_pads_colour_bled_into_a_grey_deck: 3.2-3.5 px at 40-55 px, the pad 6-9 % large)
-        return None, far or bool(swollen and move > max(FIELD_OUTSIDE_PX, FIELD_OUTSIDE_SHARE * side_px)), None, 0.0
+        swelled = far or bool(swollen and move > max(FIELD_OUTSIDE_PX, FIELD_OUTSIDE_SHARE * side_px))
+        if not swelled and used(move, swollen) and move > LOOSE_FIELD_SURER * rms:
+            # loose as its fit is, the field on luma is surer than a colour outline swollen this far
+            # past it (more than LOOSE_FIELD_SURER of its lines' scatter): its corners, with that
+            # scatter as their noise.  (unseen64, a 0.6 m pad on a grey platform under a high sun,
+            # JPEG 60: at 13.5 m the outline's corners lay 2.4-2.8 px out on a 37 px pad, the loose
+            # field 1.8 px inside it, and the outline was posed 10.5 % of the height low, "ok")
+            return field, False, field, 0.0, rms
+        return None, swelled, None, 0.0, 0.0
     centre = guess.mean(axis=0)
     outside = float(np.max(np.linalg.norm(field - centre, axis=1) - np.linalg.norm(guess - centre, axis=1)))
-    return (field if used(move, swollen) else None), far, field, max(outside, 0.0)
+    return (field if used(move, swollen) else None), far, field, max(outside, 0.0), 0.0
 
 
 def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, reach_px: float,
@@ -1249,6 +1261,8 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
         info.update(corners_seen=int(np.sum(found.sigma_scale == 1.0)),
                     px_sigma_scale=[round(float(v), 3) for v in found.sigma_scale[order]])
     if found.field_px is not None:  # the colour edges are smeared: the field's luma edges instead
+        if found.field_sigma_px > 0:
+            info["px_sigma_field"] = round(float(found.field_sigma_px), 3)
         return Detection(pad_geometry.field_corners, found.field_px[order], "outline", {**info, "corners": "field"}), "ok"
     refined = refined[order]
     pts = pad_geometry.outer_corners
