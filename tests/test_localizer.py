@@ -2033,14 +2033,7 @@ def test_a_loosely_fitted_field_places_a_pad_whose_colour_swelled_past_it():
     the outline by more than three of its scatters, places the pad, its scatter added to its
     corners' noise: 4.0 % low, a sigma of 2.0 %.  Its neighbours are placed as before (a clean
     field, or an outline the field agrees with), 3.5-3.7 % low: the small pad's bias remains."""
-    from hvloc.phases import detect_outline
-
-    doc, views = _crop_views("loose_field_grey_platform", 96)
-    geo = make_pad(doc["pad_spec"]).geometry
-    for crop, cam, fr in views:
-        G = np.array(fr["cam2pad"])
-        det, why = detect_outline(crop, geo, cam, yaw_hint_corner0=cam.project_from(G, geo.outer_corners)[0])
-        assert det is not None, (fr["frame"], why)
+    for fr, G, cam, det in _named_by_labels("loose_field_grey_platform", 96):
         pose = solve_planar_pose(cam, det.pts_P, det.px, up_in_camera(G), sigma_px=corner_sigma_px(det.info))
         dz = (pose.cam2pad[2, 3] - G[2, 3]) / G[2, 3]
         loose = det.info.get("px_sigma_field")
@@ -2080,12 +2073,7 @@ def test_a_glossy_pad_washed_pale_by_glare_is_found(pad):
     pixels are taken at half that bar where nothing saturated is found (``GLARE_MIN_CHROMA``).
     The cue's yellow is washed too, so the corners are named from the labels here (the localizer
     names them from the last pose or the whole design); each pose within 3 % of the height."""
-    doc, views = _crop_views("glare_washed_pad", 128)
-    geo = make_pad(doc["pad_spec"]).geometry
-    for crop, cam, fr in views:
-        G = np.array(fr["cam2pad"])
-        det, why = detect_outline(crop, geo, cam, yaw_hint_corner0=cam.project_from(G, geo.outer_corners)[0])
-        assert det is not None, (fr["frame"], why)
+    for fr, G, cam, det in _named_by_labels("glare_washed_pad", 128):
         pose = solve_planar_pose(cam, det.pts_P, det.px, up_in_camera(G))
         assert pose_error(pose.cam2pad, G)[0] < 0.03 * fr["height_m"], (fr["frame"], pose_error(pose.cam2pad, G))
 
@@ -3383,6 +3371,21 @@ def _crop_views(name: str, size: int):
         views.append((np.ascontiguousarray(strip[:, size * i:size * (i + 1)]),
                       Camera(size, size, c["fx"], c["fy"], c["cx"], c["cy"], tuple(c["dist"])), fr))
     return doc, views
+
+
+def _named_by_labels(name: str, size: int):
+    """Each view of :func:`_crop_views` with its labelled pose and its outline found, the corners
+    named from the labels (a localizer names them from its last pose or the whole design):
+    ``(frame, cam2pad, camera, detection)``; every outline must be found."""
+    from hvloc.phases import detect_outline
+
+    doc, views = _crop_views(name, size)
+    geo = make_pad(doc["pad_spec"]).geometry
+    for crop, cam, fr in views:
+        G = np.array(fr["cam2pad"])
+        det, why = detect_outline(crop, geo, cam, yaw_hint_corner0=cam.project_from(G, geo.outer_corners)[0])
+        assert det is not None, (fr["frame"], why)
+        yield fr, G, cam, det
 
 
 def _far_pad_jpeg50():
