@@ -360,7 +360,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                     return None, "its colour swells past its white field"
     return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
                          None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge,
-                         field_sigma=field_noise if field is not None else 0.0)
+                         field_sigma=field_noise)
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
@@ -1117,7 +1117,7 @@ def _field_quad(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: 
         # than a corner's share the height may be off by is refused as far (the synthetic bleed of
         # test_a_pads_colour_bled_into_a_grey_deck: 3.2-3.5 px at 40-55 px, the pad 6-9 % large)
         swelled = far or bool(swollen and move > max(FIELD_OUTSIDE_PX, FIELD_OUTSIDE_SHARE * side_px))
-        if not swelled and used(move, swollen) and move > LOOSE_FIELD_SURER * rms:
+        if swollen and not swelled and move > max(move_px, LOOSE_FIELD_SURER * rms):
             # loose as its fit is, the field on luma is surer than a colour outline swollen this far
             # past it (more than LOOSE_FIELD_SURER of its lines' scatter): its corners, with that
             # scatter as their noise.  (unseen64, a 0.6 m pad on a grey platform under a high sun,

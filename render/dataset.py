@@ -419,10 +419,24 @@ def interpolate_pose(times: np.ndarray, pose_of_frame, t: float) -> np.ndarray:
     return make_transform(R, (1 - a) * A[:3, 3] + a * B[:3, 3])
 
 
+def read_imu_csv(path) -> tuple:
+    """``(rows (M, 11): t, gyro xyz, accel xyz, AHRS quaternion xyzw; all columns)`` of an
+    ``imu.csv`` (a dataset's, or one ``hvloc import`` takes in), or an :class:`InputError` naming
+    the columns it lacks or the first row whose time is not a number or goes back: every reader
+    takes the rows in time order (the samples since a frame, the attitude at one).  (Shuffled, a
+    dataset's were read without a word, and 22 of 107 frames rejected.)"""
+    from .imu import IMU_COLUMNS
+
+    cols = read_csv_columns(path, ())
+    missing = [c for c in IMU_COLUMNS if c not in cols]
+    if missing:
+        raise InputError(f"{path}: lacks the columns {missing} (hvloc's imu.csv: {', '.join(IMU_COLUMNS)})")
+    rows = np.column_stack([np.asarray(cols[k], np.float64) for k in IMU_COLUMNS])
+    _check_imu_times(rows[:, 0], path)
+    return rows, cols
+
+
 def _check_imu_times(t: np.ndarray, where) -> None:
-    """An :class:`InputError` naming the first row of an ``imu.csv`` whose time is not a number, or
-    goes back: every reader takes the rows in time order (the samples since a frame, the attitude
-    at one).  (Shuffled, they were read without a word, and 22 of 107 frames rejected.)"""
     bad = np.nonzero(~np.isfinite(t))[0]
     if len(bad):
         raise InputError(f"{where}: row {bad[0] + 1}'s t is {t[bad[0]]}, not a time")
@@ -514,15 +528,9 @@ class Sequence:
     def imu(self) -> np.ndarray:
         """``(M, 11)``: t, gyro xyz, accel xyz, AHRS quaternion xyzw."""
         if self._imu is None:
-            from .imu import IMU_BIAS_COLUMNS, IMU_COLUMNS
+            from .imu import IMU_BIAS_COLUMNS
 
-            cols = read_csv_columns(self.root / "imu.csv", ())
-            missing = [c for c in IMU_COLUMNS if c not in cols]
-            if missing:
-                raise InputError(f"{self.root / 'imu.csv'}: lacks columns {missing}")
-            imu = np.column_stack([cols[k] for k in IMU_COLUMNS])
-            _check_imu_times(imu[:, 0], self.root / "imu.csv")
-            self._imu = imu
+            self._imu, cols = read_imu_csv(self.root / "imu.csv")
             self._imu_bias = (np.column_stack([cols[k] for k in IMU_BIAS_COLUMNS])
                               if all(k in cols for k in IMU_BIAS_COLUMNS) else None)
         return self._imu

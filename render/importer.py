@@ -218,7 +218,6 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     from pad_design.spec import PadSpec
 
     from .calibration import read_calibration
-    from .imu import IMU_COLUMNS
     from .plan import pad_for
     from .spec import DatasetSpec, MountSpec
 
@@ -277,11 +276,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
                              f"miss every frame (0 to {t[-1]:.3f} s); see --gt-time-offset")
     imu_rows = []
     if imu is not None:
-        cols = ds.read_csv_columns(Path(imu), ())
-        missing = [c for c in IMU_COLUMNS if c not in cols]
-        if missing:
-            raise InputError(f"{imu}: lacks the columns {missing} (hvloc's imu.csv: {', '.join(IMU_COLUMNS)})")
-        imu_rows = np.column_stack([cols[c] for c in IMU_COLUMNS])
+        imu_rows = ds.read_imu_csv(Path(imu))[0]
         imu_rows[:, 0] -= zero
         if not np.all(np.isfinite(imu_rows)) or np.any(np.diff(imu_rows[:, 0]) <= 0):
             raise InputError(f"{imu}: values must be finite and times increasing")
