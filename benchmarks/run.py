@@ -46,11 +46,11 @@ def covariance_matrix(columns: dict, k: int) -> np.ndarray:
 def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
     """The latest IMU row at or before camera time ``t`` (the AHRS attitude a flight computer would
     have), read on the IMU's clock (``t + offset_s``: the sequence's ``imu_time_offset_s``, known as
-    a calibrated rig knows it); ``None`` for a recording without an IMU."""
-    if len(imu) == 0:
-        return None
-    j = int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1
-    return imu[max(j, 0)]
+    a calibrated rig knows it); ``None`` for a recording without an IMU, and for a frame before its
+    first row (an imported flight whose IMU log starts late): a flight computer has no attitude yet,
+    and the first row, from after the frame, is not one it could have had."""
+    j = int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1 if len(imu) else -1
+    return imu[j] if j >= 0 else None
 
 
 def ahrs_error_scaled(seq, scale: float) -> np.ndarray:
@@ -89,11 +89,11 @@ def imu_since(imu: np.ndarray, t_from: float | None, t: float, offset_s: float =
     """The IMU's rows after camera time ``t_from`` (the last frame's) up to ``t``, oldest first, as
     the localizer takes them (``process(image, t, imu)``: a block, the last row the one
     :func:`imu_at` gives); at most :data:`IMU_BLOCK_MAX_S` of them, at least that last row.
-    ``None`` for a recording without an IMU."""
-    if len(imu) == 0:
+    ``None`` where :func:`imu_at` gives none (no IMU, or no row yet at ``t``)."""
+    if imu_at(imu, t, offset_s) is None:
         return None
     stamps = imu[:, 0] - offset_s
-    j = max(int(np.searchsorted(stamps, t + 1e-9)) - 1, 0)
+    j = int(np.searchsorted(stamps, t + 1e-9)) - 1
     start = t - IMU_BLOCK_MAX_S if t_from is None else max(t_from, t - IMU_BLOCK_MAX_S)
     i = min(int(np.searchsorted(stamps, start + 1e-9)), j)
     return imu[i:j + 1]

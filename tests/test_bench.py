@@ -152,6 +152,24 @@ def test_availability_in_scope_counts_the_frames_a_pose_can_be_made_from():
     assert M.score(M.frame_errors(plain, est))["availability_in_scope"] == pytest.approx(3 / 6)
 
 
+def test_a_frame_before_the_imus_first_row_gets_no_row_from_after_it():
+    """An imported flight whose IMU log starts late: the frames before its first row are given no IMU
+    (a flight computer has no attitude yet), not that later row as if current; from its first row
+    on, each frame gets the rows since the frame before, the last at or before it (IMU clock 20 ms
+    ahead)."""
+    from benchmarks.run import imu_at, imu_since
+
+    imu = np.zeros((30, 11))
+    imu[:, 0] = 0.52 + 0.005 * np.arange(30)  # rows from 0.5 s on the camera's clock
+    imu[:, 10] = 1.0
+    for t in (0.0, 0.3, 0.499):
+        assert imu_at(imu, t, 0.02) is None and imu_since(imu, t - 0.1, t, 0.02) is None
+    assert imu_at(imu, 0.5, 0.02)[0] == 0.52
+    blk = imu_since(imu, 0.45, 0.6, 0.02)
+    assert np.allclose(blk[:, 0], imu[:21, 0]) and np.array_equal(blk[-1], imu_at(imu, 0.6, 0.02))
+    assert imu_at(np.zeros((0, 11)), 1.0) is None and imu_since(np.zeros((0, 11)), None, 1.0) is None
+
+
 def test_metrics_on_a_hand_made_case():
     from benchmarks import metrics as M
 
