@@ -981,14 +981,15 @@ class HierarchicalLocalizer:
         covariance counts the velocity it could have (:meth:`_velocity_unknown`).  And under a
         rolling shutter its covariance counts the gyro's rate as uncertain too (:meth:`_rate_spread`).
         ``shared_cov``: the part of its covariance the poses of ``shared_key`` share (a flow pose's
-        keyframe's), which the velocity filter is told apart (``extras["still_shared"]``)."""
+        keyframe's), which the velocity filter is told apart (``extras["still_shared"]``);
+        ``shared_key``: ``(key, parent)``, the key its own was renewed from or ``None``."""
         if not self.shutter.active:
             return pose
         pose = self._rate_spread(pose, pts_P, px, solve)
         if pose.cov is not None:  # what the velocity filter is told of the twin: the fit's doubt and the rate's
             extras["still_cov"] = pose.cov[:3, :3] - (0.0 if shared_cov is None else shared_cov[:3, :3])
             if shared_cov is not None:
-                extras["still_shared"] = (shared_key, shared_cov[:3, :3])
+                extras["still_shared"] = (shared_key[0], shared_cov[:3, :3], shared_key[1])
         return self._velocity_twin(pose, pts_P, px, solve, extras)
 
     def _velocity_twin(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
@@ -1212,7 +1213,8 @@ class HierarchicalLocalizer:
                     return ph.tracks_pose(self.camera, P, px, up_C, prior, self.flow.gravity_sigma)
 
                 res = self._smear_spread(res, P, seen, solve, self.flow.kf)
-                res = self._velocity_free(res, P, seen, solve, extras, self.flow.kf.cov, self.flow.kf.serial)
+                kf = self.flow.kf
+                res = self._velocity_free(res, P, seen, solve, extras, kf.cov, (kf.serial, kf.parent))
             return (res, n, extras), "ok"
         if method == "texture":
             det, why = None, ""

@@ -1812,6 +1812,7 @@ class Keyframe:
     cov: np.ndarray | None = None  # the keyframe pose's 6x6 covariance: every pose tracked from it inherits it
     tag: object = None    # the frame it was made from, as :class:`ImageWork` names frames
     serial: int = 0       # which of its tracker's keyframes it is (1, 2, ...): poses of one serial share its error
+    parent: int | None = None  # the serial of the keyframe whose tracked pose it was made from (a chained one), if any
     motion: object = None  # the hvloc.shutter.Twist the frame was exposed under, where known
     drawn: bool = False   # its pose was the smeared drawing's (hvloc.synthesis): a fallback, tried after the drawing
     # how far the IMU's gravity was off, at the least, where its anchoring pose's image fixed the
@@ -2098,10 +2099,13 @@ class FlowTracker:
         return self.kf is not None and self.prev_gray is not None
 
     def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None,
-               ahrs_off_deg: float | None = None) -> bool:
+               ahrs_off_deg: float | None = None, chained: bool = False) -> bool:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose; ``ahrs_off_deg``: how far that pose's image saw the
-        IMU's gravity off (:attr:`gravity_sigma`), by default the keyframe's it renews (0 for none)."""
+        IMU's gravity off (:attr:`gravity_sigma`), by default the keyframe's it renews (0 for none);
+        ``chained``: the pose was tracked from the current keyframe (its error carried in ``cov``),
+        which the new one names as its parent."""
+        parent = self.kf.serial if chained and self.kf is not None else None
         tag = self.work.frame if tag is None else tag
         if ahrs_off_deg is None:
             ahrs_off_deg = 0.0 if self.kf is None else self.kf.ahrs_off_deg
@@ -2121,7 +2125,7 @@ class FlowTracker:
                            unroll=self.unroll)
         if kf is None:
             return False
-        kf.tag, kf.ahrs_off_deg = tag, float(ahrs_off_deg)
+        kf.tag, kf.ahrs_off_deg, kf.parent = tag, float(ahrs_off_deg), parent
         self.keyframes += 1
         kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
@@ -2199,7 +2203,7 @@ class FlowTracker:
         self.frames_since_kf += 1
         n_ok = int(np.isfinite(px).all(axis=1).sum())
         if n_ok < max(self.min_tracks, 0.6 * len(self.kf.px)) or not self.reaches(cam2pad) or rms_px > 0.5:
-            if self.anchor(gray, cam2pad, anchored=False, cov=cov, tag=tag):
+            if self.anchor(gray, cam2pad, anchored=False, cov=cov, tag=tag, chained=True):
                 return
         self.tracks, self.prev_gray, self.prev_tag = px, gray, tag
 

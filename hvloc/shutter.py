@@ -83,6 +83,25 @@ ACCEL_BIAS_PRIOR_MPS2 = 0.2  # per axis: the IMU's acceleration error (its bias,
 ACCEL_BIAS_WALK = 0.02  # m/s^2 per sqrt(s): how fast that error drifts
 
 
+def _key_jump(S, S_old, chained: bool) -> np.ndarray:
+    """The covariance of the jump in a pose's shared error where its key changes from one of
+    covariance ``S_old`` to one of ``S`` (either ``None``: none shared): both, for keys whose errors
+    are unrelated; for a key renewed from a pose of the old one (``chained``), only what it adds
+    to it (``S - S_old``, its negative part dropped).
+
+    A chain of keyframes carries its first key's error in every later one.  Counted afresh at each
+    renewal, it cut the filter loose from the poses wherever the flow renewed its keyframe every
+    frame (a 5 Hz descent below 0.3 m: a keyframe's doubt of 20 mm, its poses 1-3 mm off); the
+    filter then ran on the IMU's accelerations alone, and a vibrating airframe's put the flow's
+    guess 60-180 px off (the airframe suite's a_slow_vibrating)."""
+    S = None if S is None else np.asarray(S, np.float64)[:3, :3]
+    S_old = None if S_old is None else np.asarray(S_old, np.float64)[:3, :3]
+    if chained and S is not None and S_old is not None:
+        w, V = np.linalg.eigh(0.5 * ((S - S_old) + (S - S_old).T))
+        return (V * np.clip(w, 0.0, None)) @ V.T
+    return sum((c for c in (S, S_old) if c is not None), np.zeros((3, 3)))
+
+
 class VelocityFilter:
     """The camera's position and velocity relative to the pad (pad frame), for the shutter's correction.
 
@@ -152,10 +171,14 @@ class VelocityFilter:
         rolling-shutter pose's velocity-free twin answers the velocity by its own solver's skew;
         ``None``: zero).  ``cov``: its own doubt; ``shared``: ``(key, covariance)`` of an error it
         shares with the poses of the same ``key`` (a flow pose's keyframe's): constant while the key
-        is, it moves the position alone where the key changes."""
+        is, it moves the position alone where the key changes.  ``(key, covariance, parent)``: a key
+        renewed from the pose of one of ``parent``'s (a chained keyframe): its error is that key's
+        and the pose's own, so where it follows ``parent`` the position jumps by the difference of
+        their covariances alone, not by both."""
         p = np.asarray(p, np.float64)
         R = np.asarray(cov, np.float64)[:3, :3]
-        key, S = shared
+        key, S = shared[:2]
+        parent = shared[2] if len(shared) > 2 else None
         M = np.zeros((3, 3)) if dv is None else np.asarray(dv, np.float64).reshape(3, 3)
         if not (np.isfinite(p).all() and np.isfinite(R).all() and (S is None or np.isfinite(S).all())
                 and np.isfinite(M).all()):
@@ -166,9 +189,7 @@ class VelocityFilter:
             _, x, P = self.pred
             if key is None or key != self.shared[0]:  # the shared error changed: the position jumps by it
                 P = P.copy()
-                for c in (S, self.shared[1]):
-                    if c is not None:
-                        P[:3, :3] += np.asarray(c, np.float64)[:3, :3]
+                P[:3, :3] += _key_jump(S, self.shared[1], parent is not None and parent == self.shared[0])
             PH = P @ H.T
             K = PH @ np.linalg.inv(H @ PH + R)
             x = x + K @ (p - H @ x)
