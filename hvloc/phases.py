@@ -1962,6 +1962,11 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
         fin = np.isfinite(g).all(axis=1)
         if fin.sum() >= 8:
             H, _ = cv2.findHomography(p0[fin, 0].astype(np.float64), g[fin].astype(np.float64), 0)
+        if H is not None:
+            shift = guess_shift(prev_gray, gray, H)
+            if shift is not None:
+                g = g + shift
+                H = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]], [0.0, 0.0, 1.0]]) @ H
         if H is not None and not _reshapes_patches(H, p0[fin, 0].mean(axis=0)):
             # LK starts where the prediction puts each feature, on the frame as it is: the patches
             # keep their shape, and a warp's interpolation would soften them (bench_v1's field1080,
@@ -1992,6 +1997,30 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     idx = np.nonzero(ok)[0]
     out[idx[good]] = p1[good, 0, :]
     return out
+
+
+SHIFT_MIN_PX = 16.0       # a guess's residual shift smaller than this is left to Lucas-Kanade's pyramid
+SHIFT_SIDE_PX = 256       # the phase correlation's images: the frames shrunk to about this many pixels a side
+SHIFT_MIN_RESPONSE = 0.08  # its peak's share of the correlation, at least (a repeated pattern's peaks share it)
+
+
+def guess_shift(prev_gray: np.ndarray, gray: np.ndarray, H: np.ndarray) -> np.ndarray | None:
+    """The shift ``(dx, dy)`` (px) by which ``gray`` lies off the guess ``H`` (the homography that
+    takes ``prev_gray`` to where the features are predicted in ``gray``), by phase correlation of the
+    two frames shrunk to :data:`SHIFT_SIDE_PX`; ``None`` where it is under :data:`SHIFT_MIN_PX` or
+    the correlation is not sure of it (:data:`SHIFT_MIN_RESPONSE`)."""
+    h, w = gray.shape[:2]
+    f = min(1.0, SHIFT_SIDE_PX / max(h, w))
+    S = np.diag([f, f, 1.0])
+    size = (max(int(round(w * f)), 16), max(int(round(h * f)), 16))
+    a = cv2.warpPerspective(cv2.resize(prev_gray, size, interpolation=cv2.INTER_AREA), S @ H @ np.linalg.inv(S),
+                            size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float32)
+    b = cv2.resize(gray, size, interpolation=cv2.INTER_AREA).astype(np.float32)
+    (dx, dy), response = cv2.phaseCorrelate(a, b, cv2.createHanningWindow(size, cv2.CV_32F))
+    d = np.array([dx, dy]) / f
+    if not (response >= SHIFT_MIN_RESPONSE and np.isfinite(d).all() and np.hypot(*d) >= SHIFT_MIN_PX):
+        return None
+    return d
 
 
 RESHAPE_SCALE = 1.1       # a predicted warp that scales patches more than this, or ...

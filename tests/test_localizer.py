@@ -733,6 +733,43 @@ def test_the_previous_frame_is_warped_to_the_guess_only_where_it_reshapes_patche
     assert _reshapes_patches(P, c) and _reshapes_patches(np.diag([1.0, 1.0, 0.0]), c)  # (w = 0: nothing to start from)
 
 
+@pytest.mark.parametrize("shift_mm", [(100.0, -60.0), (-70.0, 110.0)])
+def test_a_guess_far_off_sideways_is_found_again_by_the_frames_shift(pad, monkeypatch, shift_mm):
+    """Near the ground a guess a few millimetres off sideways is 100-200 px off, past Lucas-Kanade's
+    pyramid (a 5 Hz descent with a vibrating accelerometer: the velocity filter's guess 10-25 mm off
+    at 0.2 m, 60-180 px, the airframe suite's a_slow_vibrating lost 9 of 33 touchdown frames).  The
+    frames' shift after the guess, by phase correlation (``guess_shift``), moves the guess first:
+    the tracks land where the camera's move puts them.  Without it they are lost or wrong."""
+    import hvloc.phases as ph
+    from hvloc.geometry import invert, transform_points
+
+    G0 = tilted(0.02, -0.03, 0.4, 0.3, 0.02, -0.01)
+    G1 = G0.copy()
+    G1[:3, 3] += G0[:3, :3] @ np.array([shift_mm[0], shift_mm[1], -15.0]) / 1000.0  # 100-170 px sideways
+    g0 = cv2.cvtColor(warp_pad_view(pad, CAM, G0, GROUND), cv2.COLOR_RGB2GRAY)
+    g1 = cv2.cvtColor(warp_pad_view(pad, CAM, G1, GROUND), cv2.COLOR_RGB2GRAY)
+    kf = ph.make_keyframe(g0, G0, CAM, anchored=True)
+    truth = CAM.project(transform_points(invert(G1), kf.pts_P))
+    guess = CAM.project(transform_points(invert(G0), kf.pts_P))  # the camera guessed not to have moved sideways
+    d = ph.guess_shift(g0, g1, np.eye(3))
+    moved = np.median(truth - kf.px, axis=0)  # (the 4 % zoom of the descent about it: no one shift)
+    assert d is not None and np.linalg.norm(d - moved) < 0.1 * np.linalg.norm(moved), (d, moved)
+    assert ph.guess_shift(g0, g0, np.eye(3)) is None  # no shift: the guess left as it was
+
+    seen = np.all((truth > 12) & (truth < [CAM.width - 12, CAM.height - 12]), axis=1)  # still in view
+
+    def tracked():
+        px = ph.track_to_keyframe(kf, g0, kf.px, g1, 1.0, guess)[seen]
+        err = np.linalg.norm(px - truth[seen], axis=1)
+        return int(np.sum(err < 0.5)), int(np.sum(err >= 0.5))  # right, wrong (NaN: lost, neither)
+
+    right, wrong = tracked()
+    assert right >= 0.9 * seen.sum() and wrong <= 0.03 * seen.sum(), (right, wrong, seen.sum())
+    monkeypatch.setattr(ph, "SHIFT_MIN_PX", np.inf)
+    right, wrong = tracked()
+    assert right < 0.5 * seen.sum(), (right, wrong, seen.sum())
+
+
 def test_flow_only_needs_flow():
     with pytest.raises(ValueError, match="anchor_once"):
         LocalizerConfig(anchor_once=True, use_flow=False)
