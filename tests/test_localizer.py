@@ -697,6 +697,10 @@ def test_the_flow_follows_a_gusty_turn_over_the_pads_checker_by_the_ahrss_turn(p
             d = e.cam2pad[:3, 3] - G[:3, 3]
             assert np.linalg.norm(d) < 0.015 * G[2, 3], f"frame {k}: {np.linalg.norm(d) * 1000:.1f} mm off"
             assert d @ np.linalg.solve(e.cov[:3, :3], d) < 14.16, f"frame {k}: beyond 3 sigma"
+            # the velocity filter is told the keyframe's doubt apart, under a global shutter too
+            key, S = e.extras["still_shared"][:2]
+            assert key == loc.flow.kf.serial or loc.flow.kf.parent == key
+            assert np.allclose(e.extras["still_cov"] + S, e.cov[:3, :3])
             flows.append(k)
     assert len(flows) == 8
 
