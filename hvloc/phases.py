@@ -1948,7 +1948,8 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     started at the tracked positions), which keeps the error from accumulating.  ``guess_px``:
     where the features are predicted in ``gray`` (after dropped frames the motion, and near the
     ground the change of scale, exceed what LK's pyramid follows): the previous frame is first
-    warped by the homography that takes its features to their guesses.
+    warped by the homography that takes its features to their guesses; where the frame lies 16 px
+    or more off that warp (:func:`guess_shift`), every guess is moved by the shift first.
 
     Returns ``(px (N, 2) with NaN where lost)``."""
     out = np.full_like(prev_px, np.nan)
