@@ -49,8 +49,14 @@ def imu_at(imu: np.ndarray, t: float, offset_s: float = 0.0):
     a calibrated rig knows it); ``None`` for a recording without an IMU, and for a frame before its
     first row (an imported flight whose IMU log starts late): a flight computer has no attitude yet,
     and the first row, from after the frame, is not one it could have had."""
-    j = int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1 if len(imu) else -1
+    j = _last_row(imu, t, offset_s)
     return imu[j] if j >= 0 else None
+
+
+def _last_row(imu: np.ndarray, t: float, offset_s: float) -> int:
+    """The index of the IMU's last row at or before camera time ``t`` (its clock ``offset_s``
+    ahead), -1 where there is none: the one search :func:`imu_at` and :func:`imu_since` share."""
+    return int(np.searchsorted(imu[:, 0], t + offset_s + 1e-9)) - 1 if len(imu) else -1
 
 
 def ahrs_error_scaled(seq, scale: float) -> np.ndarray:
@@ -90,10 +96,10 @@ def imu_since(imu: np.ndarray, t_from: float | None, t: float, offset_s: float =
     the localizer takes them (``process(image, t, imu)``: a block, the last row the one
     :func:`imu_at` gives); at most :data:`IMU_BLOCK_MAX_S` of them, at least that last row.
     ``None`` where :func:`imu_at` gives none (no IMU, or no row yet at ``t``)."""
-    if imu_at(imu, t, offset_s) is None:
+    j = _last_row(imu, t, offset_s)
+    if j < 0:
         return None
     stamps = imu[:, 0] - offset_s
-    j = int(np.searchsorted(stamps, t + 1e-9)) - 1
     start = t - IMU_BLOCK_MAX_S if t_from is None else max(t_from, t - IMU_BLOCK_MAX_S)
     i = min(int(np.searchsorted(stamps, start + 1e-9)), j)
     return imu[i:j + 1]
