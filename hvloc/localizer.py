@@ -53,6 +53,12 @@ TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
 # smear read across one of them, and more than the edge fit holds to (:meth:`HierarchicalLocalizer._edge_fit_outrun`)
 EDGE_FIT_OUTRUN = 2.0
 TWIST_WINDOW_S = 0.45  # the shutter's velocity filter forgets after this long without a pose (the IMU's rows are kept as long)
+# a flow pose refused for its reprojection RMS under a rolling shutter is solved again with the velocity its rows'
+# skew asks for (:meth:`HierarchicalLocalizer._velocity_from_image`), when that velocity lies within this squared
+# Mahalanobis distance of the velocity filter's prediction (3 degrees of freedom, 99 %) ...
+SHUTTER_VELOCITY_SEARCH_CHI2 = 11.34
+SHUTTER_VELOCITY_SEARCH_PX = 1.0  # ... each track's pixel counted this far off (1 sigma) against that prediction
+SHUTTER_VELOCITY_SEARCH_STEPS = 3  # ... in this many Gauss-Newton steps (four solves each)
 
 
 def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
@@ -836,6 +842,7 @@ class HierarchicalLocalizer:
         # last of all, two markers named by the recent pose (:func:`phases._pair_by_prior`): only
         # where nothing else posed the frame (the flow tracker and a cut outline, where they hold,
         # are the better pose near the ground)
+        twist = self.twist  # the frame's (a flow pose may solve its own velocity: not kept if it is rejected)
         tries = [(m, False) for m in order] + ([("markers", True)] if "markers" in order and self.last is not None else [])
         for method, by_prior in tries:
             if not enabled[method]:
@@ -859,6 +866,7 @@ class HierarchicalLocalizer:
             verdict = self._gate(est, R_W_B)
             if verdict:
                 est.status, est.reason = "rejected", verdict
+                self.twist = twist
                 reasons.append(f"{method}: rejected, {verdict}")
                 rejected = rejected or est
                 continue
@@ -1010,6 +1018,65 @@ class HierarchicalLocalizer:
         sigma = SHUTTER_VELOCITY_DOUBT * speed / math.sqrt(3.0)  # per axis: SHUTTER_VELOCITY_DOUBT of it in all
         moved = pose.cam2pad[:3, 3] - extras["still_p"]  # what the velocity itself moved it by: its own axis's share
         return self._velocity_spread(pose, pts_P, px, solve, sigma, (tw.v_P / speed, moved * sigma / speed), extras)
+
+    def _velocity_from_image(self, pose: PoseResult, pts_P, px, solve):
+        """``(pose, pixels, twist)`` where ``pose`` (of the pixels ``px``, unrolled with the velocity
+        filter's prediction) fits worse than the reprojection gate allows under a rolling shutter and
+        a velocity within the prediction's doubt fits: the pose solved again with that velocity's
+        unrolling, those pixels, the frame's twist with it; else ``None``.
+
+        The filter's velocity is the IMU's integral since the last pose, and a vibrating IMU's is
+        50-90 mm/s off over 0.2 s (the airframe suite's 5 Hz camera, read in 29 ms, 2 m/s^2 of
+        vibration): unrolled with it, the rows of a frame at 0.15-0.2 m are skewed 10-20 px across
+        the tracks, the pose takes up part of it and the rest is a reprojection RMS of 3.1-3.7 px
+        for tracks that fit to under 1 px.  Those right poses (1.5-4.3 mm off) were refused, the
+        keyframe aged and the tracks ran out (8 of a_slow_vibrating's 33 touchdown frames).
+
+        The residuals are linear in the velocity's error: one solve for each principal axis of the
+        prediction's covariance (one sigma along it) gives their change, and the velocity that
+        minimises them, weighed against the prediction (:data:`SHUTTER_VELOCITY_SEARCH_PX` per track
+        coordinate against its covariance), is taken when it lies within
+        :data:`SHUTTER_VELOCITY_SEARCH_CHI2` of it and its solve passes the gate.  The image cannot
+        ask for more than the doubt allows: tracks off for any other reason (a slipped cell, a
+        wrong keyframe) are not skewed row by row as a velocity skews them, and stay refused.
+        Four solves, on refused poses only."""
+        tw, pred, gate = self.twist, self.vfilter.pred, self.config.max_reprojection_px
+        if (not self.shutter.active or tw is None or tw.v_P is None or pred is None or pose.cov is None
+                or not pose.rms_px > gate or len(px) < 4):
+            return None
+        lam, U = np.linalg.eigh(0.5 * (pred[2][3:6, 3:6] + pred[2][3:6, 3:6].T))
+        axes = U * np.sqrt(np.clip(lam, 0.0, None))  # columns: one sigma along each principal axis
+
+        def unrolled(v, at):
+            d = self.shutter.shift(self.camera, at.cam2pad, pts_P, px, Twist(v, None))
+            return np.where(np.isfinite(d), px - d, px)
+
+        def residuals(at, seen):
+            return (self.camera.project_from(at.cam2pad, pts_P) - seen).ravel()
+
+        a, at, seen = np.zeros(3), pose, px
+        for _ in range(SHUTTER_VELOCITY_SEARCH_STEPS):  # Gauss-Newton: the solve's weights move with its fit
+            r0 = residuals(at, seen)
+            J = np.empty((len(r0), 3))
+            for i in range(3):
+                moved = unrolled(axes @ (a + np.eye(3)[i]), at)
+                other = solve(moved)
+                if other is None:
+                    return None
+                J[:, i] = residuals(other, moved) - r0
+            if not (np.isfinite(J).all() and np.isfinite(r0).all()):
+                return None
+            # r(b) = r0 + J (b - a), weighed against the prediction (b = 0)
+            a = np.linalg.solve(J.T @ J + SHUTTER_VELOCITY_SEARCH_PX ** 2 * np.eye(3), J.T @ (J @ a - r0))
+            if float(a @ a) > SHUTTER_VELOCITY_SEARCH_CHI2:
+                return None
+            seen = unrolled(axes @ a, at)
+            at = solve(seen)
+            if at is None:
+                return None
+        if not at.rms_px <= gate:
+            return None
+        return at, seen, Twist(tw.v_P + axes @ a, tw.w_C)
 
     def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
@@ -1214,8 +1281,15 @@ class HierarchicalLocalizer:
                 def solve(px):
                     return ph.tracks_pose(self.camera, P, px, up_C, prior, self.flow.gravity_sigma)
 
-                res = self._smear_spread(res, P, seen, solve, self.flow.kf)
                 kf = self.flow.kf
+                found = self._velocity_from_image(res, P, seen, solve)
+                if found is not None:
+                    again, seen, self.twist = found
+                    res = replace(again, cov=again.cov + kf.cov if again.cov is not None and kf.cov is not None
+                                  else again.cov)
+                    self.flow.fitted = (P, seen)
+                    extras["velocity_from_image"] = self.twist.v_P.copy()
+                res = self._smear_spread(res, P, seen, solve, kf)
                 res = self._velocity_free(res, P, seen, solve, extras, kf.cov, (kf.serial, kf.parent))
             return (res, n, extras), "ok"
         if method == "texture":
