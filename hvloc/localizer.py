@@ -1032,14 +1032,16 @@ class HierarchicalLocalizer:
         for tracks that fit to under 1 px.  Those right poses (1.5-4.3 mm off) were refused, the
         keyframe aged and the tracks ran out (8 of a_slow_vibrating's 33 touchdown frames).
 
-        The residuals are linear in the velocity's error: one solve for each principal axis of the
-        prediction's covariance (one sigma along it) gives their change, and the velocity that
-        minimises them, weighed against the prediction (:data:`SHUTTER_VELOCITY_SEARCH_PX` per track
-        coordinate against its covariance), is taken when it lies within
-        :data:`SHUTTER_VELOCITY_SEARCH_CHI2` of it and its solve passes the gate.  The image cannot
-        ask for more than the doubt allows: tracks off for any other reason (a slipped cell, a
-        wrong keyframe) are not skewed row by row as a velocity skews them, and stay refused.
-        Four solves, on refused poses only."""
+        The residuals are nearly linear in the velocity's error: in each Gauss-Newton step one
+        solve for each principal axis of the prediction's covariance (one sigma along it) gives
+        their change, and the velocity that minimises them, weighed against the prediction
+        (:data:`SHUTTER_VELOCITY_SEARCH_PX` per track coordinate against its covariance), is solved
+        for; it is taken when it lies within :data:`SHUTTER_VELOCITY_SEARCH_CHI2` of the prediction
+        after :data:`SHUTTER_VELOCITY_SEARCH_STEPS` steps and its pose passes the gate.  The image
+        cannot ask for more than the doubt allows: tracks off for any other reason (a slipped cell,
+        a wrong keyframe) are not skewed row by row as a velocity skews them, and stay refused.
+        Along the optical axis a velocity's skew looks like a tilt, and the prediction keeps most
+        of it.  Twelve solves, on refused poses only."""
         tw, pred, gate = self.twist, self.vfilter.pred, self.config.max_reprojection_px
         if (not self.shutter.active or tw is None or tw.v_P is None or pred is None or pose.cov is None
                 or not pose.rms_px > gate or len(px) < 4):
@@ -1285,8 +1287,7 @@ class HierarchicalLocalizer:
                 found = self._velocity_from_image(res, P, seen, solve)
                 if found is not None:
                     again, seen, self.twist = found
-                    res = replace(again, cov=again.cov + kf.cov if again.cov is not None and kf.cov is not None
-                                  else again.cov)
+                    res = replace(again, cov=again.cov if again.cov is None or kf.cov is None else again.cov + kf.cov)
                     self.flow.fitted = (P, seen)
                     extras["velocity_from_image"] = self.twist.v_P.copy()
                 res = self._smear_spread(res, P, seen, solve, kf)
