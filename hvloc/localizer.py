@@ -58,7 +58,6 @@ TWIST_WINDOW_S = 0.45  # the shutter's velocity filter forgets after this long w
 # Mahalanobis distance of the velocity filter's prediction (3 degrees of freedom, 99 %) ...
 SHUTTER_VELOCITY_SEARCH_CHI2 = 11.34
 SHUTTER_VELOCITY_SEARCH_PX = 1.0  # ... each track's pixel counted this far off (1 sigma) against that prediction
-SHUTTER_VELOCITY_SEARCH_STEPS = 3  # ... in this many Gauss-Newton steps (four solves each)
 
 
 def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
@@ -1032,16 +1031,16 @@ class HierarchicalLocalizer:
         for tracks that fit to under 1 px.  Those right poses (1.5-4.3 mm off) were refused, the
         keyframe aged and the tracks ran out (8 of a_slow_vibrating's 33 touchdown frames).
 
-        The residuals are nearly linear in the velocity's error: in each Gauss-Newton step one
-        solve for each principal axis of the prediction's covariance (one sigma along it) gives
-        their change, and the velocity that minimises them, weighed against the prediction
-        (:data:`SHUTTER_VELOCITY_SEARCH_PX` per track coordinate against its covariance), is solved
-        for; it is taken when it lies within :data:`SHUTTER_VELOCITY_SEARCH_CHI2` of the prediction
-        after :data:`SHUTTER_VELOCITY_SEARCH_STEPS` steps and its pose passes the gate.  The image
-        cannot ask for more than the doubt allows: tracks off for any other reason (a slipped cell,
-        a wrong keyframe) are not skewed row by row as a velocity skews them, and stay refused.
-        Along the optical axis a velocity's skew looks like a tilt, and the prediction keeps most
-        of it.  Twelve solves, on refused poses only."""
+        The residuals are nearly linear in the velocity's error: one solve for each principal axis
+        of the prediction's covariance (one sigma along it) gives their change, and the velocity
+        that minimises them, weighed against the prediction (:data:`SHUTTER_VELOCITY_SEARCH_PX` per
+        track coordinate against its covariance), is taken when it lies within
+        :data:`SHUTTER_VELOCITY_SEARCH_CHI2` of the prediction and its pose passes the gate (one
+        Gauss-Newton step: more wandered along what the image barely sees, and were no closer).
+        The image cannot ask for more than the doubt allows: tracks off for any other reason (a
+        slipped cell, a wrong keyframe) are not skewed row by row as a velocity skews them, and
+        stay refused.  Along the optical axis a velocity's skew looks like a tilt, and the
+        prediction keeps most of it.  Four solves, on refused poses only."""
         tw, pred, gate = self.twist, self.vfilter.pred, self.config.max_reprojection_px
         if (not self.shutter.active or tw is None or tw.v_P is None or pred is None or pose.cov is None
                 or not pose.rms_px > gate or len(px) < 4):
@@ -1049,36 +1048,32 @@ class HierarchicalLocalizer:
         lam, U = np.linalg.eigh(0.5 * (pred[2][3:6, 3:6] + pred[2][3:6, 3:6].T))
         axes = U * np.sqrt(np.clip(lam, 0.0, None))  # columns: one sigma along each principal axis
 
-        def unrolled(v, at):
-            d = self.shutter.shift(self.camera, at.cam2pad, pts_P, px, Twist(v, None))
+        def unrolled(v):
+            d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(v, None))
             return np.where(np.isfinite(d), px - d, px)
 
         def residuals(at, seen):
             return (self.camera.project_from(at.cam2pad, pts_P) - seen).ravel()
 
-        a, at, seen = np.zeros(3), pose, px
-        for _ in range(SHUTTER_VELOCITY_SEARCH_STEPS):  # Gauss-Newton: the solve's weights move with its fit
-            r0 = residuals(at, seen)
-            J = np.empty((len(r0), 3))
-            for i in range(3):
-                moved = unrolled(axes @ (a + np.eye(3)[i]), at)
-                other = solve(moved)
-                if other is None:
-                    return None
-                J[:, i] = residuals(other, moved) - r0
-            if not (np.isfinite(J).all() and np.isfinite(r0).all()):
+        r0 = residuals(pose, px)
+        J = np.empty((len(r0), 3))
+        for i in range(3):
+            moved = unrolled(axes[:, i])
+            other = solve(moved)
+            if other is None:
                 return None
-            # r(b) = r0 + J (b - a), weighed against the prediction (b = 0)
-            a = np.linalg.solve(J.T @ J + SHUTTER_VELOCITY_SEARCH_PX ** 2 * np.eye(3), J.T @ (J @ a - r0))
-            if float(a @ a) > SHUTTER_VELOCITY_SEARCH_CHI2:
-                return None
-            seen = unrolled(axes @ a, at)
-            at = solve(seen)
-            if at is None:
-                return None
-        if not at.rms_px <= gate:
+            J[:, i] = residuals(other, moved) - r0
+        if not (np.isfinite(J).all() and np.isfinite(r0).all()):
             return None
-        return at, seen, Twist(tw.v_P + axes @ a, tw.w_C)
+        # r(a) = r0 + J a, weighed against the prediction (a = 0)
+        a = -np.linalg.solve(J.T @ J + SHUTTER_VELOCITY_SEARCH_PX ** 2 * np.eye(3), J.T @ r0)
+        if float(a @ a) > SHUTTER_VELOCITY_SEARCH_CHI2:
+            return None
+        seen = unrolled(axes @ a)
+        again = solve(seen)
+        if again is None or not again.rms_px <= gate:
+            return None
+        return again, seen, Twist(tw.v_P + axes @ a, tw.w_C)
 
     def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
