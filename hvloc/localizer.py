@@ -1041,16 +1041,14 @@ class HierarchicalLocalizer:
         slipped cell, a wrong keyframe) are not skewed row by row as a velocity skews them, and
         stay refused.  Along the optical axis a velocity's skew looks like a tilt, and the
         prediction keeps most of it.  Four solves, on refused poses only."""
-        tw, pred, gate = self.twist, self.vfilter.pred, self.config.max_reprojection_px
-        if (not self.shutter.active or tw is None or tw.v_P is None or pred is None or pose.cov is None
-                or not pose.rms_px > gate or len(px) < 4):
+        tw, S, gate = self.twist, self.vfilter.velocity_cov, self.config.max_reprojection_px
+        if not self.shutter.active or tw is None or tw.v_P is None or S is None or not pose.rms_px > gate:
             return None
-        lam, U = np.linalg.eigh(0.5 * (pred[2][3:6, 3:6] + pred[2][3:6, 3:6].T))
+        lam, U = np.linalg.eigh(S)
         axes = U * np.sqrt(np.clip(lam, 0.0, None))  # columns: one sigma along each principal axis
 
         def unrolled(v):
-            d = self.shutter.shift(self.camera, pose.cam2pad, pts_P, px, Twist(v, None))
-            return np.where(np.isfinite(d), px - d, px)
+            return self.shutter.unrolled(self.camera, pose.cam2pad, pts_P, px, Twist(v, None))
 
         def residuals(at, seen):
             return (self.camera.project_from(at.cam2pad, pts_P) - seen).ravel()
@@ -1282,8 +1280,7 @@ class HierarchicalLocalizer:
                 found = self._velocity_from_image(res, P, seen, solve)
                 if found is not None:
                     again, seen, self.twist = found
-                    res = replace(again, cov=again.cov if again.cov is None or kf.cov is None else again.cov + kf.cov)
-                    self.flow.fitted = (P, seen)
+                    res = self.flow.fitted_pose(again, P, seen)
                     extras["velocity_from_image"] = self.twist.v_P.copy()
                 res = self._smear_spread(res, P, seen, solve, kf)
                 res = self._velocity_free(res, P, seen, solve, extras, kf.cov, (kf.serial, kf.parent))

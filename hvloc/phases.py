@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -2200,12 +2200,21 @@ class FlowTracker:
             again = self._posed_tracks(px, res.cam2pad, prior_cam2pad, up_C)
             if again[0] is not None:
                 res, inl, why, seen = again
-        self.fitted = (kf.pts_P[inl], seen[inl]) if res is not None else None  # what the pose was fitted to
-        if res is not None and kf.cov is not None:
-            # the pad points were placed with the keyframe's pose: its error is in every tracked pose
-            # (to first order, the keyframe and this frame look the same way: turn < 8 deg)
-            res.cov = res.cov + kf.cov
+        self.fitted = None
+        if res is not None:
+            res = self.fitted_pose(res, kf.pts_P[inl], seen[inl])
         return res, int(inl.sum()), why
+
+    def fitted_pose(self, res, pts_P, seen):
+        """``res``, the pose the keyframe's points ``pts_P`` give at the pixels ``seen`` (unrolled
+        where the shutter rolls), as the tracker states it: those are what it was fitted to
+        (:attr:`fitted`), and the pad points were placed with the keyframe's pose, so its error is
+        in every tracked pose (to first order, the keyframe and this frame look the same way: turn
+        < 8 deg).  A copy: ``res`` may be shared image work."""
+        self.fitted = (pts_P, seen)
+        if res.cov is None or self.kf.cov is None:
+            return res
+        return replace(res, cov=res.cov + self.kf.cov)
 
     def _posed_tracks(self, px, at_cam2pad, prior_cam2pad, up_C) -> tuple:
         """``(PoseResult | None, inliers, reason, the pixels fitted)``: the keyframe's tracks ``px``

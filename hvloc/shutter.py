@@ -166,6 +166,11 @@ class VelocityFilter:
     def velocity(self) -> np.ndarray | None:
         return self.pred[1][3:6].copy() if self.pred is not None and self.n >= 2 else None
 
+    @property
+    def velocity_cov(self) -> np.ndarray | None:
+        """``(3, 3)``: how far :attr:`velocity` may be off (the prediction's covariance), where it is given."""
+        return self.pred[2][3:6, 3:6].copy() if self.pred is not None and self.n >= 2 else None
+
     def update(self, t: float, p, cov, shared=(None, None), dv=None) -> None:
         """``p``: a position measured as ``p = position - dv @ velocity`` (``dv``, 3x3, m per m/s: a
         rolling-shutter pose's velocity-free twin answers the velocity by its own solver's skew;

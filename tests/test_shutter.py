@@ -686,7 +686,7 @@ def test_a_flow_pose_refused_for_a_velocity_off_within_its_doubt_is_solved_with_
         loc.twist = Twist(np.asarray(v_pred, np.float64), None)
         Pv = np.eye(9)
         Pv[3:6, 3:6] = sigma_mps ** 2 * np.eye(3)
-        loc.vfilter.pred = (0.0, np.zeros(9), Pv)
+        loc.vfilter.pred, loc.vfilter.n = (0.0, np.zeros(9), Pv), 2  # a filter with two poses in
         seen = loc._unrolled(px, T, P)
         pose = solve(seen)
         return pose, loc._velocity_from_image(pose, P, seen, solve)
