@@ -99,9 +99,8 @@ def imu_since(imu: np.ndarray, t_from: float | None, t: float, offset_s: float =
     j = _last_row(imu, t, offset_s)
     if j < 0:
         return None
-    stamps = imu[:, 0] - offset_s
     start = t - IMU_BLOCK_MAX_S if t_from is None else max(t_from, t - IMU_BLOCK_MAX_S)
-    i = min(int(np.searchsorted(stamps, start + 1e-9)), j)
+    i = min(int(np.searchsorted(imu[:, 0], start + offset_s + 1e-9)), j)  # on the IMU's clock, as _last_row
     return imu[i:j + 1]
 
 
