@@ -44,6 +44,36 @@ def phase_table(summary: dict, dataset: str | None = None) -> str:
     return "\n".join(lines)
 
 
+def glance_table(summary: dict, datasets: list) -> str:
+    """Markdown rows, one per localizer and dataset, the weakest first (availability in scope,
+    then false accepts): what a suite of many conditions shows at a glance, each dataset's own
+    phase tables below it.  "in scope" is over the frames in touchdown or showing the pad whole or
+    two markers; a phase's column is its availability in scope."""
+    lines = ["| dataset | localizer | frames | in scope | approaching | adjustment | touchdown | false accepts | "
+             "appr. pos median % h | adj. pos RMSE mm | td. pos RMSE mm | beyond cov 3 sigma | longest gap s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    rows = []
+    for loc, s in summary.items():
+        for d in datasets:
+            a = s.get(f"{d}/all", {})
+            if not a.get("frames"):
+                continue
+            ph = {p: s.get(f"{d}/gt:{p}", {}) for p in M.PHASES}
+            key = (loc, a.get("availability_in_scope") if a.get("availability_in_scope") is not None else 2.0,
+                   -(a.get("false_accepts") or 0))
+            rows.append((key, "| " + " | ".join([
+                f"`{d}`", loc, str(a["frames"]), _f(a.get("availability_in_scope"), 100, "{:.1f} %"),
+                *(_f(ph[p].get("availability_in_scope") if ph[p].get("frames") else None, 100, "{:.1f} %")
+                  for p in M.PHASES),
+                str(a["false_accepts"] if a.get("false_accepts") is not None else "-"),
+                _f(ph["approaching"].get("pos_err_pct_median"), 1, "{:.2f}"),
+                _f(ph["adjustment"].get("pos_err_m_rmse"), 1000), _f(ph["touchdown"].get("pos_err_m_rmse"), 1000),
+                _f(a.get("beyond_cov_3sigma"), 100, "{:.1f} %"), _f(a.get("longest_gap_s"), 1, "{:.2f}")]) + " |"))
+    order = {loc: i for i, loc in enumerate(summary)}
+    rows.sort(key=lambda r: (order[r[0][0]], r[0][1], r[0][2]))
+    return "\n".join(lines + [r[1] for r in rows])
+
+
 def write_report(out: Path, results: dict, fes_by_loc: dict, data_root: Path) -> Path:
     import matplotlib
 
@@ -72,7 +102,8 @@ def write_report(out: Path, results: dict, fes_by_loc: dict, data_root: Path) ->
             md += [f"### tier `{tier}`", "", phase_table(results["summary"], f"tier:{tier}"), ""]
     datasets = sorted({d for s in results["summary"].values() for d in s.get("datasets", [])})
     if len(datasets) > 1:
-        md += ["## Per dataset", ""]
+        md += ["## Per dataset", "", "The weakest first (availability in scope, then false accepts); each dataset's "
+               "phase table follows.", "", glance_table(results["summary"], datasets), ""]
         for d in datasets:
             md += [f"### `{d}`", "", phase_table(results["summary"], d), ""]
     # error vs height and availability per phase, one figure per localizer

@@ -542,12 +542,34 @@ def test_report_gives_every_tier_its_own_table(tmp_path):
         a = res[f"tier:{tier}/all"]
         assert f"| hierarchical | all | {a['frames']} | {100 * a['availability']:.1f} % |" in section
     assert res["tier:nominal/all"]["frames"] + res["tier:hard/all"]["frames"] == res["all"]["frames"]
+    glance = report.split("## Per dataset", 1)[1].split("###", 1)[0]  # one row per dataset, before their tables
+    for d in res["datasets"]:
+        a = res[f"{d}/all"]
+        assert f"| `{d}` | hierarchical | {a['frames']} | {100 * a['availability_in_scope']:.1f} % |" in glance
     from benchmarks.leaderboard import build, markdown  # the leaderboard too
     from benchmarks.suite import load_results
 
     lb = markdown(build(load_results(tmp_path / "o")))
     section = lb.split("### `hard`", 1)[1].split("###", 1)[0]
     assert f"| hierarchical | {100 * res['tier:hard/all']['availability']:.1f} [" in section
+
+
+def test_report_glance_puts_the_weakest_dataset_first_and_reads_each_phase_in_scope():
+    from benchmarks.report import glance_table
+
+    def scope(frames, avail, fa=0, **more):
+        return {"frames": frames, "availability_in_scope": avail, "false_accepts": fa, **more}
+
+    s = {"hierarchical": {
+        "easy/all": scope(100, 1.0), "easy/gt:approaching": scope(60, 1.0, pos_err_pct_median=0.4),
+        "easy/gt:adjustment": scope(30, 1.0, pos_err_m_rmse=0.012), "easy/gt:touchdown": scope(10, 1.0, pos_err_m_rmse=0.001),
+        "hard/all": scope(80, 0.9, 2), "hard/gt:approaching": scope(50, 0.84, 2), "hard/gt:adjustment": scope(30, 1.0),
+        "tie/all": scope(80, 0.9, 5), "tie/gt:approaching": scope(80, 0.9, 5),
+        "gone/all": {"frames": 0}}}
+    rows = [r for r in glance_table(s, ["easy", "gone", "hard", "tie"]).splitlines()[2:]]
+    assert [r.split(" | ")[0] for r in rows] == ["| `tie`", "| `hard`", "| `easy`"]  # a dataset with no frames has no row
+    assert rows[1].split(" | ")[3:8] == ["90.0 %", "84.0 %", "100.0 %", "-", "2"]  # no touchdown frames: "-"
+    assert rows[2].split(" | ")[8:11] == ["0.40", "12.0", "1.0"]
 
 
 def test_suite_pads_render_the_same_descents_with_each_pad(tmp_path):
