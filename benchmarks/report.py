@@ -102,8 +102,8 @@ def write_report(out: Path, results: dict, fes_by_loc: dict, data_root: Path) ->
             md += [f"### tier `{tier}`", "", phase_table(results["summary"], f"tier:{tier}"), ""]
     datasets = sorted({d for s in results["summary"].values() for d in s.get("datasets", [])})
     if len(datasets) > 1:
-        md += ["## Per dataset", "", "The weakest first (availability in scope, then false accepts); each dataset's "
-               "phase table follows.", "", glance_table(results["summary"], datasets), ""]
+        md += ["## Per dataset", "", "One row per localizer and dataset, each localizer's weakest dataset first (availability "
+               "in scope, then false accepts); each dataset's phase table follows.", "", glance_table(results["summary"], datasets), ""]
         for d in datasets:
             md += [f"### `{d}`", "", phase_table(results["summary"], d), ""]
     # error vs height and availability per phase, one figure per localizer
