@@ -195,6 +195,31 @@ def test_keyframe_corners_are_found_in_shadow_beside_a_sunlit_strip(pad):
         flow.accept(res.cam2pad, res.rms_px)
 
 
+def test_masked_harris_corners_read_only_the_masks_box_and_are_the_whole_frames(pad):
+    """A mask's corners are read on its box (and a margin), not the whole frame: a 4K frame costs
+    150-190 ms whole.  They must be the corners the whole frame gives under that mask: the same
+    pixels and the same strongest response (the cells' floor is judged against it), for masks
+    at the frame's edges and inside it, and none for an empty mask."""
+    from hvloc.phases import HARRIS_QUALITY, _strongest, harris_corners
+
+    cam = Camera.from_hfov(640, 480, math.radians(60))
+    g = cv2.cvtColor(warp_pad_view(pad, cam, tilted(0.02, -0.01, 0.35, 0.4), GROUND), cv2.COLOR_RGB2GRAY)
+    rng = np.random.default_rng(5)
+    for x0, y0, x1, y1 in [(0, 0, 200, 150), (440, 330, 640, 480), (120, 90, 420, 300), (300, 0, 310, 480),
+                           *[tuple(rng.integers([0, 0, 330, 250], [300, 230, 640, 480])) for _ in range(6)]]:
+        mask = np.zeros_like(g)
+        mask[y0:y1, x0:x1] = 255
+        mask[(y0 + y1) // 2, x0:x1] = 0  # (not a plain box)
+        whole, q = cv2.goodFeaturesToTrackWithQuality(g, 150, HARRIS_QUALITY, 8, mask, blockSize=5,
+                                                      useHarrisDetector=True, k=0.04)
+        px, top = _strongest(g, 150, mask)
+        assert len(px) == len(whole) > 0
+        assert np.abs(px - whole.reshape(-1, 2)).max() == 0.0, (x0, y0, x1, y1)
+        assert abs(top - float(np.max(q))) <= 1e-6 * float(np.max(q))
+        assert (mask[px[:, 1].astype(int), px[:, 0].astype(int)] > 0).all()
+    assert harris_corners(g, mask=np.zeros_like(g)) is None
+
+
 def _raised_pad_view(pad, cam, G, raise_m, ground_tex, tex_m):
     """``G``'s view of the pad lying ``raise_m`` above strongly textured ground (``ground_tex``
     spans ``tex_m`` metres about the pad's centre): each pixel's ray meets the pad's plane, and
