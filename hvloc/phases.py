@@ -1885,7 +1885,7 @@ def _cell_corners(g: np.ndarray, max_corners: int, mask: np.ndarray | None, cell
     x, y, w, h = cv2.boundingRect(mask) if mask is not None else (0, 0, W, H)
     rows = np.linspace(y, y + h, cells + 1).astype(int)
     cols = np.linspace(x, x + w, cells + 1).astype(int)
-    found, pad = [], 8  # (each cell read with a margin: the response's window reaches beyond it)
+    found, pad = [], HARRIS_MARGIN_PX  # (each cell read with the margin the response's window needs, as _strongest reads a mask's box)
     for y0, y1 in zip(rows[:-1], rows[1:]):
         for x0, x1 in zip(cols[:-1], cols[1:]):
             if y1 <= y0 or x1 <= x0:
