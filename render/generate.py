@@ -41,7 +41,7 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
         info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
                      "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
                      "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
-                     "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate,
+                     "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate, "mono": cam.mono,
                      "conventions": r.camera.conventions})
         plan = r.plan
         meta = {"sequence": sid, "index": index, "seed": plan.seed, "dataset_seed": spec.seed, "family": plan.family,

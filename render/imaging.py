@@ -19,6 +19,7 @@ from hvloc.geometry import Camera
 
 SRGB_GAMMA = 2.2
 WHITE_LEVEL = 0.85  # auto-exposure: a sunlit white horizontal surface lands here (linear)
+MONO_RESPONSE = np.array([0.2126, 0.7152, 0.0722], np.float32)  # a mono sensor's weights of linear R, G, B
 SRGB_TO_LINEAR = ((np.arange(256, dtype=np.float32) / 255.0) ** SRGB_GAMMA).astype(np.float32)
 
 
@@ -35,6 +36,7 @@ class ImagingParams:
     sharpen: float = 0.0
     vignetting: float = 0.0
     chromatic_aberration_px: float = 0.0
+    mono: bool = False  # a monochrome sensor: one channel (written as grey RGB, R = G = B)
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -157,6 +159,9 @@ class ImageFormation:
         ``exposure`` scales the sequence's gain (auto exposure).  ``linear`` is consumed."""
         p = self.params
         x = self.optics(linear)
+        if p.mono:  # no colour filter: the sensor sums the light (its response taken as the eye's, Rec. 709),
+            # one noise draw per pixel, a grey tone curve and a grey JPEG (no chroma to subsample)
+            x = cv2.transform(x, MONO_RESPONSE[None])
         x *= np.float32(self.gain * exposure)
         if p.defocus_sigma_px > 0.05:
             k = int(2 * round(3 * p.defocus_sigma_px) + 1)
@@ -178,6 +183,11 @@ class ImageFormation:
         out = cv2.convertScaleAbs(disp, alpha=255.0)  # rounds to the nearest level, saturates at 0 and 255
         if p.jpeg_quality:
             q = [cv2.IMWRITE_JPEG_QUALITY, int(p.jpeg_quality)]
-            out = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), q)[1],
-                                            cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+            if p.mono:
+                out = cv2.imdecode(cv2.imencode(".jpg", out, q)[1], cv2.IMREAD_GRAYSCALE)
+            else:
+                out = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR), q)[1],
+                                                cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        if p.mono:  # DESIGN.md's frames are RGB: a grey frame is written with R = G = B
+            out = cv2.cvtColor(out, cv2.COLOR_GRAY2RGB)
         return out

@@ -145,7 +145,7 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     u = lambda r: float(r2.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731
     imaging = ImagingParams(u(d.exposure_gain), u(d.gamma), u(d.defocus_sigma_px), u(d.shot_noise),
                             u(d.read_noise), d.jpeg_quality, u(d.sharpen), u(cam.vignetting),
-                            u(cam.chromatic_aberration_px))
+                            u(cam.chromatic_aberration_px), cam.mono)
     n = int(math.floor(traj.duration * cam.fps + 1e-9)) + 1
     times = np.arange(n) / cam.fps
     imu = synthesize_imu(traj, spec.imu, np.random.default_rng(rng.integers(2**63)), times[-1])

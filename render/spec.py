@@ -146,6 +146,8 @@ class CameraSpec(_Model):
                                     "off with the square of the distance from the centre)")
     chromatic_aberration_px: NonNegRange = Field((0.0, 0.0), description="lateral chromatic aberration: red and "
                                                  "blue displaced by this much, outward and inward, at the corners")
+    mono: bool = Field(False, description="a monochrome sensor (no colour filter array): one channel, the linear "
+                       "light summed with Rec. 709's weights, written as grey RGB (R = G = B); its JPEG is grey")
     auto_exposure_lag_s: float | None = Field(None, gt=0.0, description="auto exposure: the gain follows the scene's "
                                               "brightness with this time constant (None: fixed exposure)")
     mount: MountSpec = MountSpec()

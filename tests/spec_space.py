@@ -88,6 +88,7 @@ FIELDS = {
     "camera.rolling_shutter_line_s": (_choice([0.0, 0.0, 3e-5]), 4e-5, {"trajectory.yaw_change_deg": [300.0, 300.0]}),
     "camera.vignetting": (_rng_range(0.0, 0.4), [0.4, 0.4], {}),
     "camera.chromatic_aberration_px": (_rng_range(0.0, 1.0), [1.5, 1.5], {"camera.width": 160, "camera.height": 160}),
+    "camera.mono": (_choice([False, False, True]), True, {}),
     "camera.auto_exposure_lag_s": (_choice([None, 0.3]), 0.4, {}),
     "camera.frame_time_jitter_s": (_choice([0.0, 0.0, 0.02]), 0.05, {}),
     "camera.frame_drop_rate": (_choice([0.0, 0.0, 0.2]), 0.3, {}),

@@ -457,6 +457,42 @@ def test_a_box_shadow_across_a_pad_on_the_ground_darkens_it_evenly(tmp_path):
     assert np.percentile(ratio, 95) - np.percentile(ratio, 5) < 0.15, np.percentile(ratio, [5, 50, 95])
 
 
+def test_a_mono_camera_sums_the_light_its_colour_twin_sees(tmp_path):
+    """``camera.mono``: no colour filter, so each pixel is the scene's light summed with Rec. 709's
+    weights before the tone curve (not a grey conversion of the finished colour frame), written as
+    grey RGB; its JPEG is grey too.  Same scene, same draws: the mono frame is the colour frame's
+    linear channels weighted, through the sequence's own tone curve, within a level's rounding."""
+    from render.imaging import MONO_RESPONSE, SRGB_GAMMA
+
+    spec = {"name": "grey", "seed": 9, "sequences": 1, "pad_ppm": 500,
+            "camera": {"width": 96, "height": 96, "fps": 2, "vignetting": [0.3, 0.3]},
+            "trajectory": {"start_height_m": 3.0, "duration_s": [2.0, 2.0], "lateral_offset_m": [0.0, 0.3],
+                           "families": ["spiral"]},
+            "degradations": {"shot_noise": [0.0, 0.0], "read_noise": [0.0, 0.0], "defocus_sigma_px": [0.5, 0.5]}}
+    generate(_spec(spec), tmp_path / "rgb", show_progress=False)
+    generate(_spec(_merge(spec, {"camera.mono": True})), tmp_path / "mono", show_progress=False)
+    assert verify_dataset(tmp_path / "mono") == []
+    rgb, mono = Dataset(tmp_path / "rgb")["seq_0000"], Dataset(tmp_path / "mono")["seq_0000"]
+    assert mono.camera_info["mono"] is True and rgb.camera_info["mono"] is False
+    imaging = json.loads((tmp_path / "mono" / "seq_0000" / "meta.json").read_text())["imaging"]
+    assert imaging["mono"] is True
+    e = SRGB_GAMMA * imaging["gamma"]
+    apart = 0.0
+    for k in range(len(mono)):
+        c, m = rgb.image(k).astype(np.float64), mono.image(k)
+        assert (m[..., 0] == m[..., 1]).all() and (m[..., 1] == m[..., 2]).all()
+        lit = c.max(axis=2) < 255  # (a clipped channel's light is not known)
+        want = 255.0 * (((c / 255.0) ** e) @ MONO_RESPONSE.astype(np.float64)) ** (1.0 / e)
+        off = np.abs(m[..., 0].astype(np.float64) - want)[lit]
+        assert lit.mean() > 0.9 and np.percentile(off, 99) <= 1.5, np.percentile(off, [50, 99, 100])
+        apart = max(apart, np.abs(m[..., 0].astype(np.float64) - cv2.cvtColor(rgb.image(k), cv2.COLOR_RGB2GRAY)).max())
+    assert apart > 5  # not the finished colour frame's grey: that differs where colours do (the magenta border)
+    generate(_spec(_merge(spec, {"camera.mono": True, "degradations.jpeg_quality": 40})), tmp_path / "jpeg",
+             show_progress=False)
+    j = Dataset(tmp_path / "jpeg")["seq_0000"].image(0)
+    assert (j[..., 0] == j[..., 1]).all() and (j[..., 1] == j[..., 2]).all()
+
+
 def test_real_timing_jitter_dropped_frames_and_imu_clock_offset_are_rendered_and_labelled(tmp_path):
     """The time contract with a real camera's timing: frame k is captured at k / fps plus its jitter
     (frames.csv's t is the true time), dropped frames leave gaps in k (rows and images missing), and
