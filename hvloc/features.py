@@ -275,7 +275,7 @@ SIGMAS = np.array([0.45, 0.7, 1.0, 1.5])          # blur (px) beside the pixel's
 
 
 def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndarray, camera: Camera | None = None,
-                        trim: float = 0.25, reach_px: float = 2.5, step: float = 0.2) -> np.ndarray:
+                        trim: float = 0.25, reach_px: float = 2.5, step: float = 0.2, rising: bool = True) -> np.ndarray:
     """(4,) how far (px, along each side's inward normal) the outer edge of a banded border lies
     from the sides of ``quad_px``, or NaN where it cannot be told.
 
@@ -285,7 +285,10 @@ def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndar
     ~0.2 px outside its edge at 30 px, ~1 % of the height.  Here each side's mean cross-profile is
     fitted with the border's real profile: steps at ``e`` and ``e + bands_px[i, k]`` (the inner
     edges of the bands, in px at that side), each blurred by one sigma, with free levels (linear
-    least squares) over a grid of ``(e, sigma)``, then a parabola through the best ``e``."""
+    least squares) over a grid of ``(e, sigma)``, then a parabola through the best ``e``.  ``rising``:
+    the first step must rise from outside in (a border brighter than the ground, as on the colour
+    channel); without, either way (grey frames: the border's grey may be darker or lighter than the
+    ground's)."""
     g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
     q = np.asarray(quad_px, np.float64).reshape(4, 2)
     starts, ends = q, np.roll(q, -1, axis=0)
@@ -311,7 +314,7 @@ def banded_edge_offsets(gray: np.ndarray, quad_px: np.ndarray, bands_px: np.ndar
                 coef = np.linalg.solve(AtA, np.einsum("erk,r->ek", A, y)[..., None])[..., 0]
                 res = np.einsum("erk,ek->er", A, coef) - y
                 # the border must rise from the ground: a fall there is some other edge
-                out[a] = np.where(coef[:, 1] > 0, np.sum(res**2, axis=1), np.inf)
+                out[a] = np.where(coef[:, 1] > 0, np.sum(res**2, axis=1), np.inf) if rising else np.sum(res**2, axis=1)
             return out
 
         coarse = sse_of(COARSE_E, SIGMAS)  # coarse in the edge, every blur; then fine at the best blur

@@ -1299,7 +1299,11 @@ class HierarchicalLocalizer:
             # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
             # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
+                if self.pad is not None and ph.is_grey(rgb):  # a monochrome camera: the pad by its design, not its colour
+                    found, why = self.work(lambda: ("grey outline", r), ph.find_grey_outline, rgb, gray, self.geometry,
+                                           self.camera, r, self._design())
+                else:
+                    found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
                 det = None
                 if found is not None:
                     hint = self.camera.project_from(prior, self.outer_P) if prior is not None else None

@@ -1182,6 +1182,115 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     return fitted, move, swollen, rms, guess
 
 
+GREY_LEVELS = (0.2, 0.35, 0.5, 0.65, 0.8)  # thresholds between the crop's median and its brightest
+GREY_MIN_FILL = 0.75      # a field's blob fills this much of its hull's quad (the markers are holes: not counted)
+GREY_MAX_CANDIDATES = 60  # the largest blobs of that shape, at most, are read against the design
+# A grey frame has no colour to tell the pad from the ground by: its whole printed design must say it
+# (name_by_design's own bars were set over colour-found outlines, which already are the pad's colour).
+# Over the 1,062 bright quads of the `mono` suite's Approaching frames (every second one), a blob of
+# ground or a decoy correlated up to 0.92, in one naming by up to 0.154 more than the next, at under
+# 16 px across; at 20-30 px up to 0.81 and 0.069; at 30 px and more 0.74 and 0.009.  The pad there
+# (30-60 px) correlated 0.82-0.98, leading by 0.096 at least; warped views of it at 21 px, 0.95-0.97
+# leading by 0.10-0.12.  Under GREY_MIN_SIDE_PX the design is a bright square in a dark ring, which
+# ground makes too: such pads are left to come nearer.
+GREY_MIN_SIDE_PX = 24.0   # the outer square's least mean side (px)
+GREY_MIN_NCC = 0.8
+GREY_MIN_LEAD = 0.08
+
+def is_grey(rgb: np.ndarray, step: int = 7, tol: int = 2) -> bool:
+    """Whether an RGB frame is a monochrome camera's (R = G = B, within ``tol`` levels, on every
+    ``step``-th pixel): DESIGN.md's frames are RGB, and a grey camera's are written so."""
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        return False
+    s = rgb[::step, ::step].astype(np.int16)
+    return bool(np.abs(s[..., 0] - s[..., 1]).max() <= tol and np.abs(s[..., 2] - s[..., 1]).max() <= tol)
+
+
+def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camera: Camera | None, roi,
+                      design: PadDesign) -> tuple:
+    """``(OutlineQuad | None, reason)``: the pad's outline in a monochrome camera's frame, where the
+    border's colour is a grey like the ground's (magenta reads as mid grey) and cannot be segmented.
+
+    The white field stands out instead: the brightest large area in view, a convex quadrilateral
+    that the border's darker ring keeps apart from a bright ground.  Bright blobs are thresholded
+    at :data:`GREY_LEVELS` between the crop's median and its highlights; each quad-shaped one, taken
+    as the field, puts the outer square where its homography says, and is the pad only if the image
+    sampled through it correlates with the pad's printed design, in one naming clearly better than
+    the others (:func:`name_by_design`, at :data:`GREY_MIN_NCC` and :data:`GREY_MIN_LEAD`: a white
+    square or a finder square alone is symmetric under a quarter turn, and correlates alike in every
+    naming), and is :data:`GREY_MIN_SIDE_PX` across at least.  The field's
+    sides are then fitted on luma (:func:`_field_fit`), and the outline is the field's: its corners
+    (``field_px``) are what is posed."""
+    g, x0, y0 = _crop(gray, roi)
+    if min(g.shape[:2]) < 8:
+        return None, "image too small"
+    scale = 2 if min(g.shape[:2]) >= 1600 else 1  # (4K: the blobs on a copy at half size; fitted at full)
+    small = g if scale == 1 else cv2.resize(g, (g.shape[1] // 2, g.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    # the field may be a ten-thousandth of the frame: its brightness is the brightest 3x3 mean's, not a percentile's
+    mid, hi = float(np.median(small[::3, ::3])), float(cv2.blur(small, (3, 3)).max())
+    if hi - mid < 20:
+        return None, "no bright field in a grey frame"
+    cands, keys = [], set()
+    for f in GREY_LEVELS:
+        mask = (small > mid + f * (hi - mid)).astype(np.uint8)
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        for c in contours:
+            area = cv2.contourArea(c)
+            if area < (GREY_MIN_SIDE_PX * geo.field_side_m / geo.side_m / scale) ** 2:
+                continue
+            quad = _hull_quad(cv2.convexHull(c))
+            if not _quad_shaped(quad) or area < GREY_MIN_FILL * abs(_signed_area(quad)):
+                continue
+            quad = quad if _signed_area(quad) > 0 else quad[::-1]
+            quad = (quad + 0.5) * scale - 0.5 + [x0, y0]
+            key = tuple(np.round(np.r_[quad.mean(axis=0), _mean_side(quad)] / 3.0).astype(int))
+            if key not in keys:
+                keys.add(key)
+                cands.append((area, quad))
+    if not cands:
+        return None, f"no field-shaped bright quadrilateral in a grey frame (a pad {GREY_MIN_SIDE_PX:g} px across at least)"
+    cands.sort(key=lambda a: -a[0])
+    best = None
+    for _, field in cands[:GREY_MAX_CANDIDATES]:
+        outer = _through_quad(field, geo, camera, geo.outer_corners[:, :2], square=geo.field_corners)
+        if outer is None or not np.isfinite(outer).all():
+            continue
+        if _mean_side(outer) < GREY_MIN_SIDE_PX:
+            continue
+        k, scores = name_by_design(gray, outer, geo, camera, design)
+        o = np.sort(scores)
+        if k is not None and o[-1] >= GREY_MIN_NCC and o[-1] - o[-2] >= GREY_MIN_LEAD and (best is None or o[-1] > best[0]):
+            best = (float(o[-1]), outer)
+    if best is None:
+        return None, f"no bright quadrilateral in a grey frame reads as the pad's design ({len(cands)} looked at)"
+    outer = best[1]
+    side_px = _mean_side(outer)
+    got = _field_fit(rgb, outer, geo, camera, max(3.0, 0.15 * side_px), rounds=FIELD_FIT_ROUNDS)
+    if got is None:
+        return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+    field, rms = got[0], got[3]
+    outer = _through_quad(field, geo, camera, geo.outer_corners[:, :2], square=geo.field_corners)
+    if outer is None or not np.isfinite(outer).all():
+        return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+    # A step fit of the field's edge alone is biased by the bands beside it: the checker, then the solid
+    # band, a pixel or two each (on the `mono` suite's renders the field came out 0.4-0.7 % small, the
+    # height as much high: +0.3 to +1.5 % in the median by dataset).  The border's whole profile, its
+    # three steps at their known places, fitted from there as on the colour channel
+    # (:func:`banded_edge_offsets`; either polarity: the border's grey may be darker than the ground or
+    # lighter), in display values as a sharp frame's pixels average its edges, in light where motion
+    # smears them (:data:`LIGHT_FIT_SMEAR_PX`): the height's median within -0.4 to +0.3 %
+    smear = _smear_near(rgb, outer, geo, camera, 12.0)[2]
+    chan = srgb_to_linear(gray) if smear > LIGHT_FIT_SMEAR_PX else gray
+    e = banded_edge_offsets(chan, outer, _bands_px(outer, geo), camera, rising=False)
+    e = np.where(np.isfinite(e) & (np.abs(e) < 1.0), e, 0.0)
+    if np.any(e):
+        outer = _moved_sides(outer, e)
+        field = _through_quad(outer, geo, camera, geo.field_corners[:, :2])
+        if field is None or not np.isfinite(field).all():
+            return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+    return OutlineQuad(outer, np.zeros((2, 4)), _mean_side(outer), rms, field_px=field), "ok"
+
+
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:
     """Whether the white field, fitted on luma in the outline's window from where ``quad_px`` puts
     it, is found there: its four sides fit (a hidden part of the field breaks a side) and no corner
