@@ -1197,6 +1197,7 @@ GREY_MIN_SIDE_PX = 24.0   # the outer square's least mean side (px)
 GREY_MIN_NCC = 0.8
 GREY_MIN_LEAD = 0.08
 
+
 def is_grey(rgb: np.ndarray, step: int = 7, tol: int = 2) -> bool:
     """Whether an RGB frame is a monochrome camera's (R = G = B, within ``tol`` levels, on every
     ``step``-th pixel): DESIGN.md's frames are RGB, and a grey camera's are written so."""
@@ -1218,9 +1219,9 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
     sampled through it correlates with the pad's printed design, in one naming clearly better than
     the others (:func:`name_by_design`, at :data:`GREY_MIN_NCC` and :data:`GREY_MIN_LEAD`: a white
     square or a finder square alone is symmetric under a quarter turn, and correlates alike in every
-    naming), and is :data:`GREY_MIN_SIDE_PX` across at least.  The field's
-    sides are then fitted on luma (:func:`_field_fit`), and the outline is the field's: its corners
-    (``field_px``) are what is posed."""
+    naming), and is :data:`GREY_MIN_SIDE_PX` across at least.  The field's sides are then fitted on
+    luma (:func:`_field_fit`), and placed by the border's whole profile across each side; the field's
+    corners (``field_px``) are what is posed."""
     g, x0, y0 = _crop(gray, roi)
     if min(g.shape[:2]) < 8:
         return None, "image too small"
