@@ -5,14 +5,15 @@ labels and images as stored and writes them in another layout, converting nothin
 frames and time.  Conventions kept from DESIGN.md: body frame FLU, world ENU, camera OpenCV,
 ``T_A_B`` maps B coordinates to A.
 
-- **EuRoC/ASL** (``DIR/<seq>/mav0/``): ``cam0`` (images named by their nanosecond stamp,
+- **EuRoC/ASL** (``DIR/<seq>/mav0/``): ``cam0`` (images named by their nanosecond stamp, 8-bit grey
+  PNGs for a monochrome camera as EuRoC's own,
   ``data.csv``, ``sensor.yaml`` with intrinsics, radial-tangential distortion and ``T_BS`` = the
   camera's mount ``T_B_C``), ``imu0`` (``data.csv``; ``sensor.yaml`` with noise densities and
   random walks from the spec, the IMU frame being the body frame), ``state_groundtruth_estimate0``
   (the body's world pose, velocity and true IMU biases at every frame time) and, an hvloc
   addition, ``pad_groundtruth0`` (the pad's world pose, for moving decks).
 - **ROS 2 bag** (``DIR/<seq>/``, written with ``rosbags``, pure Python): ``/camera/image_raw``
-  (rgb8), ``/camera/camera_info`` (plumb_bob), ``/imu/data`` (with covariances), ground-truth
+  (rgb8; mono8 for a monochrome camera), ``/camera/camera_info`` (plumb_bob), ``/imu/data`` (with covariances), ground-truth
   ``PoseStamped`` of the body in ``world`` and of the camera in ``pad``, and ``/tf`` (world to
   base_link, world to pad) with ``/tf_static`` (base_link to camera_optical, latched).
 - **COCO keypoints** (``DIR/coco_keypoints.json``): per image one ``landing_pad`` annotation whose
@@ -31,6 +32,7 @@ import shutil
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from hvloc.geometry import quat_xyzw_from_matrix, transform_from_tum
@@ -86,6 +88,11 @@ def _matrix_yaml(T) -> str:
     return f"  cols: 4\n  rows: 4\n  data: [{rows}]\n"
 
 
+def is_mono(seq) -> bool:
+    """Whether a sequence's camera is monochrome (camera.json's ``mono``; its frames are grey RGB)."""
+    return bool(seq.camera_info.get("mono", False))
+
+
 def _write_csv(path: Path, header: str, rows) -> None:
     """EuRoC's CSV: its header line as the spec writes it, then the rows (``write_csv``'s numbers)."""
     write_csv(path, header.split(","), rows)
@@ -96,8 +103,12 @@ def export_euroc_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> Non
     cam_dir = mav / "cam0" / "data"
     cam_dir.mkdir(parents=True)
     ts = stamps_ns(seq.t, epoch_s)
+    mono = is_mono(seq)
     for k, stamp in enumerate(ts):
-        (cam_dir / f"{stamp}.png").write_bytes(seq.image_bytes(k))
+        if mono:  # a grey camera's EuRoC images are 8-bit grey PNGs (the same values: R = G = B in the dataset)
+            cv2.imwrite(str(cam_dir / f"{stamp}.png"), seq.image(k)[..., 0])
+        else:
+            (cam_dir / f"{stamp}.png").write_bytes(seq.image_bytes(k))
     _write_csv(mav / "cam0" / "data.csv", "#timestamp [ns],filename", ([s, f"{s}.png"] for s in ts))
     cam = seq.camera
     if cam.model == "fisheye":  # EuRoC/Kalibr's equidistant model is OpenCV's fisheye
@@ -194,6 +205,7 @@ def export_rosbag2_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> N
     cam = seq.camera
     ts = stamps_ns(seq.t, epoch_s)
     cam_frame, body_frame = "camera_optical", "base_link"
+    mono = is_mono(seq)
     with Writer(out, version=9) as w:
         def conn(topic, msgtype, qos=()):
             return w.add_connection(topic, msgtype, typestore=ts_store, offered_qos_profiles=qos)
@@ -237,9 +249,11 @@ def export_rosbag2_sequence(seq, out: Path, imu_spec: dict, epoch_s: float) -> N
                 continue
             k = i
             rgb = seq.image(k)
+            px = rgb[..., 0] if mono else rgb  # a grey camera's driver publishes mono8
             put(c_img, ns, T["sensor_msgs/msg/Image"](header=header(ns, cam_frame), height=rgb.shape[0], width=rgb.shape[1],
-                                                      encoding="rgb8", is_bigendian=0, step=rgb.shape[1] * 3,
-                                                      data=np.ascontiguousarray(rgb).reshape(-1)))
+                                                      encoding="mono8" if mono else "rgb8", is_bigendian=0,
+                                                      step=rgb.shape[1] * (1 if mono else 3),
+                                                      data=np.ascontiguousarray(px).reshape(-1)))
             info.header = header(ns, cam_frame)
             put(c_info, ns, info)
             put(c_body, ns, pose_stamped(ns, "world", body[k]))

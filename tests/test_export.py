@@ -269,3 +269,27 @@ def test_a_fisheye_exports_as_the_equidistant_model_its_readers_know(tmp_path):
     with AnyReader([meta.parent]) as r:
         infos = [r.deserialize(raw, c.msgtype) for c, _, raw in r.messages() if c.msgtype.endswith("CameraInfo")]
     assert infos and infos[0].distortion_model == "equidistant" and list(infos[0].d) == list(seq.camera.dist)
+
+
+def test_a_mono_camera_exports_grey_images_as_its_readers_expect(tmp_path):
+    """A monochrome camera (camera.mono) is stored as grey RGB (DESIGN.md's frames are RGB); what
+    it exports is what such a camera gives: EuRoC's 8-bit grey PNGs, a ROS 2 bag's mono8, the same
+    values."""
+    import cv2
+    from rosbags.highlevel import AnyReader
+
+    spec = {**SPEC, "name": "exmono", "sequences": 1, "camera": {**SPEC.get("camera", {}), "mono": True}}
+    generate(DatasetSpec.model_validate(spec), tmp_path / "ds", show_progress=False)
+    seq = Dataset(tmp_path / "ds")[0]
+    export_dataset("euroc", tmp_path / "ds", tmp_path / "eu", epoch_s=1.6e9)
+    pngs = sorted((tmp_path / "eu" / seq.id / "mav0" / "cam0" / "data").glob("*.png"))
+    assert len(pngs) == len(seq)
+    grey = cv2.imread(str(pngs[2]), cv2.IMREAD_UNCHANGED)
+    assert grey.ndim == 2 and grey.dtype == np.uint8 and np.array_equal(grey, seq.image(2)[..., 0])
+    export_dataset("rosbag2", tmp_path / "ds", tmp_path / "rb", epoch_s=1.6e9)
+    (meta,) = (tmp_path / "rb").rglob("metadata.yaml")
+    with AnyReader([meta.parent]) as r:
+        imgs = [r.deserialize(raw, c.msgtype) for c, _, raw in r.messages() if c.topic == "/camera/image_raw"]
+    img = imgs[2]
+    assert img.encoding == "mono8" and img.step == img.width
+    assert np.array_equal(img.data.reshape(img.height, img.width), seq.image(2)[..., 0])
