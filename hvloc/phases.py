@@ -1182,17 +1182,21 @@ def _field_fit(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: C
     return fitted, move, swollen, rms, guess
 
 
-GREY_LEVELS = (0.2, 0.35, 0.5, 0.65, 0.8)  # thresholds between the crop's median and its brightest
+# thresholds between the crop's darkest and its brightest: the field is bright against its ring, not
+# against the frame (on snow the ground is as white: a 0.2-0.8 span above the median found no field there)
+GREY_LEVELS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 GREY_MIN_FILL = 0.75      # a field's blob fills this much of its hull's quad (the markers are holes: not counted)
 GREY_MAX_CANDIDATES = 60  # the largest blobs of that shape, at most, are read against the design
 # A grey frame has no colour to tell the pad from the ground by: its whole printed design must say it
 # (name_by_design's own bars were set over colour-found outlines, which already are the pad's colour).
-# Over the 1,062 bright quads of the `mono` suite's Approaching frames (every second one), a blob of
-# ground or a decoy correlated up to 0.92, in one naming by up to 0.154 more than the next, at under
-# 16 px across; at 20-30 px up to 0.81 and 0.069; at 30 px and more 0.74 and 0.009.  The pad there
-# (30-60 px) correlated 0.82-0.98, leading by 0.096 at least; warped views of it at 21 px, 0.95-0.97
-# leading by 0.10-0.12.  Under GREY_MIN_SIDE_PX the design is a bright square in a dark ring, which
-# ground makes too: such pads are left to come nearer.
+# Over the 3,842 bright quads of 24 px and more that the `mono` suite's and two unseen grey scenes'
+# Approaching frames gave (every second frame), ground and decoys more than a side from the pad
+# correlated up to 0.76, in one naming by up to 0.010 more than in the next; the pad's own quads
+# 0.72-0.99 where right, leading by 0.044 at least (0.070 at 25-30 px); a misshapen piece of the pad
+# (unseen71, a corner a fifth of its side off) 0.83 leading by 0.074, which the posed quad's own check
+# refuses unless the fit mends it.  Under GREY_MIN_SIDE_PX the design is a bright square in a dark
+# ring, which ground makes too (blobs of it under 16 px reached 0.92 leading by 0.154): such pads are
+# left to come nearer.
 GREY_MIN_SIDE_PX = 24.0   # the outer square's least mean side (px)
 GREY_MIN_NCC = 0.8
 GREY_MIN_LEAD = 0.08
@@ -1214,7 +1218,7 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
 
     The white field stands out instead: the brightest large area in view, a convex quadrilateral
     that the border's darker ring keeps apart from a bright ground.  Bright blobs are thresholded
-    at :data:`GREY_LEVELS` between the crop's median and its highlights; each quad-shaped one, taken
+    at :data:`GREY_LEVELS` between the crop's darks and its highlights; each quad-shaped one, taken
     as the field, puts the outer square where its homography says, and is the pad only if the image
     sampled through it correlates with the pad's printed design, in one naming clearly better than
     the others (:func:`name_by_design`, at :data:`GREY_MIN_NCC` and :data:`GREY_MIN_LEAD`: a white
@@ -1227,15 +1231,19 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
         return None, "image too small"
     scale = 2 if min(g.shape[:2]) >= 1600 else 1  # (4K: the blobs on a copy at half size; fitted at full)
     small = g if scale == 1 else cv2.resize(g, (g.shape[1] // 2, g.shape[0] // 2), interpolation=cv2.INTER_AREA)
-    # the field may be a ten-thousandth of the frame: its brightness is the brightest 3x3 mean's, not a percentile's
-    mid, hi = float(np.median(small[::3, ::3])), float(cv2.blur(small, (3, 3)).max())
-    if hi - mid < 20:
+    # the field may be a ten-thousandth of the frame, its ring too: the darkest and brightest 3x3 means
+    lo, hi = (float(v) for v in cv2.minMaxLoc(cv2.blur(small, (3, 3)))[:2])
+    if hi - lo < 20:
         return None, "no bright field in a grey frame"
     cands, keys = [], set()
     for f in GREY_LEVELS:
-        mask = (small > mid + f * (hi - mid)).astype(np.uint8)
-        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        for c in contours:
+        mask = (small > lo + f * (hi - lo)).astype(np.uint8)
+        # every blob's outer boundary, nested ones too: on bright ground (snow, concrete) the field is an
+        # island in a hole (the ring) of the ground's blob, which RETR_EXTERNAL does not list
+        contours, tree = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+        for c, (_, _, _, parent) in zip(contours, tree[0] if tree is not None else []):
+            if parent >= 0:  # a hole's boundary
+                continue
             area = cv2.contourArea(c)
             if area < (GREY_MIN_SIDE_PX * geo.field_side_m / geo.side_m / scale) ** 2:
                 continue
@@ -1258,10 +1266,9 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
             continue
         if _mean_side(outer) < GREY_MIN_SIDE_PX:
             continue
-        k, scores = name_by_design(gray, outer, geo, camera, design)
-        o = np.sort(scores)
-        if k is not None and o[-1] >= GREY_MIN_NCC and o[-1] - o[-2] >= GREY_MIN_LEAD and (best is None or o[-1] > best[0]):
-            best = (float(o[-1]), outer)
+        reads, ncc = _reads_as_design(gray, outer, geo, camera, design)
+        if reads and (best is None or ncc > best[0]):
+            best = (ncc, outer)
     if best is None:
         return None, f"no bright quadrilateral in a grey frame reads as the pad's design ({len(cands)} looked at)"
     outer = best[1]
@@ -1289,7 +1296,20 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
         field = _through_quad(outer, geo, camera, geo.field_corners[:, :2])
         if field is None or not np.isfinite(field).all():
             return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+    # what is posed must read as the design too: a blob that was a misshapen piece of the pad (a corner a
+    # fifth of the side off: 0.83, leading by 0.074 on unseen71) is refused if the fit does not mend it
+    if not _reads_as_design(gray, outer, geo, camera, design)[0]:
+        return None, "the pad's design is seen in a grey frame, but not where its field's sides fit"
     return OutlineQuad(outer, np.zeros((2, 4)), _mean_side(outer), rms, field_px=field), "ok"
+
+
+def _reads_as_design(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                     design: PadDesign) -> tuple:
+    """``(bool, best correlation)``: whether the grey image through the outer square ``outer`` reads as
+    the pad's design, at :data:`GREY_MIN_NCC` and leading the next naming by :data:`GREY_MIN_LEAD`."""
+    k, scores = name_by_design(gray, outer, geo, camera, design)
+    o = np.sort(scores)
+    return bool(k is not None and o[-1] >= GREY_MIN_NCC and o[-1] - o[-2] >= GREY_MIN_LEAD), float(o[-1])
 
 
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:

@@ -156,12 +156,15 @@ def _grey(img):
 
 @pytest.mark.parametrize("h", [10.0, 20.0])
 @pytest.mark.parametrize("yaw_deg", [10, 200])
-def test_a_grey_frames_pad_is_found_by_its_white_field_and_named_by_its_design(pad, h, yaw_deg):
+@pytest.mark.parametrize("ground", [GROUND, (232, 234, 238)], ids=["grass", "snow"])
+def test_a_grey_frames_pad_is_found_by_its_white_field_and_named_by_its_design(pad, h, yaw_deg, ground):
     """In a monochrome camera's frame the magenta border is a grey like the ground's: the colour
     path finds nothing.  The pad is its white field, told from other bright squares by its whole
-    printed design, which also names its corners (no prior, no yaw cue: the cue is grey too)."""
+    printed design, which also names its corners (no prior, no yaw cue: the cue is grey too).  On
+    snow the ground is as bright as the field: the field is an island in the ground's blob, inside
+    the border's darker ring."""
     G = tilted(1.5, -1.0, h, math.radians(yaw_deg), 0.05, 0.02)
-    img = _grey(warp_pad_view(pad, CAM, G, GROUND))
+    img = _grey(warp_pad_view(pad, CAM, G, ground))
     assert find_outline(img, pad.geometry, CAM)[0] is None  # the premise: no colour to segment
     loc = HierarchicalLocalizer(pad, CAM)
     e = loc.process(img, 0.0, _imu_from(G))
