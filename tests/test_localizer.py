@@ -176,7 +176,7 @@ def test_a_grey_frames_pad_is_found_by_its_white_field_and_named_by_its_design(p
 def test_a_grey_pad_too_small_to_show_its_design_and_grey_ground_are_never_posed(pad):
     """Under 24 px across (here 21 px, at 28 m) the design is a bright square in a dark ring, which
     bright blobs of ground make too: the pad is left to come nearer.  Blobs of grey ground at three
-    scales (some 900 field-shaped ones) are never taken for it."""
+    scales (347 field-shaped ones) are never taken for it."""
     G = tilted(1.5, -1.0, 28.0, 0.2, 0.05, 0.02)
     e = HierarchicalLocalizer(pad, CAM).process(_grey(warp_pad_view(pad, CAM, G, GROUND)), 0.0, _imu_from(G))
     assert not e.ok and "px across at least" in e.reason, e.reason
