@@ -1295,11 +1295,12 @@ class HierarchicalLocalizer:
         roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
         attempts = [roi, None] if roi is not None else [None]
         why = ""
+        grey = method == "outline" and self.pad is not None and ph.is_grey(rgb)  # a monochrome camera's frame
         for r in attempts:
             # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
             # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                if self.pad is not None and ph.is_grey(rgb):  # a monochrome camera: the pad by its design, not its colour
+                if grey:  # the pad by its design, not its colour
                     found, why = self.work(lambda: ("grey outline", r), ph.find_grey_outline, rgb, gray, self.geometry,
                                            self.camera, r, self._design())
                 else:
