@@ -96,7 +96,9 @@ class SequenceRenderer:
                                   znear=min(0.05, 0.5 * spec.trajectory.touchdown_height_m),
                                   pad_texture=dirty_texture(pad.texture_rgb, self.material["dirt"],
                                                             self.material["dirt_seed"]),
-                                  legs=self.legs, pad_relief=self.material.get("relief"))
+                                  legs=self.legs, pad_relief=self.material.get("relief"),
+                                  deck_drop_m=spec.platform.max_edge_drop_m() + 0.05 if spec.platform.deck_moves() else 0.0,
+                                  deck_tilts=spec.platform.roll_deg > 0 or spec.platform.pitch_deg > 0)
         self.samples = PadSamples.of(pad.geometry)
         self.relief_px: list = []  # per frame: how far the features' images on the relief lie from the labels'
         self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames
@@ -105,8 +107,8 @@ class SequenceRenderer:
         self.pad2world = traj.pad_poses(self.times)
         state = traj.state(self.times)
         self.body_vel = state.vel_W
-        self.pad_vel = np.tile(np.append(traj.pad_vel, 0.0), (len(self.times), 1))
-        self.platform_moves = bool(np.any(traj.pad_vel != 0))
+        self.pad_vel = traj.pad_velocities(self.times)
+        self.platform_moves = traj.pad_moves
         self.rays = mo.pixel_rays(camera)
         self.flow = mo.FlowField(camera, rays=self.rays) if (self.blur or self.line_s > 0) else None
         self.ground = None
@@ -402,7 +404,8 @@ class SequenceRenderer:
         drone's shadow or a box's).  ``(rows, cols, factor or None, glare or None)``, or ``None``
         when there is nothing to add."""
         relief, gloss = self.material.get("relief"), self.material["gloss"]
-        if relief is None and not gloss > 0:
+        tilts = self.scene.deck_tilts  # a deck's roll and pitch turn the pad from the sun
+        if relief is None and not gloss > 0 and not tilts:
             return None
         got = self._pad_pixels(depth, cam2pad)
         if got is None:
@@ -413,18 +416,24 @@ class SequenceRenderer:
         # over a pad that fills the view cost more than the light itself)
         vis = None  # the sun's visibility pixel by pixel (a shadow's edge is sharp), once for both
         T_W_P = self._pad2world_now
+        R_W_P = T_W_P[:3, :3]
         if self.scene.shadows and self.scene.pad_may_be_shaded(T_W_P[:2, 3], self.pad.side_m / math.sqrt(2.0) + 0.01):
-            # the window's points in the world (x, y): one OpenCV pass, not numpy's strided copy
-            to_world = np.array([[1, 0, 0, T_W_P[0, 3]], [0, 1, 0, T_W_P[1, 3]]], np.float32)
-            vis = self.scene.pad_sun_visibility(cv2.transform(P, to_world).reshape(-1, 2))
+            if tilts:  # the drone's shadow lies in the deck's plane: the window's points in the pad's frame
+                vis = self.scene.pad_sun_visibility_on_deck(np.ascontiguousarray(P[..., :2]))
+            else:  # the window's points in the world (x, y): one OpenCV pass, not numpy's strided copy
+                to_world = np.array([[1, 0, 0, T_W_P[0, 3]], [0, 1, 0, T_W_P[1, 3]]], np.float32)
+                vis = self.scene.pad_sun_visibility(cv2.transform(P, to_world).reshape(-1, 2))
             vis = vis.reshape(on.shape)
         normals = f = lobe = None
         if relief is not None:
             # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
             normals = relief.normal(P[::4, ::4, :2].reshape(-1, 2).astype(np.float64))
-            f = self.scene.relative_light(normals).reshape(P[::4, ::4].shape[:2])
+            f = self.scene.relative_light(normals @ R_W_P.T if tilts else normals).reshape(P[::4, ::4].shape[:2])
             f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
             f = f[:on.shape[0], :on.shape[1]]
+        elif tilts:  # a flat pad on a tilted deck: one factor over it
+            f = np.full(on.shape, float(self.scene.relative_light(R_W_P[:, 2][None, :])[0]), np.float32)
+        if f is not None:
             if vis is not None:
                 f = vis * f + (np.float32(1.0) - vis)
             f -= np.float32(1.0)
@@ -437,7 +446,8 @@ class SequenceRenderer:
             Q = P[::step, ::step].reshape(-1, 3).astype(np.float64)
             view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
             view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
-            half_v = view + self.plan.scene_draw.sun_dir_W[None, :]
+            sun_P = self.plan.scene_draw.sun_dir_W @ R_W_P if tilts else self.plan.scene_draw.sun_dir_W
+            half_v = view + sun_P[None, :]
             half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
             cos_nh = half_v[:, 2] if normals is None else np.sum(half_v * normals, axis=1)
             r = max(self.material["gloss_roughness"], 0.02)

@@ -96,16 +96,22 @@ def drawn_ground_kinds(spec: DatasetSpec) -> set:
 def _sequence_trajectory(spec: DatasetSpec, index: int) -> tuple:
     """``(rng, family, trajectory)`` of sequence ``index``: its generator after the trajectory's draw."""
     from .scene import PAD_THICKNESS_M
-    from .trajectory import make_trajectory
+    from .trajectory import DeckMotion, make_trajectory
 
     rng = np.random.default_rng(sequence_seed(spec.seed, index))
+    pl = spec.platform
+    deck = None
+    if pl.deck_moves():  # phases from a generator of their own: every other draw stays as it was
+        phases = np.random.default_rng([sequence_seed(spec.seed, index), 0xDEC]).uniform(0, 2 * np.pi, 3)
+        deck = DeckMotion(math.radians(pl.roll_deg), math.radians(pl.pitch_deg), pl.heave_m,
+                          (pl.roll_period_s, pl.pitch_period_s, pl.heave_period_s), tuple(float(v) for v in phases))
     fams = spec.trajectory.families
     family = fams[index % len(fams)]
     T_B_C = mount_from_spec(spec.camera.mount)
     body_above_cam = -float(T_B_C[2, 3])
     pad_surface = spec.platform.height_m + PAD_THICKNESS_M
     traj = make_trajectory(spec.trajectory, np.random.default_rng(rng.integers(2**63)), family, body_above_cam,
-                           pad_surface, spec.platform.velocity_mps, optical_axis_B=T_B_C[:3, 2])
+                           pad_surface, spec.platform.velocity_mps, optical_axis_B=T_B_C[:3, 2], deck=deck)
     return rng, family, traj
 
 

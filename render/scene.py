@@ -142,10 +142,15 @@ class LandingScene:
     def __init__(self, pad, draw: SceneDraw, platform_height: float, platform_size: float,
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
                  znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
-                 pad_texture: np.ndarray | None = None, legs: list | None = None, pad_relief=None):
+                 pad_texture: np.ndarray | None = None, legs: list | None = None, pad_relief=None,
+                 deck_drop_m: float = 0.0, deck_tilts: bool = False):
         """``pad_texture``: what the pad looks like here (default: its design); ``legs``: the
         airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame;
-        ``pad_relief``: the printed pad's departure from flat (:class:`render.relief.PadRelief`)."""
+        ``pad_relief``: the printed pad's departure from flat (:class:`render.relief.PadRelief`);
+        ``deck_drop_m``: how far a heaving, rolling deck may take its platform's top below its mean
+        height (its box reaches as far below the ground, so that it never lifts off); ``deck_tilts``:
+        whether the deck rolls or pitches (the pad's light and the drone's shadow on it are then
+        worked out in the pad's frame)."""
         pr = import_pyrender()
         self.pr = pr
         self.camera = camera
@@ -237,9 +242,11 @@ class LandingScene:
         self.platform_node = pr.Node(name="platform", matrix=np.eye(4))
         scene.add_node(self.platform_node)
         self.has_platform_box = platform_height > 0 and platform_size > 0
+        self.deck_tilts = bool(deck_tilts)
         if self.has_platform_box:
-            self._add(box((platform_size, platform_size, platform_height), (110, 112, 118)),
-                      pose=pose_xy(0, 0, platform_height / 2), parent=self.platform_node)
+            tall = platform_height + deck_drop_m
+            self._add(box((platform_size, platform_size, tall), (110, 112, 118)),
+                      pose=pose_xy(0, 0, platform_height - tall / 2), parent=self.platform_node)
         # the pad's outline is a labelled feature: soft (texture-filtered) edges, not aliased ones
         tex = pad.texture_rgb if pad_texture is None else pad_texture
         self.pad_node = self._add(textured_quad(tex, pad.side_m, pad.side_m, soft_edge_px=16, relief=pad_relief),
@@ -264,11 +271,16 @@ class LandingScene:
         self.ground_shadow_z = SHADOW_LIFT_M + (0.0 if self.has_platform_box else self.pad_surface_z + self.relief_top_m)
         self._ground_shadow_maps = []
         self.platform_xy = np.zeros(2)
+        self.pad2world = make_transform(np.eye(3), (0.0, 0.0, self.pad_surface_z))
         if shadows and self.shadow_alpha > 0 and draw.boxes:
             self._add_box_shadows(draw.boxes)
+        # the platform's shadow lies on the ground: it follows the platform's position, not its
+        # heave, roll or pitch (the shape a tilting deck casts is not redrawn: a level box's)
+        self.platform_shadow_node = pr.Node(name="platform_shadow", matrix=np.eye(4))
+        scene.add_node(self.platform_shadow_node)
         if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
             self._add_box_shadows([(0.0, 0.0, 0.0, platform_size, platform_size, platform_height, None)],
-                                  parent=self.platform_node, m_per_px=0.01)
+                                  parent=self.platform_shadow_node, m_per_px=0.01)
         # the drone's own legs: children of the body node (set_drone moves them)
         self.body_node = pr.Node(name="body", matrix=np.eye(4))
         scene.add_node(self.body_node)
@@ -284,7 +296,8 @@ class LandingScene:
         self.drone_size = drone_size_m
         self.drone_shadow = None
         self.drone_masked = None  # the drone's shadow where it falls into other shadows (see set_drone)
-        self._drone_shadow_at = None  # (xy, yaw) of the drone's shadow square as last placed
+        self._drone_shadow_at = None  # (xy, yaw) of the drone's shadow square as last placed (world)
+        self._drone_shadow_on_pad = None  # the same in the pad's frame, where it lies on a tilting deck
         if shadows and self.shadow_alpha > 0:
             self.drone_shadow = self._add(self._shade(drone_size_m, drone_size_m), pose_xy(0, 0, -100), "shadow_drone")
 
@@ -368,19 +381,34 @@ class LandingScene:
         shade = np.zeros(len(xy_W), xy_W.dtype)
         if not self.has_platform_box and self._ground_shadow_maps:
             shade = self._ground_shadow_cover(xy_W)
-        if self._drone_shadow_at is not None:  # a square: the points in its frame, within half its side
-            (cx, cy), yaw = self._drone_shadow_at
-            c, sn = math.cos(yaw), math.sin(yaw)
-            to_square = np.array([[c, sn, -(c * cx + sn * cy)], [-sn, c, sn * cx - c * cy]], xy_W.dtype)
-            h = self.drone_size / 2
-            inside = cv2.inRange(cv2.transform(xy_W.reshape(-1, 1, 2), to_square), (-h, -h), (h, h)).reshape(-1)
-            shade[inside > 0] = 1.0
+        if self._drone_shadow_at is not None:
+            shade[self._in_drone_shadow(xy_W, *self._drone_shadow_at)] = 1.0
         return ftype(1.0) - shade
+
+    def _in_drone_shadow(self, xy: np.ndarray, centre, yaw: float) -> np.ndarray:
+        """``(N,)`` bool: which points ``xy`` (N, 2) lie in the drone's shadow square at ``centre``,
+        turned by ``yaw`` (in the points' frame)."""
+        (cx, cy), c, sn = centre, math.cos(yaw), math.sin(yaw)
+        to_square = np.array([[c, sn, -(c * cx + sn * cy)], [-sn, c, sn * cx - c * cy]], xy.dtype)
+        h = self.drone_size / 2
+        return cv2.inRange(cv2.transform(xy.reshape(-1, 1, 2), to_square), (-h, -h), (h, h)).reshape(-1) > 0
+
+    def pad_sun_visibility_on_deck(self, xy_P: np.ndarray) -> np.ndarray:
+        """:meth:`pad_sun_visibility` for a tilting deck's pad, at points ``xy_P`` of the pad's frame
+        (N, 2): only the drone's shadow can reach it there (a platform's pad is above the boxes')."""
+        xy_P = np.asarray(xy_P).reshape(-1, 2)
+        vis = np.ones(len(xy_P), xy_P.dtype)
+        if self._drone_shadow_on_pad is not None:
+            vis[self._in_drone_shadow(xy_P, *self._drone_shadow_on_pad)] = 0.0
+        return vis
 
     def pad_may_be_shaded(self, centre_xy_W, radius_m: float) -> bool:
         """Whether any shadow that :meth:`pad_sun_visibility` counts can reach within ``radius_m``
         of ``centre_xy_W`` (world): ``False`` means it is 1 at every point there."""
         c = np.asarray(centre_xy_W, np.float64)[:2]
+        if self._drone_shadow_on_pad is not None:  # on a tilting deck: in the pad's frame, about its centre
+            if np.hypot(*self._drone_shadow_on_pad[0]) <= radius_m + self.drone_size / math.sqrt(2.0):
+                return True
         if self._drone_shadow_at is not None:
             if np.hypot(*(self._drone_shadow_at[0] - c)) <= radius_m + self.drone_size / math.sqrt(2.0):
                 return True
@@ -409,10 +437,13 @@ class LandingScene:
         return cover
 
     def set_platform(self, pad2world: np.ndarray) -> None:
-        """Move the platform, the pad and the platform's shadow: ``T_W_P``'s horizontal position (the
-        pad translates with the platform and never rotates)."""
-        self.platform_xy = np.asarray(pad2world, np.float64)[:2, 3].copy()
-        self.scene.set_pose(self.platform_node, make_transform(np.eye(3), (*self.platform_xy, 0.0)))
+        """Move the platform and the pad to ``T_W_P`` (a deck's heave, roll and pitch turn them about
+        the pad's centre), and the platform's shadow to its horizontal position."""
+        T = np.asarray(pad2world, np.float64)
+        self.pad2world = T.copy()
+        self.platform_xy = T[:2, 3].copy()
+        self.scene.set_pose(self.platform_node, T @ make_transform(np.eye(3), (0.0, 0.0, -self.pad_surface_z)))
+        self.scene.set_pose(self.platform_shadow_node, make_transform(np.eye(3), (*self.platform_xy, 0.0)))
 
     def set_drone(self, body2world: np.ndarray) -> None:
         """Move the drone: its legs, and its shadow (a flat square cast along the sun onto the
@@ -423,6 +454,9 @@ class LandingScene:
         s = self.draw.sun_dir_W
         p = body2world[:3, 3]
         yaw = math.atan2(body2world[1, 0], body2world[0, 0])
+        self._drone_shadow_on_pad = None
+        if self.deck_tilts and self._drone_shadow_on_deck(p, yaw, s):
+            return
         for surface in (self.pad_surface_z, 0.0):
             k = (p[2] - surface) / max(s[2], 0.05)
             xy = p[:2] - s[:2] * k
@@ -454,6 +488,27 @@ class LandingScene:
         alpha = np.round(self.shadow_alpha * (1.0 - cover) * 255).astype(np.uint8)
         mesh = self._shadow_mesh(alpha, 2 * h, 2 * h, (-h, -h))
         self.drone_masked = self._add(mesh, pose, "shadow_dronemasked")
+
+    def _drone_shadow_on_deck(self, p_W: np.ndarray, yaw: float, sun_W: np.ndarray) -> bool:
+        """Lay the drone's shadow (from its centre ``p_W``) in a tilting deck's plane if it falls on
+        the platform's top: ``False`` (nothing done) if it falls beyond, on the ground."""
+        if not self.has_platform_box:
+            return False
+        T = self.pad2world
+        R, o = T[:3, :3], T[:3, 3]
+        p, s = R.T @ (p_W - o), R.T @ sun_W
+        xy = p[:2] - s[:2] * (p[2] / max(s[2], 0.05))
+        if max(abs(xy[0]), abs(xy[1])) > self.platform_size / 2:
+            return False
+        yaw_P = yaw - math.atan2(R[1, 0], R[0, 0])
+        self._drone_shadow_on_pad = (xy.copy(), yaw_P)
+        self._drone_shadow_at = None
+        if self.drone_masked is not None:
+            self.scene.remove_node(self.drone_masked)
+            self.drone_masked = None
+        self.scene.set_pose(self.drone_shadow, T @ make_transform(rotation_z(yaw_P), (xy[0], xy[1],
+                                                                                     self.relief_top_m + SHADOW_LIFT_M)))
+        return True
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
         """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""

@@ -214,6 +214,29 @@ class PlatformSpec(_Model):
     height_m: float = Field(0.0, ge=0.0, le=50.0, description="pad surface above the ground")
     size_m: float = Field(1.2, gt=0.0, description="side of the platform's top (0: no platform box)")
     velocity_mps: tuple[float, float] = Field((0.0, 0.0), description="constant platform velocity (east, north)")
+    # a ship's deck: each motion a sinusoid of its own period, its phase drawn per sequence; the
+    # descent follows the heave (heights stay above the pad's centre), not the roll and pitch
+    roll_deg: float = Field(0.0, ge=0.0, le=20.0, description="deck roll amplitude: the pad tilts about its x axis")
+    pitch_deg: float = Field(0.0, ge=0.0, le=20.0, description="deck pitch amplitude: the pad tilts about its y axis")
+    heave_m: float = Field(0.0, ge=0.0, le=5.0, description="deck heave amplitude (up and down)")
+    roll_period_s: float = Field(8.0, ge=2.0, le=60.0, description="deck roll period")
+    pitch_period_s: float = Field(6.0, ge=2.0, le=60.0, description="deck pitch period")
+    heave_period_s: float = Field(7.0, ge=2.0, le=60.0, description="deck heave period")
+
+    def deck_moves(self) -> bool:
+        return self.roll_deg > 0 or self.pitch_deg > 0 or self.heave_m > 0
+
+    def max_edge_drop_m(self) -> float:
+        """How far the deck's motion may take the platform top's lowest point below its mean height."""
+        return self.heave_m + (math.sin(math.radians(self.roll_deg)) + math.sin(math.radians(self.pitch_deg))) * self.size_m / 2
+
+    @model_validator(mode="after")
+    def _deck(self):
+        if self.deck_moves() and self.max_edge_drop_m() >= self.height_m - 0.02:
+            raise ValueError(f"platform: a deck that heaves {self.heave_m} m, rolls {self.roll_deg} deg and pitches "
+                             f"{self.pitch_deg} deg takes the edge of its {self.size_m} m top {self.max_edge_drop_m():.2f} m "
+                             f"down, into the ground below a platform {self.height_m} m high; raise platform.height_m")
+        return self
 
 
 class AirframeSpec(_Model):
@@ -405,6 +428,17 @@ class DatasetSpec(_Model):
         if self.camera.rolling_shutter_line_s > 0 and self.degradations.blur_method != "velocity":
             raise ValueError("camera.rolling_shutter_line_s: a rolling shutter is rendered by the velocity method "
                              "only (degradations.blur_method: velocity)")
+        return self
+
+    @model_validator(mode="after")
+    def _deck_clear_at_touchdown(self):
+        # the descent follows the heave, not the tilt: a tilted pad rises under a camera beside its centre
+        pl, tr = self.platform, self.trajectory
+        rise = (math.sin(math.radians(pl.roll_deg)) + math.sin(math.radians(pl.pitch_deg))) * (tr.final_offset_m[1] + 0.1)
+        if rise >= 0.5 * tr.touchdown_height_m:
+            raise ValueError(f"platform.roll_deg / pitch_deg: a deck tilting {pl.roll_deg} / {pl.pitch_deg} deg rises "
+                             f"{rise:.2f} m under a camera up to {tr.final_offset_m[1]} m from the pad's centre, half or more "
+                             f"of trajectory.touchdown_height_m ({tr.touchdown_height_m} m); raise it or tilt less")
         return self
 
     @model_validator(mode="after")

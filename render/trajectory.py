@@ -2,7 +2,9 @@
 angular rates, so labels, motion blur and IMU data agree.
 
 A trajectory is the body's path relative to the pad (pad-aligned ENU axes; the platform moves
-without rotating) plus a heading.  Attitude is what a multirotor flies: the thrust axis (body z)
+at a constant velocity) plus a heading.  A deck may also heave, roll and pitch (:class:`DeckMotion`):
+the descent follows its heave (a deck-tracking controller; the path's heights stay heights above
+the pad's centre) but not its roll and pitch, which tilt the pad about its centre.  Attitude is what a multirotor flies: the thrust axis (body z)
 follows the total acceleration plus gravity, body x follows the heading (Mellinger et al. 2011).
 Gusts are smooth sums of sinusoids added to the path, so the tilt follows them too.
 """
@@ -69,6 +71,39 @@ class Gusts:
 
 
 @dataclass
+class DeckMotion:
+    """A ship's deck under the pad: heave (metres, up), roll (about the pad's x) and pitch (about its
+    y), each a sinusoid of its own amplitude, period and phase.  ``R_W_P = R_y(pitch) R_x(roll)``."""
+
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0
+    heave_m: float = 0.0
+    periods_s: tuple = (8.0, 6.0, 7.0)  # roll, pitch, heave
+    phases: tuple = (0.0, 0.0, 0.0)
+
+    def _wave(self, i: int, t):
+        w = 2 * math.pi / self.periods_s[i]
+        return np.sin(w * np.asarray(t, np.float64) + self.phases[i])
+
+    def heave(self, t) -> np.ndarray:
+        return self.heave_m * self._wave(2, t)
+
+    def heave_rate(self, t) -> np.ndarray:
+        w = 2 * math.pi / self.periods_s[2]
+        return self.heave_m * w * np.cos(w * np.asarray(t, np.float64) + self.phases[2])
+
+    def rotations(self, t) -> np.ndarray:
+        """``R_W_P`` (N, 3, 3) at times ``t``."""
+        t = np.atleast_1d(np.asarray(t, np.float64))
+        r, p = self.roll_rad * self._wave(0, t), self.pitch_rad * self._wave(1, t)
+        cr, sr, cp, sp = np.cos(r), np.sin(r), np.cos(p), np.sin(p)
+        z, o = np.zeros_like(t), np.ones_like(t)
+        Rx = np.stack([np.stack([o, z, z], -1), np.stack([z, cr, -sr], -1), np.stack([z, sr, cr], -1)], -2)
+        Ry = np.stack([np.stack([cp, z, sp], -1), np.stack([z, o, z], -1), np.stack([-sp, z, cp], -1)], -2)
+        return Ry @ Rx
+
+
+@dataclass
 class TrajectoryState:
     """Arrays over N times.  ``R_W_B`` (N, 3, 3); vectors (N, 3); ``omega_B`` body rates, rad/s."""
 
@@ -96,8 +131,9 @@ class Trajectory:
     """``path(t) -> (pos_rel (N,3), yaw (N,))`` relative to the pad; platform moving at ``pad_vel``."""
 
     def __init__(self, path, duration: float, gusts: Gusts | None, pad_height: float, pad_vel=(0.0, 0.0),
-                 family: str = "", aim_axis_B=None, body_above_cam: float = 0.0):
+                 family: str = "", aim_axis_B=None, body_above_cam: float = 0.0, deck: DeckMotion | None = None):
         self.path, self.duration, self.gusts = path, float(duration), gusts
+        self.deck = deck
         self.pad_height, self.pad_vel, self.family = pad_height, np.asarray(pad_vel, float), family
         # an off-nadir camera looks at the pad: the path moves back by where its optical axis meets the pad plane
         self.aim_axis_B = None if aim_axis_B is None else np.asarray(aim_axis_B, float) / np.linalg.norm(aim_axis_B)
@@ -113,11 +149,27 @@ class Trajectory:
             p = p - np.stack([dx * reach, dy * reach, np.zeros_like(reach)], axis=-1)
         if self.gusts is not None:
             p = p + self.gusts.displacement(t)
+        if self.deck is not None and self.deck.heave_m > 0:  # the descent follows the deck's heave
+            p = p + np.stack([np.zeros_like(p[..., 2]), np.zeros_like(p[..., 2]), self.deck.heave(t)], axis=-1)
         return p, yaw
 
     def pad_origin(self, t) -> np.ndarray:
+        """The deck's mean position (``(N, 3)``, world): its constant velocity, without its heave."""
         t = np.asarray(t, np.float64)
         return np.stack([self.pad_vel[0] * t, self.pad_vel[1] * t, np.full_like(t, self.pad_height)], axis=-1)
+
+    def pad_velocities(self, t) -> np.ndarray:
+        """``(N, 3)`` the pad centre's velocity in the world: the platform's, plus the deck's heave."""
+        t = np.atleast_1d(np.asarray(t, np.float64))
+        v = np.tile(np.append(self.pad_vel, 0.0), (len(t), 1))
+        if self.deck is not None:
+            v[:, 2] = self.deck.heave_rate(t)
+        return v
+
+    @property
+    def pad_moves(self) -> bool:
+        d = self.deck
+        return bool(np.any(self.pad_vel != 0)) or (d is not None and (d.heave_m > 0 or d.roll_rad > 0 or d.pitch_rad > 0))
 
     def state(self, t, h: float = 1e-3) -> TrajectoryState:
         t = np.atleast_1d(np.asarray(t, np.float64))
@@ -127,7 +179,10 @@ class Trajectory:
         Rp = self._attitude(t + h)[-1]
         omega = np.stack([so3_log(a.T @ b) for a, b in zip(Rm, Rp)]) / (2 * h)
         pad = self.pad_origin(t)
-        return TrajectoryState(t, p0 + pad, vel, acc, R, omega, pad)
+        centre = pad.copy()
+        if self.deck is not None:
+            centre[:, 2] += self.deck.heave(t)
+        return TrajectoryState(t, p0 + pad, vel, acc, R, omega, centre)
 
     def _attitude(self, t, h: float = 1e-3) -> tuple:
         """``(p, p(t - h), p(t + h), acc, R_W_B)`` at times ``t``, positions relative to the pad."""
@@ -144,8 +199,14 @@ class Trajectory:
         return np.stack([make_transform(Ri, p) for Ri, p in zip(R, p0 + self.pad_origin(t))])
 
     def pad_poses(self, t) -> np.ndarray:
-        """``T_W_P`` (N, 4, 4): the pad translates, never rotates."""
-        return np.stack([make_transform(np.eye(3), p) for p in self.pad_origin(np.atleast_1d(t))])
+        """``T_W_P`` (N, 4, 4): the platform's translation, and the deck's heave, roll and pitch about
+        the pad's centre."""
+        t = np.atleast_1d(np.asarray(t, np.float64))
+        o = self.pad_origin(t)
+        if self.deck is None:
+            return np.stack([make_transform(np.eye(3), p) for p in o])
+        o[:, 2] += self.deck.heave(t)
+        return np.stack([make_transform(R, p) for R, p in zip(self.deck.rotations(t), o)])
 
 
 # ----------------------------------------------------------------------------- families
@@ -156,7 +217,8 @@ def _descent_profile(tau, h0, h1):
 
 
 def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam: float,
-                    pad_height: float, pad_vel=(0.0, 0.0), optical_axis_B=None) -> Trajectory:
+                    pad_height: float, pad_vel=(0.0, 0.0), optical_axis_B=None,
+                    deck: DeckMotion | None = None) -> Trajectory:
     """Draw one trajectory of ``family`` from the spec's ranges with ``rng``.
 
     Heights in the spec are camera heights above the pad; ``body_above_cam`` converts them to the
@@ -256,7 +318,7 @@ def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam:
                       fade_in=2.0, fade_out_start=duration - 4.0, fade_out_end=duration - 0.5)
     aim = optical_axis_B if (spec.aim_camera and optical_axis_B is not None
                              and np.hypot(optical_axis_B[0], optical_axis_B[1]) > 1e-9) else None
-    return Trajectory(path, duration, gusts, pad_height, pad_vel, family, aim, body_above_cam)
+    return Trajectory(path, duration, gusts, pad_height, pad_vel, family, aim, body_above_cam, deck)
 
 
 def steepest_tilt(traj: Trajectory, dt: float = 0.01) -> tuple:

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hvloc.geometry import invert, rotation_z, transform_points
+from hvloc.geometry import invert, make_transform, rotation_z, so3_exp, transform_points
 from render.checks import check_image
 from render.dataset import Dataset, sha256_file, verify_dataset
 from render.frames import SequenceRenderer
@@ -922,3 +922,168 @@ def test_blur_px_is_the_motion_of_the_pad_in_view_whatever_the_lens():
     away = N.copy()
     away[:3, 3] = [30.0, 0.0, 4.0]  # the pad out of view: no motion to read
     assert math.isnan(pad_image_motion_px(nadir, away, away, half, (away,)))
+
+
+# ----------------------------------------------------------------------------- a ship's deck
+
+def _deck_spec(**over) -> DatasetSpec:
+    d = {"name": "deck", "seed": 5, "sequences": 1, "pad_ppm": 500,
+         "camera": {"width": 240, "height": 240, "hfov_deg": 60, "fps": 3, "exposure_s": 0.004},
+         "platform": {"height_m": 1.5, "size_m": 1.4, "roll_deg": 10.0, "pitch_deg": 6.0, "heave_m": 0.4,
+                      "roll_period_s": 7.0, "pitch_period_s": 5.0, "heave_period_s": 6.0},
+         "environment": {"distractors": {"boxes": [0, 0]}},
+         "trajectory": {"families": ["straight"], "start_height_m": 5.0, "duration_s": [10, 10],
+                        "touchdown_height_m": 0.3, "lateral_offset_m": [0.0, 0.5]}}
+    return _spec(_merge(d, over))
+
+
+def test_a_rolling_pitching_heaving_deck_is_rendered_and_labelled_where_it_is(tmp_path):
+    """A ship's deck: the pad's world pose rolls, pitches and heaves as the spec says (each a
+    sinusoid of its period), the descent follows the heave but not the tilt, frames.csv's pad
+    velocity is the heave's rate, and the image shows the pad where T_P_C says (verify's image
+    check, and the cells of the pad at every near frame)."""
+    from hvloc.geometry import transform_from_tum
+    from render.scene import PAD_THICKNESS_M
+
+    spec = _deck_spec()
+    generate(spec, tmp_path / "ds", show_progress=False)
+    assert verify_dataset(tmp_path / "ds") == []
+    seq = Dataset(tmp_path / "ds")[0]
+    c = seq.columns
+    t = np.asarray(c["t"])
+    T_W_P = [transform_from_tum([c[f"pad2world_{q}"][k] for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+             for k in range(len(seq))]
+    # roll about the pad's x, pitch about its y: R = R_y(pitch) R_x(roll)
+    roll = np.degrees([math.atan2(T[2, 1], T[2, 2]) for T in T_W_P])
+    pitch = np.degrees([math.asin(-T[2, 0]) for T in T_W_P])
+    heave = np.array([T[2, 3] for T in T_W_P]) - (1.5 + PAD_THICKNESS_M)
+    for series, amp, period in ((roll, 10.0, 7.0), (pitch, 6.0, 5.0), (heave, 0.4, 6.0)):
+        # a sinusoid of that amplitude and period: a least-squares fit of sin and cos explains it exactly
+        w = 2 * np.pi / period
+        A = np.column_stack([np.sin(w * t), np.cos(w * t)])
+        ab = np.linalg.lstsq(A, series, rcond=None)[0]
+        assert np.abs(series - A @ ab).max() < 1e-6 * max(amp, 1.0)
+        assert abs(np.hypot(*ab) - amp) < 1e-6 * max(amp, 1.0), (np.hypot(*ab), amp)
+    np.testing.assert_allclose(c["pad_vel_z"], w * (ab[0] * np.cos(w * t) - ab[1] * np.sin(w * t)), atol=1e-6)
+    # the descent follows the heave: the camera's height above the pad's centre is the planned one,
+    # smooth, and ends at the touchdown height
+    h = np.array([seq.frame(k).cam2pad[2, 3] for k in range(len(seq))])
+    body_z = np.array([c["body2world_tz"][k] for k in range(len(seq))])
+    assert np.corrcoef(np.diff(body_z), np.diff(heave))[0, 1] > 0.3  # the body rises and falls with the deck
+    assert abs(h[-1] - 0.3) < 0.06 and np.all(np.diff(h) < 0.05)
+    # the tilt is not followed: the camera sees the pad tilted as the deck is
+    tilt_seen = [math.degrees(math.acos(np.clip(seq.frame(k).cam2pad[2, 2] * -1, -1, 1))) for k in range(len(seq))]
+    assert max(tilt_seen) > 6.0
+    for k in range(len(seq)):
+        np.testing.assert_allclose(invert(T_W_P[k]) @ transform_from_tum(
+            [c[f"body2world_{q}"][k] for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")]) @ seq.T_B_C,
+            seq.frame(k).cam2pad, atol=1e-9)
+    checked = 0
+    with SequenceRenderer(spec, 0) as r:
+        for k in range(len(r)):
+            T = r.cam2pad(k)
+            if not 1.0 < T[2, 3] < 3.0:
+                continue
+            layers = r.render(k)
+            matched, cells, required = check_image(r.camera, r.pad, T, layers.rgb, layers.labels["pad_visible_fraction"])
+            assert matched >= required and cells >= 8, (k, matched, cells, required)
+            checked += 1
+    assert checked >= 3
+
+
+def test_a_tilted_deck_is_lit_as_it_faces_the_sun():
+    """The renders are flat-shaded and lit as a level surface is; a deck rolled toward the sun gets
+    more of it and one rolled away less, by ambient + direct * (n . sun) over a level surface's.
+    Seen from a camera rigid with the pad (the same image of it), tilted and level: the pad's
+    linear light differs by that factor, and the drone's shadow lies where its square falls along
+    the sun onto the deck's plane."""
+    from render.imaging import SRGB_GAMMA
+
+    spec = _deck_spec(**{"environment.sun_elevation_deg": [55.0, 55.0], "environment.shadows": False,
+                         "degradations.shot_noise": [0.0, 0.0], "degradations.read_noise": [0.0, 0.0],
+                         "degradations.motion_blur": False, "camera.vignetting": [0.0, 0.0]})
+    with SequenceRenderer(spec, 0) as r:
+        e = SRGB_GAMMA * r.plan.imaging.gamma
+        draw = r.plan.scene_draw
+        sun = draw.sun_dir_W
+        k = int(np.argmin([abs(r.cam2pad(i)[2, 3] - 1.5) for i in range(len(r))]))
+        level = make_transform(np.eye(3), r.pad2world[k][:3, 3])
+        B = r.body2world[k]
+        # roll about the axis across the sun: toward it (+) and away (-)
+        axis = np.cross([0.0, 0.0, 1.0], [sun[0], sun[1], 0.0])
+        axis /= np.linalg.norm(axis)
+        ratios = []
+        for sign in (1.0, -1.0):
+            Rt = so3_exp(axis * math.radians(12.0) * sign)
+            tilted = level @ make_transform(level[:3, :3].T @ Rt, (0.0, 0.0, 0.0))
+            B_t = tilted @ invert(level) @ B  # the camera rigid with the pad
+            a = r.render_at(k, float(r.times[k]), B, level)
+            b = r.render_at(k, float(r.times[k]), B_t, tilted)
+            np.testing.assert_allclose(invert(tilted) @ B_t, invert(level) @ B, atol=1e-12)
+            px = r.camera.project_from(invert(level) @ B @ r.T_B_C, r.pad.outer_corners_P * 0.8)
+            mask = np.zeros(a.rgb.shape[:2], np.uint8)
+            cv2.fillConvexPoly(mask, np.round(px).astype(np.int32), 1)
+            la = (a.rgb.astype(np.float64) / 255.0) ** e
+            lb = (b.rgb.astype(np.float64) / 255.0) ** e
+            ok = (mask > 0)[..., None] & (a.rgb > 20) & (a.rgb < 235) & (b.rgb < 250)
+            ratios.append(float(np.median(lb[ok] / la[ok])))
+            n = Rt[:, 2]
+            horizontal = draw.ambient + draw.sun_intensity * max(sun[2], 0.0)
+            want = (draw.ambient + draw.sun_intensity * max(n @ sun, 0.0)) / horizontal
+            assert abs(ratios[-1] - want) < 0.02, (sign, ratios[-1], want)
+        assert ratios[0] > 1.03 and ratios[1] < 0.97, ratios
+
+
+def test_the_drones_shadow_lies_in_a_tilted_decks_plane():
+    """With shadows on, the drone's shadow on a rolling deck darkens the pad where the drone's square,
+    cast from the body along the sun, meets the deck's plane: the pixels it darkens (against the
+    same frame without shadows) are the projection of that square."""
+    over = {"environment.sun_elevation_deg": [75.0, 75.0], "degradations.shot_noise": [0.0, 0.0],
+            "degradations.read_noise": [0.0, 0.0], "degradations.motion_blur": False}
+    lit, shaded = _deck_spec(**over, **{"environment.shadows": False}), _deck_spec(**over)
+    checked = 0
+    with SequenceRenderer(lit, 0) as a, SequenceRenderer(shaded, 0) as b:
+        sun, half = b.plan.scene_draw.sun_dir_W, b.scene.drone_size / 2
+        for k in range(len(b)):
+            T = b.cam2pad(k)
+            if not 0.8 < T[2, 3] < 2.5:
+                continue
+            P = invert(b.pad2world[k])
+            body = P @ b.body2world[k]
+            s_P = P[:3, :3] @ sun
+            centre = body[:3, 3][:2] - s_P[:2] * body[2, 3] / s_P[2]
+            if np.abs(centre).max() > 0.5:  # the square well on the pad's 1.4 m platform
+                continue
+            yaw = math.atan2(body[1, 0], body[0, 0])
+            sq = np.array([[-half, -half], [half, -half], [half, half], [-half, half]]) @ rotation_z(yaw)[:2, :2].T + centre
+            corners = np.column_stack([sq, np.zeros(4)])
+            px = b.camera.project_from(T, corners)
+            want = np.zeros((b.camera.height, b.camera.width), np.uint8)
+            cv2.fillConvexPoly(want, np.round(px * 16).astype(np.int32), 1, cv2.LINE_AA, shift=4)
+            onpad = np.zeros_like(want)
+            cv2.fillConvexPoly(onpad, np.round(b.camera.project_from(T, b.pad.outer_corners_P) * 16).astype(np.int32),
+                               1, shift=4)
+            ra, rb = a.render(k).rgb.astype(float), b.render(k).rgb.astype(float)
+            dark = (rb.sum(axis=2) < 0.8 * ra.sum(axis=2)) & (ra.sum(axis=2) > 60)
+            region = (onpad > 0) & (ra.sum(axis=2) > 60)
+            w = (want > 0) & region
+            got = dark & region
+            if w.sum() < 200:
+                continue
+            iou = (w & got).sum() / (w | got).sum()
+            assert iou > 0.9, (k, iou, w.sum(), got.sum())
+            checked += 1
+    assert checked >= 2, checked
+
+
+def test_a_deck_that_would_reach_the_ground_or_the_camera_is_refused():
+    from pad_design.errors import InputError, validate_model
+
+    with pytest.raises(InputError, match="raise platform.height_m"):
+        validate_model(DatasetSpec, {"platform": {"height_m": 0.0, "heave_m": 0.3}})
+    with pytest.raises(InputError, match="raise platform.height_m"):
+        validate_model(DatasetSpec, {"platform": {"height_m": 0.3, "size_m": 2.0, "roll_deg": 15.0, "pitch_deg": 10.0}})
+    with pytest.raises(InputError, match="touchdown_height_m"):
+        validate_model(DatasetSpec, {"platform": {"height_m": 1.0, "roll_deg": 15.0},
+                                     "trajectory": {"touchdown_height_m": 0.1, "final_offset_m": [0.0, 0.3]}})
+    validate_model(DatasetSpec, {"platform": {"height_m": 1.0, "roll_deg": 5.0, "heave_m": 0.2}})
