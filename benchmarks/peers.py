@@ -73,7 +73,7 @@ class _FiducialPeer:
         img = np.concatenate([i for _, i in found]).astype(np.float64)
         up_C = up_in_camera(imu_check(imu)[0], self.T_B_C) if self.gravity_prior else None
         if up_C is not None:
-            res = solve_planar_pose(self.camera, obj, img, up_C=up_C, gravity_sigma_deg=self.config.ahrs_tilt_sigma_deg)
+            res = solve_planar_pose(self.camera, obj, img, up_C=up_C, gravity_sigma_deg=self.config.up_sigma_deg())
             if res is None:
                 return Estimate(t, PHASE, "lost", None, reason=f"{self.METHOD}: pose failed")
             cam2pad, rms, cov = res.cam2pad, res.rms_px, res.cov

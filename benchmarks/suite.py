@@ -123,7 +123,7 @@ def load_suite(path) -> tuple:
 # LocalizerConfig fields added after suites were first hashed, with the default that behaves as before
 # the field existed: left out of the hash at that default, so adding one leaves every suite as it was
 CONFIG_FIELDS_ADDED = {"pad_relief_m": 0.0, "imu_rows": True,  # fields added after suites were frozen, at their defaults
-                       "ahrs_tilt_sigma_deg": 0.5}
+                       "ahrs_tilt_sigma_deg": 0.5, "pad_tilt_deg": 0.0}
 # the same for a localizer entry's own fields
 ENTRY_FIELDS_ADDED = {"gates": False, "ahrs_error_scale": 1.0}
 

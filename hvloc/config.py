@@ -1,6 +1,7 @@
 """Localizer configuration: plain values (the benchmark sweeps the switching heights)."""
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -54,6 +55,13 @@ class LocalizerConfig(BaseModel):
                                        "hobby flight controller; an INS aided by GNSS or a tuned EKF is nearer "
                                        "0.1, and where its error is that small, Approaching and Adjustment poses "
                                        "are that much better (README)")
+    pad_tilt_deg: float = Field(0.0, ge=0.0, le=30.0, description="how far the pad may tilt from level (degrees): "
+                                "a ship's deck rolling and pitching, as the user knows its sea state; 0 (the "
+                                "default): a level pad.  The IMU's up is then the pad's normal only to within this: "
+                                "the gravity prior is weighed by the tilt's RMS over a swell (this over sqrt 2, with "
+                                "the AHRS's error), the tilt gate allows this more, and the vision-IMU offset is "
+                                "checked on its heading alone (README: far poses on a tilting deck are as uncertain "
+                                "as the tilt makes them)")
     ahrs_bias_time_s: float = Field(0.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
                                     "image-only tilts of marker and texture poses with a Kalman filter whose "
                                     "error drifts over about this long (10 s works), and take it out of the attitude "
@@ -74,8 +82,16 @@ class LocalizerConfig(BaseModel):
     flow_reanchor_scale: float = Field(1.15, gt=1.0, description="new keyframe when the scale changes by more")
     flow_min_tracks: int = Field(30, ge=8)
 
+    def up_sigma_deg(self) -> float:
+        """How far the pad's normal may be from the IMU's up, one sigma (degrees): the AHRS's error and
+        a tilting deck's RMS tilt, together.  What the gravity prior of every pose is weighed by."""
+        return math.hypot(self.ahrs_tilt_sigma_deg, self.pad_tilt_deg / math.sqrt(2.0))
+
     @model_validator(mode="after")
     def _order(self):
+        if self.pad_tilt_deg > 0 and self.ahrs_bias_time_s > 0:
+            raise ValueError("ahrs_bias_time_s: cannot learn the AHRS's error from the pad's tilt on a tilting deck "
+                             "(pad_tilt_deg > 0): the deck's roll would be learnt as the AHRS's; set one of them to 0")
         if self.touchdown_height_m >= self.adjust_height_m:
             raise ValueError("touchdown_height_m: must be below adjust_height_m")
         if not (self.use_outline or self.use_markers or self.use_flow):

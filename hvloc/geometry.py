@@ -37,6 +37,7 @@ __all__ = [
     "transform_points",
     "look_at_cam2world",
     "rotation_z",
+    "heading_turn",
     "focal_from_hfov",
     "focal_from_hfov_equidistant",
     "continuous_quaternions",
@@ -138,6 +139,13 @@ def rotation_angle(R_a, R_b=None) -> float:
     if R_b is not None:
         R = R.T @ np.asarray(R_b, dtype=np.float64)[:3, :3]
     return float(np.linalg.norm(so3_log(R)))
+
+
+def heading_turn(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """How far ``R_b`` is turned from ``R_a`` about the world's z (radians, in (-pi, pi]): the turn
+    of their x axes' horizontal parts, whatever their tilts (a deck's roll and pitch, say)."""
+    d = math.atan2(R_b[1, 0], R_b[0, 0]) - math.atan2(R_a[1, 0], R_a[0, 0])
+    return math.atan2(math.sin(d), math.cos(d))
 
 
 def rotation_z(yaw: float) -> np.ndarray:

@@ -17,8 +17,8 @@ import numpy as np
 
 from . import phases as ph
 from .config import LocalizerConfig
-from .geometry import (GRAVITY_MPS2, Camera, invert, make_transform, matrix_from_quat_xyzw, rotation_angle, so3_exp,
-                       so3_log)
+from .geometry import (GRAVITY_MPS2, Camera, heading_turn, invert, make_transform, matrix_from_quat_xyzw, rotation_angle,
+                       so3_exp, so3_log)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
@@ -596,6 +596,25 @@ def corner_sigma_px(info: dict) -> np.ndarray:
     return base * np.asarray(info.get("px_sigma_scale", 1.0))
 
 
+DECK_MAX_SIDEWAYS_SIGMA = 0.05  # share of the height: a pose on a tilting deck stating more is refused
+
+
+def deck_tilt_refusal(est: "Estimate", cfg: LocalizerConfig) -> str:
+    """Why a pose on a tilting deck is refused, or ``""``: the IMU's up no longer fixes the pad's
+    tilt, and a tilt error of d moves the camera's position in the pad's frame sideways by about the
+    height times d.  A pose whose own covariance says its sideways position is known no better than
+    :data:`DECK_MAX_SIDEWAYS_SIGMA` of the height (a far pad's four corners, which hardly fix its
+    tilt) would be off by a tenth of the height one time in twenty: refused, not stated."""
+    if est.cov is None or est.cam2pad is None:
+        return ""
+    h = max(abs(float(est.cam2pad[2, 3])), 1e-6)
+    side = math.sqrt(max(float(est.cov[0, 0]), float(est.cov[1, 1]), 0.0))
+    if side > DECK_MAX_SIDEWAYS_SIGMA * h:
+        return (f"on a deck that may tilt {cfg.pad_tilt_deg:g} deg the image fixes the pad's tilt too loosely: "
+                f"sideways sigma {100 * side / h:.1f} % of the height (> {100 * DECK_MAX_SIDEWAYS_SIGMA:g} %)")
+    return ""
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -629,21 +648,27 @@ class FalsePoseGates:
             up_C = up_in_camera(R_W_B, self.T_B_C)
             tilt = math.degrees(math.acos(float(np.clip((est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C,
                                                         -1.0, 1.0))))
-            if tilt > cfg.max_tilt_error_deg:
-                return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {cfg.max_tilt_error_deg})"
+            allowed = cfg.max_tilt_error_deg + cfg.pad_tilt_deg  # (a tilting deck's pad is not level)
+            if tilt > allowed:
+                return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {allowed:g})"
+            if cfg.pad_tilt_deg > 0:
+                why = deck_tilt_refusal(est, cfg)
+                if why:
+                    return why
             # the gravity prior pulls a refined pose toward the IMU: where many points fix the tilt (the
             # markers), also ask what the image alone said, and reject when it contradicts the IMU by far
             # more than both can err.  Not with the outline's four corners: one corner a few pixels off (a
             # shadow across it) tilts their pose by 10 degrees or more "confidently", and the IMU is right
             alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
-            if est.n_corr >= 12 and alone > 2 * cfg.max_tilt_error_deg and alone > 5.0 * math.hypot(sigma, 0.5):
+            if est.n_corr >= 12 and alone > 2 * allowed and alone > 5.0 * math.hypot(sigma, cfg.up_sigma_deg()):
                 return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
                         f"(+-{sigma:.1f} deg)")
             R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
             if self.R_W_P is None:
                 self.R_W_P = R_W_P
             else:
-                jump = math.degrees(rotation_angle(self.R_W_P, R_W_P))
+                jump = math.degrees(rotation_angle(self.R_W_P, R_W_P) if cfg.pad_tilt_deg <= 0
+                                    else abs(heading_turn(self.R_W_P, R_W_P)))
                 if jump > cfg.imu_jump_deg:
                     self.imu_rejects += 1
                     if self.imu_rejects >= 8:  # the reference itself was wrong: start again
@@ -722,7 +747,7 @@ class HierarchicalLocalizer:
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
-        self.flow.gravity_sigma_deg = self.config.ahrs_tilt_sigma_deg
+        self.flow.gravity_sigma_deg = self.config.up_sigma_deg()
         self.flow.ground = self.config.anchor_once  # (the pad's own corners only: FlowTracker.ground)
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
         self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
@@ -1255,7 +1280,7 @@ class HierarchicalLocalizer:
         turns = []
         for k in range(4):
             pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
-                                     gravity_sigma_deg=self.config.ahrs_tilt_sigma_deg)
+                                     gravity_sigma_deg=self.config.up_sigma_deg())
             turns.append(rotation_angle(pose.cam2pad[:3, :3], R_P_C) if pose is not None else np.inf)
         k = int(np.argmin(turns))
         if turns[k] > math.radians(30) or np.partition(turns, 1)[1] < math.radians(60):
@@ -1343,7 +1368,7 @@ class HierarchicalLocalizer:
             return det
         from .texfit import fit_pose_to_design
 
-        g = self.config.ahrs_tilt_sigma_deg
+        g = self.config.up_sigma_deg()
         start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
         if start is None:
             return det
@@ -1410,9 +1435,9 @@ class HierarchicalLocalizer:
             level = self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]) if up_C is None else None
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
                                       array_key(prior) if up_C is None else None, array_key(level), array_key(s), w,
-                                      None if sh is None else (sh.shift, sh.dilation), cfg.ahrs_tilt_sigma_deg),
+                                      None if sh is None else (sh.shift, sh.dilation), cfg.up_sigma_deg()),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
-                             sigma_from_fit=w, shared=sh, level_up_C=level, gravity_sigma_deg=cfg.ahrs_tilt_sigma_deg)
+                             sigma_from_fit=w, shared=sh, level_up_C=level, gravity_sigma_deg=cfg.up_sigma_deg())
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
