@@ -549,6 +549,83 @@ class AHRSTiltBias:
         self.n += 1
 
 
+class DeckTilt:
+    """A tilting deck's tilt in the world, tracked from the image, for the gravity prior.
+
+    On a deck that rolls and pitches (``pad_tilt_deg`` of the config) the IMU's up is the pad's
+    normal only to within the deck's tilt, and a far pad's pose tilted by d is off sideways by the
+    height times d.  The tilt moves smoothly (a swell of seconds): the image measures it well from
+    many points (markers, texture: their own normal, the AHRS's attitude turning it into the world),
+    and between such poses a Kalman filter per world axis (tilt and its rate; white acceleration of
+    what a swell of ``pad_tilt_deg`` at :data:`PERIOD_MIN_S` has) predicts it.  Its prediction is the
+    up the poses are drawn to, as sure as the filter says; with nothing recent, the IMU's up as sure
+    as the deck's RMS tilt.  A measurement further than 3 sigma + 1 degree from the prediction is a
+    bad fit (a mirror pose), not the deck, and is skipped."""
+
+    PERIOD_MIN_S = 4.0  # the shortest swell it follows at full amplitude
+
+    def __init__(self, amplitude_deg: float, ahrs_sigma_deg: float):
+        self.A = math.radians(amplitude_deg)
+        self.ahrs = math.radians(ahrs_sigma_deg)
+        w = 2.0 * math.pi / self.PERIOD_MIN_S
+        self.q = (self.A * w * w) ** 2  # the white acceleration's spectral density (rad^2 / s^3)
+        self.rate0 = self.A * w
+        self.reset()
+
+    def reset(self) -> None:
+        self.x = np.zeros((2, 2))  # [tilt, rate] x [world x, world y] (rotation vector, rad)
+        self.P = np.zeros((2, 2))  # shared by both axes
+        self.t: float | None = None
+
+    def _predicted(self, t: float):
+        dt = max(t - self.t, 0.0)
+        F = np.array([[1.0, dt], [0.0, 1.0]])
+        Q = self.q * np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
+        return F @ self.x, F @ self.P @ F.T + Q
+
+    def _known(self, P) -> bool:
+        return math.sqrt(P[0, 0]) < self.A / math.sqrt(2.0)
+
+    def prior(self, t: float) -> tuple:
+        """``(tilt (3,) rad, sigma deg, tolerance deg, tracked)`` at ``t``: the rotation vector
+        (world) that takes the world's up to the pad's normal, how sure it is (with the AHRS's
+        error), how far from it the pad may lie (3 sigma, at most the deck's amplitude), and whether
+        the image has told it (else the IMU's up, as sure as the deck's RMS tilt)."""
+        if self.t is not None:
+            x, P = self._predicted(t)
+            if self._known(P):
+                tilt = x[0]
+                n = float(np.linalg.norm(tilt))
+                if n > self.A:
+                    tilt = tilt * (self.A / n)
+                s = math.hypot(self.ahrs, math.sqrt(P[0, 0]))
+                return np.array([tilt[0], tilt[1], 0.0]), math.degrees(s), math.degrees(min(self.A, 3.0 * s)), True
+        return np.zeros(3), math.degrees(math.hypot(self.ahrs, self.A / math.sqrt(2.0))), math.degrees(self.A), False
+
+    def update(self, t: float, normal_W, sigma_deg: float) -> None:
+        """One image-only pad normal in the world with its fit's tilt sigma (deg), seen at ``t``."""
+        if normal_W is None or not math.isfinite(t) or not math.isfinite(sigma_deg) or sigma_deg <= 0:
+            return
+        n = np.asarray(normal_W, np.float64) / np.linalg.norm(normal_W)
+        axis = np.array([-n[1], n[0]])  # e_z x n
+        s = float(np.linalg.norm(axis))
+        z = axis / s * math.atan2(s, n[2]) if s > 1e-12 else np.zeros(2)
+        R = math.radians(sigma_deg) ** 2 + self.ahrs ** 2
+        if self.t is None or not self._known(self._predicted(t)[1]):
+            self.x = np.array([z, [0.0, 0.0]])
+            self.P = np.diag([R, self.rate0 ** 2])
+            self.t = t
+            return
+        x, P = self._predicted(t)
+        S = P[0, 0] + R
+        if np.abs(z - x[0]).max() > 3.0 * math.sqrt(S) + math.radians(1.0):
+            return
+        K = P[:, 0] / S
+        self.x = x + np.outer(K, z - x[0])
+        self.P = P - np.outer(K, K) * S
+        self.t = max(self.t, t)
+
+
 def _mirror_refusal(pose: PoseResult) -> str:
     """Why a pose whose flip nothing decided (:func:`hvloc.pose.solve_planar_pose`: no IMU, no
     previous pose, the mount's level up undecided) is refused, or ``""``."""
@@ -627,6 +704,9 @@ class FalsePoseGates:
     def reset(self) -> None:
         self.R_W_P: np.ndarray | None = None  # running vision-IMU rotation offset
         self.imu_rejects = 0
+        # how far the pad may lie from the up the gates are given (a tilting deck: its tracked tilt's
+        # tolerance, set per frame by the localizer; else the deck's whole amplitude)
+        self.tilt_allowance_deg = self.config.pad_tilt_deg
 
     def check(self, est: "Estimate", R_W_B, last: "Estimate | None") -> str:
         """Why ``est`` (an ``ok`` pose) must be rejected, or ``""``; ``last``: the last accepted one."""
@@ -648,7 +728,7 @@ class FalsePoseGates:
             up_C = up_in_camera(R_W_B, self.T_B_C)
             tilt = math.degrees(math.acos(float(np.clip((est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C,
                                                         -1.0, 1.0))))
-            allowed = cfg.max_tilt_error_deg + cfg.pad_tilt_deg  # (a tilting deck's pad is not level)
+            allowed = cfg.max_tilt_error_deg + self.tilt_allowance_deg  # (a tilting deck's pad is not level)
             if tilt > allowed:
                 return f"tilt disagrees with the IMU's gravity by {tilt:.1f} deg (> {allowed:g})"
             if cfg.pad_tilt_deg > 0:
@@ -744,6 +824,12 @@ class HierarchicalLocalizer:
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s, self.config.ahrs_tilt_sigma_deg)
+        cfg = self.config
+        self.deck = DeckTilt(cfg.pad_tilt_deg, cfg.ahrs_tilt_sigma_deg) if cfg.pad_tilt_deg > 0 else None
+        # the gravity prior this frame: how sure the up given to the poses is (deg), and how far from
+        # it the pad may lie (a tilting deck's; 0: level)
+        self.up_sigma_deg, self.up_tolerance_deg = cfg.up_sigma_deg(), cfg.pad_tilt_deg
+        self.deck_tracked = False  # whether a tilting deck's tilt is known from the image this frame
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
@@ -824,7 +910,14 @@ class HierarchicalLocalizer:
         # the accelerations since the velocity filter last predicted (_update_twist)
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
                        + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
-        est = self._estimate(image, t, self.ahrs.corrected(R_W_B), R_W_B)
+        R_use = self.ahrs.corrected(R_W_B)
+        if self.deck is not None and R_W_B is not None and math.isfinite(t):
+            # the attitude relative to the deck's tracked tilt: its up is the pad's normal as predicted
+            tilt, self.up_sigma_deg, self.up_tolerance_deg, self.deck_tracked = self.deck.prior(float(t))
+            R_use = so3_exp(-tilt) @ R_use
+            self.gates.tilt_allowance_deg = self.up_tolerance_deg
+            self.flow.gravity_sigma_deg = self.up_sigma_deg
+        est = self._estimate(image, t, R_use, R_W_B)
         # said in the reason too, whatever the frame's status (DESIGN.md for the clock), after a
         # failure's own reasons: estimates.csv does not carry the extras
         for key, note in (("clock", clock), ("imu", imu_why and imu_why + ": vision alone")):
@@ -918,6 +1011,11 @@ class HierarchicalLocalizer:
                                      est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
                                      est.extras.get("mirror_normal_img_C"),
                                      est.extras.get("mirror_chi2_gap", float("inf")))
+                    normal_C = est.extras.get("normal_img_C")
+                    if self.deck is not None and normal_C is not None:  # (the AHRS's error is not learnt on a deck)
+                        R_W_C = (R_W_B if R_W_B_raw is None else R_W_B_raw) @ self.T_B_C[:3, :3]
+                        self.deck.update(t, R_W_C @ np.asarray(normal_C, np.float64),
+                                         est.extras.get("tilt_sigma_deg", float("nan")))
             self._after_accept(method, est, gray)
             return est
         self.flow.skip()
@@ -1280,7 +1378,7 @@ class HierarchicalLocalizer:
         turns = []
         for k in range(4):
             pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
-                                     gravity_sigma_deg=self.config.up_sigma_deg())
+                                     gravity_sigma_deg=self.up_sigma_deg)
             turns.append(rotation_angle(pose.cam2pad[:3, :3], R_P_C) if pose is not None else np.inf)
         k = int(np.argmin(turns))
         if turns[k] > math.radians(30) or np.partition(turns, 1)[1] < math.radians(60):
@@ -1325,7 +1423,12 @@ class HierarchicalLocalizer:
             # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
             # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                if grey:  # the pad by its design, not its colour
+                if grey and self.deck is not None and not self.deck_tracked:
+                    # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
+                    # deck_mono (both of IPPE's minima), stating 2.5; wait for the deck's tilt to be tracked
+                    found, why = None, ("grey outline: its four corners do not fix a tilting deck's tilt, "
+                                        "and the deck's is not tracked yet")
+                elif grey:  # the pad by its design, not its colour
                     found, why = self.work(lambda: ("grey outline", r), ph.find_grey_outline, rgb, gray, self.geometry,
                                            self.camera, r, self._design())
                 else:
@@ -1368,7 +1471,7 @@ class HierarchicalLocalizer:
             return det
         from .texfit import fit_pose_to_design
 
-        g = self.config.up_sigma_deg()
+        g = self.up_sigma_deg
         start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
         if start is None:
             return det
@@ -1434,10 +1537,13 @@ class HierarchicalLocalizer:
             # world's: it may choose between a far pad's pose and its mirror (hvloc.pose)
             level = self.T_B_C[:3, :3].T @ np.array([0.0, 0.0, 1.0]) if up_C is None else None
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
-                                      array_key(prior) if up_C is None else None, array_key(level), array_key(s), w,
-                                      None if sh is None else (sh.shift, sh.dilation), cfg.up_sigma_deg()),
+                                      array_key(prior) if up_C is None else None,
+                                      array_key(level), array_key(s), w,
+                                      None if sh is None else (sh.shift, sh.dilation), self.up_sigma_deg,
+                                      self.up_tolerance_deg),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
-                             sigma_from_fit=w, shared=sh, level_up_C=level, gravity_sigma_deg=cfg.up_sigma_deg())
+                             sigma_from_fit=w, shared=sh, level_up_C=level, gravity_sigma_deg=self.up_sigma_deg,
+                             up_tolerance_deg=self.up_tolerance_deg)
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]

@@ -3825,3 +3825,59 @@ def test_heading_turn_ignores_tilt():
         Rz = so3_exp([0.0, 0.0, yaw])
         assert heading_turn(tilt, Rz @ tilt) == pytest.approx(yaw, abs=0.02)
     assert heading_turn(np.eye(3), so3_exp([0.0, 0.0, 3.0]) @ so3_exp([0.0, 0.0, 0.5])) == pytest.approx(3.5 - 2 * math.pi)
+
+
+def test_a_decks_tilt_is_tracked_from_noisy_normals_and_a_mirror_is_not_taken():
+    """DeckTilt: a swell of 8 degrees (period 7 s) measured at 10 Hz with 1 degree of noise per
+    axis: its prediction one frame on is within 1.5 degrees nearly always, and says so (sigma well
+    under the deck's RMS tilt, the tolerance well under its amplitude); a normal 13 degrees off (a
+    mirror pose) is skipped; with nothing for long it falls back to the IMU's up, as sure as the
+    deck's RMS tilt."""
+    from hvloc.localizer import DeckTilt
+
+    rng = np.random.default_rng(3)
+    deck = DeckTilt(15.0, 0.5)
+    A, w = math.radians(8.0), 2 * math.pi / 7.0
+
+    def truth(t):
+        return np.array([A * math.sin(w * t), 0.6 * A * math.cos(1.3 * w * t), 0.0])
+
+    def normal(rv):
+        return so3_exp(rv) @ np.array([0.0, 0.0, 1.0])
+
+    errs, ratio = [], []
+    for i in range(200):
+        t = 0.1 * i
+        tilt, sigma, tol, tracked = deck.prior(t)
+        if i > 20:
+            assert tracked and sigma < 3.0 and tol < 9.0
+            errs.append(math.degrees(np.linalg.norm((tilt - truth(t))[:2])))
+            ratio.append(np.abs(np.degrees((tilt - truth(t))[:2])).max() / sigma)
+        deck.update(t, normal(truth(t) + np.append(rng.normal(0, math.radians(1.0), 2), 0.0)), 1.0)
+    # (it follows a swell as short as 4 s at 15 degrees: it smooths little, but a mirror 13 degrees
+    # off lies far outside what it allows, and the untracked up is off by the whole tilt)
+    assert np.percentile(errs, 99) < 4.5 and np.percentile(ratio, 99) < 3.0, (np.percentile(errs, [50, 99]),
+                                                                               np.percentile(ratio, [50, 99]))
+    before = deck.x.copy()
+    deck.update(20.0, normal(truth(20.0) + np.radians([13.0, 0.0, 0.0])), 0.5)  # a mirror: skipped
+    assert np.allclose(deck.x, before)
+    tilt, sigma, tol, tracked = deck.prior(60.0)  # 40 s with nothing
+    assert not tracked and np.allclose(tilt, 0.0) and tol == pytest.approx(15.0)
+    assert sigma == pytest.approx(math.hypot(0.5, 15.0 / math.sqrt(2)))
+
+
+def test_on_a_tilting_deck_gravity_does_not_choose_between_a_pose_and_its_mirror():
+    """A far pad seen obliquely: IPPE's two poses fit alike.  On level ground gravity picks the one
+    whose pad lies level; where the pad may tilt by more than both lie from up, nothing picks it
+    (``ambiguous``), so the localizer refuses it rather than guess."""
+    geo = make_pad().geometry
+    cam = Camera(640, 480, 500.0, 500.0, 319.5, 239.5)
+    T = look_at_cam2world(np.array([6.0, 0.0, 14.0]), np.zeros(3))  # pad seen 23 degrees off axis
+    px = cam.project_from(T, geo.outer_corners)
+    up_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    level = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C)
+    assert level.flip_choice == "gravity" and rotation_angle(level.cam2pad[:3, :3], T[:3, :3]) < 0.01
+    deck = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=60.0)
+    assert deck.flip_choice == "ambiguous"
+    tight = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=2.0)
+    assert tight.flip_choice == "gravity"
