@@ -911,6 +911,7 @@ class HierarchicalLocalizer:
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
                        + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
         R_use = self.ahrs.corrected(R_W_B)
+        self.deck_tracked = False
         if self.deck is not None and R_W_B is not None and math.isfinite(t):
             # the attitude relative to the deck's tracked tilt: its up is the pad's normal as predicted
             tilt, self.up_sigma_deg, self.up_tolerance_deg, self.deck_tracked = self.deck.prior(float(t))

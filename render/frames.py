@@ -90,6 +90,8 @@ class SequenceRenderer:
             if a.prop_diameter_m > 0 and a.prop_alpha > 0:
                 self.props.append((np.array([tip[0], tip[1], a.arm_z_m + a.prop_z_m]), a.prop_diameter_m / 2))
         self.material = plan.material
+        # how far a moving deck's box reaches below the ground (it must never lift off as the deck moves)
+        self.deck_drop_m = spec.platform.max_edge_drop_m() + 0.05 if spec.platform.deck_moves() else 0.0
         self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
                                   self.imaging.render_camera, pad.spec.border_color,
                                   np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,
@@ -97,7 +99,7 @@ class SequenceRenderer:
                                   pad_texture=dirty_texture(pad.texture_rgb, self.material["dirt"],
                                                             self.material["dirt_seed"]),
                                   legs=self.legs, pad_relief=self.material.get("relief"),
-                                  deck_drop_m=spec.platform.max_edge_drop_m() + 0.05 if spec.platform.deck_moves() else 0.0,
+                                  deck_drop_m=self.deck_drop_m,
                                   deck_tilts=spec.platform.roll_deg > 0 or spec.platform.pitch_deg > 0)
         self.samples = PadSamples.of(pad.geometry)
         self.relief_px: list = []  # per frame: how far the features' images on the relief lie from the labels'
@@ -126,7 +128,8 @@ class SequenceRenderer:
         # what moves with the platform, in the pad frame: its top and sides, the pad (and its margin)
         half = max(pad.side_m / 2, spec.platform.size_m / 2 if spec.platform.height_m > 0 else 0.0) + 1e-3
         self._moving_half = half
-        self._moving_floor = -(spec.platform.height_m + PAD_THICKNESS_M) + 1e-3
+        # (a deck's box reaches below the ground by its travel: its sides rise into view as it heaves)
+        self._moving_floor = -(spec.platform.height_m + PAD_THICKNESS_M + self.deck_drop_m) + 1e-3
         # quaternions keep one hemisphere from row to row
         self._quats = continuous_quaternions([tum_from_transform(self.cam2pad(k))[3:] for k in range(len(self.times))])
         self._body_quats = continuous_quaternions([tum_from_transform(T)[3:] for T in self.body2world])

@@ -457,7 +457,8 @@ class LandingScene:
         self._drone_shadow_on_pad = None
         if self.deck_tilts and self._drone_shadow_on_deck(p, yaw, s):
             return
-        for surface in (self.pad_surface_z, 0.0):
+        # a heaving deck's top is where it is now; a tilting one's was tried above (off it: the ground)
+        for surface in ((0.0,) if self.deck_tilts else (float(self.pad2world[2, 3]), 0.0)):
             k = (p[2] - surface) / max(s[2], 0.05)
             xy = p[:2] - s[:2] * k
             rel = xy - self.platform_xy

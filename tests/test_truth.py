@@ -1034,12 +1034,15 @@ def test_a_tilted_deck_is_lit_as_it_faces_the_sun():
         assert ratios[0] > 1.03 and ratios[1] < 0.97, ratios
 
 
-def test_the_drones_shadow_lies_in_a_tilted_decks_plane():
-    """With shadows on, the drone's shadow on a rolling deck darkens the pad where the drone's square,
-    cast from the body along the sun, meets the deck's plane: the pixels it darkens (against the
-    same frame without shadows) are the projection of that square."""
+@pytest.mark.parametrize("motion", [{}, {"platform.roll_deg": 0.0, "platform.pitch_deg": 0.0}],
+                         ids=["rolling_heaving", "heaving_only"])
+def test_the_drones_shadow_lies_in_a_moving_decks_plane(motion):
+    """With shadows on, the drone's shadow on a rolling or heaving deck darkens the pad where the
+    drone's square, cast from the body along the sun, meets the deck's plane where it is now: the
+    pixels it darkens (against the same frame without shadows) are the projection of that square.
+    (On a deck that only heaved, the square was laid at the deck's mean height.)"""
     over = {"environment.sun_elevation_deg": [75.0, 75.0], "degradations.shot_noise": [0.0, 0.0],
-            "degradations.read_noise": [0.0, 0.0], "degradations.motion_blur": False}
+            "degradations.read_noise": [0.0, 0.0], "degradations.motion_blur": False, **motion}
     lit, shaded = _deck_spec(**over, **{"environment.shadows": False}), _deck_spec(**over)
     checked = 0
     with SequenceRenderer(lit, 0) as a, SequenceRenderer(shaded, 0) as b:
