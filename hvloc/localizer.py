@@ -673,7 +673,7 @@ def corner_sigma_px(info: dict) -> np.ndarray:
     return base * np.asarray(info.get("px_sigma_scale", 1.0))
 
 
-DECK_MAX_SIDEWAYS_SIGMA = 0.05  # share of the height: a pose on a tilting deck stating more is refused
+DECK_MAX_SIDEWAYS_SIGMA = 0.1 / 3.0  # share of the height: a pose on a tilting deck stating more is refused
 
 
 def deck_tilt_refusal(est: "Estimate", cfg: LocalizerConfig) -> str:
@@ -681,14 +681,17 @@ def deck_tilt_refusal(est: "Estimate", cfg: LocalizerConfig) -> str:
     tilt, and a tilt error of d moves the camera's position in the pad's frame sideways by about the
     height times d.  A pose whose own covariance says its sideways position is known no better than
     :data:`DECK_MAX_SIDEWAYS_SIGMA` of the height (a far pad's four corners, which hardly fix its
-    tilt) would be off by a tenth of the height one time in twenty: refused, not stated."""
+    tilt) may be off by a tenth of the height within its 3 sigma: refused, not stated.  (At 2 sigma,
+    5 %, the decks suite and a scene made after it, unseen73, kept 143 of 145 outline poses and 3 of
+    them were off by 9-11 % of the height, 2.3-3 of their sigmas: a far outline's covariance on a
+    tilted pad understates.)"""
     if est.cov is None or est.cam2pad is None:
         return ""
     h = max(abs(float(est.cam2pad[2, 3])), 1e-6)
     side = math.sqrt(max(float(est.cov[0, 0]), float(est.cov[1, 1]), 0.0))
     if side > DECK_MAX_SIDEWAYS_SIGMA * h:
         return (f"on a deck that may tilt {cfg.pad_tilt_deg:g} deg the image fixes the pad's tilt too loosely: "
-                f"sideways sigma {100 * side / h:.1f} % of the height (> {100 * DECK_MAX_SIDEWAYS_SIGMA:g} %)")
+                f"sideways sigma {100 * side / h:.1f} % of the height (> {100 * DECK_MAX_SIDEWAYS_SIGMA:.1f} %)")
     return ""
 
 
