@@ -58,10 +58,11 @@ class LocalizerConfig(BaseModel):
     pad_tilt_deg: float = Field(0.0, ge=0.0, le=30.0, description="how far the pad may tilt from level (degrees): "
                                 "a ship's deck rolling and pitching, as the user knows its sea state; 0 (the "
                                 "default): a level pad.  The IMU's up is then the pad's normal only to within this: "
-                                "the gravity prior is weighed by the tilt's RMS over a swell (this over sqrt 2, with "
-                                "the AHRS's error), the tilt gate allows this more, and the vision-IMU offset is "
-                                "checked on its heading alone (README: far poses on a tilting deck are as uncertain "
-                                "as the tilt makes them)")
+                                "until the markers show the deck's tilt, the gravity prior is weighed by the tilt's "
+                                "RMS over a swell (this over sqrt 2, with the AHRS's error) and the tilt gate allows "
+                                "this more; then the tilt is tracked (hvloc.localizer.DeckTilt) and the prior follows "
+                                "it.  The vision-IMU offset is checked on its heading alone; far poses whose tilt the "
+                                "image cannot fix are refused (README: Landing on a ship)")
     ahrs_bias_time_s: float = Field(0.0, ge=0.0, description="learn the AHRS's slow roll/pitch error from "
                                     "image-only tilts of marker and texture poses with a Kalman filter whose "
                                     "error drifts over about this long (10 s works), and take it out of the attitude "
