@@ -62,10 +62,11 @@ def reason_kind(reason: str, width: int = 80) -> str:
     return re.sub(r"\d+(\.\d+)?", "#", kind)[:width]
 
 
-def summarise(rows, ahrs_sigma_deg: float = LocalizerConfig().ahrs_tilt_sigma_deg) -> str:
+def summarise(rows, ahrs_sigma_deg: float = LocalizerConfig().ahrs_tilt_sigma_deg, pad_tilt_deg: float = 0.0) -> str:
     """The rows per ground-truth phase: statuses, the commonest reasons, the signed height bias, the
     tilt against the IMU; and how far off the AHRS's gravity is where the image can tell
-    (:func:`ahrs_as_seen`), against ``ahrs_sigma_deg``, what the localizer was told."""
+    (:func:`ahrs_as_seen`), against ``ahrs_sigma_deg``, what the localizer was told; or, where the
+    pad lay further from the IMU's up than any AHRS errs, that it tilts (:func:`deck_as_seen`)."""
     lines = []
     by = collections.defaultdict(list)
     for r in rows:
@@ -96,14 +97,42 @@ def summarise(rows, ahrs_sigma_deg: float = LocalizerConfig().ahrs_tilt_sigma_de
                              f"{np.nanpercentile(t[:, 0], 95):.2f}/{np.nanmax(t[:, 0]):.2f} deg, sigma p50 "
                              f"{np.nanpercentile(t[:, 1], 50):.2f}, z p50/p95/max {np.nanpercentile(z, 50):.1f}/"
                              f"{np.nanpercentile(z, 95):.1f}/{np.nanmax(z):.1f}")
-    seen = ahrs_as_seen(rows, ahrs_sigma_deg)
-    if seen:
-        lines.append(seen)
+    deck = deck_as_seen(rows, pad_tilt_deg)
+    seen = "" if deck else ahrs_as_seen(rows, ahrs_sigma_deg)
+    for line in (deck, seen):
+        if line:
+            lines.append(line)
     return "\n".join(lines)
 
 
 SURE_TILT_SHARE = 0.25  # a pose whose image fixes the tilt to this share of the AHRS's stated sigma sees the AHRS's error
 RAYLEIGH_P90 = math.sqrt(2.0 * math.log(10.0))  # the 90th percentile of a 2-D error's size, in its sigma per axis
+
+
+DECK_SURE_TILT_DEG = 0.5  # a pose whose image fixes the pad's tilt to this sees the pad's tilt against the IMU's up
+DECK_TILT_DEG = 2.5  # ... and a pad that lies further from it than this tilts: no AHRS in our scenes erred half as far
+
+
+def deck_as_seen(rows, pad_tilt_deg: float = 0.0) -> str:
+    """Whether the pad lay further from the IMU's up than an AHRS errs where the image fixed its tilt
+    (poses accepted or refused, right by the labels, whose image-only tilt sigma is under
+    :data:`DECK_SURE_TILT_DEG`): their 90th percentile past :data:`DECK_TILT_DEG` says the pad tilts, a
+    ship's deck, and that the localizer takes it for level unless told (``pad_tilt_deg``).  The AHRS
+    is not blamed for it (:func:`ahrs_as_seen` would: a deck_swell flight read "state
+    ahrs_tilt_sigma_deg of at least 1.4").  ``""`` where nothing says so."""
+    t = np.array([r[10].get("tilt_err_deg", np.nan) for r in rows
+                  if r[4] in ("ok", "rejected") and not r[8] and r[10].get("tilt_sigma_deg", np.inf) < DECK_SURE_TILT_DEG],
+                 float)
+    t = t[np.isfinite(t)]
+    if not len(t) or np.percentile(t, 90) <= DECK_TILT_DEG:
+        return ""
+    p50, p90, top = np.percentile(t, 50), np.percentile(t, 90), float(t.max())
+    line = (f"the pad lay p50/p90/max {p50:.1f}/{p90:.1f}/{top:.1f} deg from the IMU's up where {len(t)} poses fixed its tilt "
+            f"from the image (sigma under {DECK_SURE_TILT_DEG:g} deg): further than an AHRS errs")
+    if pad_tilt_deg <= 0:
+        line += (f"\n    a deck that rolls and pitches? The localizer takes the pad for level: state pad_tilt_deg of at "
+                 f"least {math.ceil(top)} (README: Landing on a ship)")
+    return line
 
 
 def ahrs_as_seen(rows, ahrs_sigma_deg: float) -> str:
@@ -210,7 +239,7 @@ def main(argv=None, prog: str = "python -m benchmarks.diagnose") -> int:
         return 0
     cfg = load_config(a.config) if a.config else LocalizerConfig()
     rows = diagnose(a.dataset, cfg, a.frames, not a.no_imu)
-    print(summarise(rows, cfg.ahrs_tilt_sigma_deg))
+    print(summarise(rows, cfg.ahrs_tilt_sigma_deg, cfg.pad_tilt_deg))
     if a.show_false:
         for r in rows:
             if (r[4] == "ok" and r[8]) or (r[4] == "rejected" and not r[8]):

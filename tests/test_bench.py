@@ -683,6 +683,31 @@ def test_diagnose_says_when_the_ahrs_is_further_off_than_the_localizer_is_told()
     assert "AHRS gravity" not in summarise(rows(0.8, sigma_deg=1.5) + rows(3.0, wrong=True), 0.5)
 
 
+def test_diagnose_says_the_pad_tilts_where_it_lies_further_from_the_imus_up_than_an_ahrs_errs():
+    """On a deck that rolls 8 and pitches 5 degrees the pad lies several degrees from the IMU's up
+    where markers fix its tilt to hundredths: that is the deck, not the AHRS (diagnose said "state
+    ahrs_tilt_sigma_deg of at least 1.4" on deck_swell).  It says to state pad_tilt_deg, at least the
+    largest tilt seen, and not the AHRS's error; told the deck tilts, it no longer asks; an AHRS
+    0.8 degrees off is no deck."""
+    from benchmarks.diagnose import summarise
+
+    rng = np.random.default_rng(6)
+
+    def rows(tilts, sigma_deg=0.05, status="rejected"):
+        return [("s", k, "adjustment", 2.0, status, "markers", 0.01, 0.1, False, "",
+                 {"tilt_err_deg": float(e), "tilt_sigma_deg": sigma_deg}, 0.0) for k, e in enumerate(tilts)]
+
+    deck = rows(8.0 * np.abs(np.sin(np.linspace(0, 12, 150)))) + rows(rng.uniform(0, 0.5, 20), status="ok")
+    text = summarise(deck, 0.5)
+    assert "a deck that rolls and pitches?" in text and "state pad_tilt_deg of at least 8" in text, text
+    assert "ahrs_tilt_sigma_deg" not in text, text
+    assert "state pad_tilt_deg" not in summarise(deck, 0.5, pad_tilt_deg=10.0)
+    ahrs = rows(np.hypot(*rng.normal(0.0, 0.8, (2, 200))), sigma_deg=0.03, status="ok")
+    assert "pad_tilt_deg" not in summarise(ahrs, 0.5) and "ahrs_tilt_sigma_deg of at least" in summarise(ahrs, 0.5)
+    # far poses whose image cannot fix the tilt are no evidence
+    assert "pad_tilt_deg" not in summarise(rows(8.0 * np.ones(50), sigma_deg=3.0), 0.5)
+
+
 def test_diagnose_counts_refusals_by_their_cause_not_their_first_words():
     """The summary grouped reasons by their first three words: every refused outline read "outline:
     rejected, the" (unseen46), whatever refused it.  Now by the first method's verdict and the first
