@@ -100,7 +100,7 @@ class SequenceRenderer:
                                                             self.material["dirt_seed"]),
                                   legs=self.legs, pad_relief=self.material.get("relief"),
                                   deck_drop_m=self.deck_drop_m,
-                                  deck_tilts=spec.platform.roll_deg > 0 or spec.platform.pitch_deg > 0)
+                                  deck_turns=spec.platform.deck_turns())
         self.samples = PadSamples.of(pad.geometry)
         self.relief_px: list = []  # per frame: how far the features' images on the relief lie from the labels'
         self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames
@@ -407,7 +407,7 @@ class SequenceRenderer:
         drone's shadow or a box's).  ``(rows, cols, factor or None, glare or None)``, or ``None``
         when there is nothing to add."""
         relief, gloss = self.material.get("relief"), self.material["gloss"]
-        tilts = self.scene.deck_tilts  # a deck's roll and pitch turn the pad from the sun
+        tilts = self.scene.deck_turns  # a deck's roll and pitch turn the pad from the sun (its yaw, its frame)
         if relief is None and not gloss > 0 and not tilts:
             return None
         got = self._pad_pixels(depth, cam2pad)

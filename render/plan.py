@@ -102,9 +102,12 @@ def _sequence_trajectory(spec: DatasetSpec, index: int) -> tuple:
     pl = spec.platform
     deck = None
     if pl.deck_moves():  # phases from a generator of their own: every other draw stays as it was
-        phases = np.random.default_rng([sequence_seed(spec.seed, index), 0xDEC]).uniform(0, 2 * np.pi, 3)
+        # (roll, pitch and heave drawn first: a deck that does not yaw draws as it did before yaw was added)
+        draw = np.random.default_rng([sequence_seed(spec.seed, index), 0xDEC])
+        phases = np.append(draw.uniform(0, 2 * np.pi, 3), draw.uniform(0, 2 * np.pi))
         deck = DeckMotion(math.radians(pl.roll_deg), math.radians(pl.pitch_deg), pl.heave_m,
-                          (pl.roll_period_s, pl.pitch_period_s, pl.heave_period_s), tuple(float(v) for v in phases))
+                          (pl.roll_period_s, pl.pitch_period_s, pl.heave_period_s, pl.yaw_period_s),
+                          tuple(float(v) for v in phases), math.radians(pl.yaw_deg))
     fams = spec.trajectory.families
     family = fams[index % len(fams)]
     T_B_C = mount_from_spec(spec.camera.mount)

@@ -143,14 +143,14 @@ class LandingScene:
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
                  znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
                  pad_texture: np.ndarray | None = None, legs: list | None = None, pad_relief=None,
-                 deck_drop_m: float = 0.0, deck_tilts: bool = False):
+                 deck_drop_m: float = 0.0, deck_turns: bool = False):
         """``pad_texture``: what the pad looks like here (default: its design); ``legs``: the
         airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame;
         ``pad_relief``: the printed pad's departure from flat (:class:`render.relief.PadRelief`);
         ``deck_drop_m``: how far a heaving, rolling deck may take its platform's top below its mean
-        height (its box reaches as far below the ground, so that it never lifts off); ``deck_tilts``:
-        whether the deck rolls or pitches (the pad's light and the drone's shadow on it are then
-        worked out in the pad's frame)."""
+        height (its box reaches as far below the ground, so that it never lifts off); ``deck_turns``:
+        whether the deck rolls, pitches or yaws (the pad's light and the drone's shadow on it are
+        then worked out in the pad's frame)."""
         pr = import_pyrender()
         self.pr = pr
         self.camera = camera
@@ -242,7 +242,7 @@ class LandingScene:
         self.platform_node = pr.Node(name="platform", matrix=np.eye(4))
         scene.add_node(self.platform_node)
         self.has_platform_box = platform_height > 0 and platform_size > 0
-        self.deck_tilts = bool(deck_tilts)
+        self.deck_turns = bool(deck_turns)
         if self.has_platform_box:
             tall = platform_height + deck_drop_m
             self._add(box((platform_size, platform_size, tall), (110, 112, 118)),
@@ -455,10 +455,10 @@ class LandingScene:
         p = body2world[:3, 3]
         yaw = math.atan2(body2world[1, 0], body2world[0, 0])
         self._drone_shadow_on_pad = None
-        if self.deck_tilts and self._drone_shadow_on_deck(p, yaw, s):
+        if self.deck_turns and self._drone_shadow_on_deck(p, yaw, s):
             return
         # a heaving deck's top is where it is now; a tilting one's was tried above (off it: the ground)
-        for surface in ((0.0,) if self.deck_tilts else (float(self.pad2world[2, 3]), 0.0)):
+        for surface in ((0.0,) if self.deck_turns else (float(self.pad2world[2, 3]), 0.0)):
             k = (p[2] - surface) / max(s[2], 0.05)
             xy = p[:2] - s[:2] * k
             rel = xy - self.platform_xy

@@ -215,16 +215,24 @@ class PlatformSpec(_Model):
     size_m: float = Field(1.2, gt=0.0, description="side of the platform's top (0: no platform box)")
     velocity_mps: tuple[float, float] = Field((0.0, 0.0), description="constant platform velocity (east, north)")
     # a ship's deck: each motion a sinusoid of its own period, its phase drawn per sequence; the
-    # descent follows the heave (heights stay above the pad's centre), not the roll and pitch
+    # descent follows the heave (heights stay above the pad's centre), not the roll, pitch and yaw
     roll_deg: float = Field(0.0, ge=0.0, le=20.0, description="deck roll amplitude: the pad tilts about its x axis")
     pitch_deg: float = Field(0.0, ge=0.0, le=20.0, description="deck pitch amplitude: the pad tilts about its y axis")
     heave_m: float = Field(0.0, ge=0.0, le=5.0, description="deck heave amplitude (up and down)")
+    yaw_deg: float = Field(0.0, ge=0.0, le=30.0, description="deck yaw amplitude: the pad turns about its normal "
+                           "(a ship's yawing about its course)")
     roll_period_s: float = Field(8.0, ge=2.0, le=60.0, description="deck roll period")
     pitch_period_s: float = Field(6.0, ge=2.0, le=60.0, description="deck pitch period")
     heave_period_s: float = Field(7.0, ge=2.0, le=60.0, description="deck heave period")
+    yaw_period_s: float = Field(12.0, ge=2.0, le=120.0, description="deck yaw period")
 
     def deck_moves(self) -> bool:
-        return self.roll_deg > 0 or self.pitch_deg > 0 or self.heave_m > 0
+        return self.deck_turns() or self.heave_m > 0
+
+    def deck_turns(self) -> bool:
+        """Whether the deck rolls, pitches or yaws (the pad's light and the drone's shadow on it are
+        then worked out in the pad's frame)."""
+        return self.roll_deg > 0 or self.pitch_deg > 0 or self.yaw_deg > 0
 
     def max_edge_drop_m(self) -> float:
         """How far the deck's motion may take the platform top's lowest point below its mean height."""

@@ -72,14 +72,16 @@ class Gusts:
 
 @dataclass
 class DeckMotion:
-    """A ship's deck under the pad: heave (metres, up), roll (about the pad's x) and pitch (about its
-    y), each a sinusoid of its own amplitude, period and phase.  ``R_W_P = R_y(pitch) R_x(roll)``."""
+    """A ship's deck under the pad: heave (metres, up), roll (about the pad's x), pitch (about its y)
+    and yaw (about its normal), each a sinusoid of its own amplitude, period and phase.
+    ``R_W_P = R_z(yaw) R_y(pitch) R_x(roll)``."""
 
     roll_rad: float = 0.0
     pitch_rad: float = 0.0
     heave_m: float = 0.0
-    periods_s: tuple = (8.0, 6.0, 7.0)  # roll, pitch, heave
-    phases: tuple = (0.0, 0.0, 0.0)
+    periods_s: tuple = (8.0, 6.0, 7.0)  # roll, pitch, heave (, yaw)
+    phases: tuple = (0.0, 0.0, 0.0)     # (the same)
+    yaw_rad: float = 0.0
 
     def _wave(self, i: int, t):
         w = 2 * math.pi / self.periods_s[i]
@@ -100,7 +102,12 @@ class DeckMotion:
         z, o = np.zeros_like(t), np.ones_like(t)
         Rx = np.stack([np.stack([o, z, z], -1), np.stack([z, cr, -sr], -1), np.stack([z, sr, cr], -1)], -2)
         Ry = np.stack([np.stack([cp, z, sp], -1), np.stack([z, o, z], -1), np.stack([-sp, z, cp], -1)], -2)
-        return Ry @ Rx
+        if not self.yaw_rad:
+            return Ry @ Rx
+        y = self.yaw_rad * self._wave(3, t)
+        cy, sy = np.cos(y), np.sin(y)
+        Rz = np.stack([np.stack([cy, -sy, z], -1), np.stack([sy, cy, z], -1), np.stack([z, z, o], -1)], -2)
+        return Rz @ Ry @ Rx
 
 
 @dataclass
@@ -169,7 +176,8 @@ class Trajectory:
     @property
     def pad_moves(self) -> bool:
         d = self.deck
-        return bool(np.any(self.pad_vel != 0)) or (d is not None and (d.heave_m > 0 or d.roll_rad > 0 or d.pitch_rad > 0))
+        return bool(np.any(self.pad_vel != 0)) or (d is not None and (d.heave_m > 0 or d.roll_rad > 0 or d.pitch_rad > 0
+                                                                       or d.yaw_rad > 0))
 
     def state(self, t, h: float = 1e-3) -> TrajectoryState:
         t = np.atleast_1d(np.asarray(t, np.float64))

@@ -150,6 +150,8 @@ FIELDS = {
     "platform.roll_period_s": (_uniform(4.0, 10.0), 5.0, {"platform.roll_deg": 5.0}),
     "platform.pitch_period_s": (_uniform(4.0, 10.0), 5.0, {"platform.pitch_deg": 5.0}),
     "platform.heave_period_s": (_uniform(4.0, 10.0), 5.0, {"platform.heave_m": 0.2}),
+    "platform.yaw_deg": (_choice([0.0, 0.0, 5.0]), 5.0, {}),
+    "platform.yaw_period_s": (_uniform(6.0, 14.0), 5.0, {"platform.yaw_deg": 5.0}),
     "trajectory.families": (lambda r: [["straight", "spiral", "hover_correct", "manoeuvres"][int(r.integers(4))]],
                             ["spiral"], {}),
     "trajectory.start_height_m": (_uniform(3.0, 5.0), 4.5, {}),

@@ -930,15 +930,16 @@ def _deck_spec(**over) -> DatasetSpec:
     d = {"name": "deck", "seed": 5, "sequences": 1, "pad_ppm": 500,
          "camera": {"width": 240, "height": 240, "hfov_deg": 60, "fps": 3, "exposure_s": 0.004},
          "platform": {"height_m": 1.5, "size_m": 1.4, "roll_deg": 10.0, "pitch_deg": 6.0, "heave_m": 0.4,
-                      "roll_period_s": 7.0, "pitch_period_s": 5.0, "heave_period_s": 6.0},
+                      "yaw_deg": 4.0, "roll_period_s": 7.0, "pitch_period_s": 5.0, "heave_period_s": 6.0,
+                      "yaw_period_s": 9.0},
          "environment": {"distractors": {"boxes": [0, 0]}},
          "trajectory": {"families": ["straight"], "start_height_m": 5.0, "duration_s": [10, 10],
                         "touchdown_height_m": 0.3, "lateral_offset_m": [0.0, 0.5]}}
     return _spec(_merge(d, over))
 
 
-def test_a_rolling_pitching_heaving_deck_is_rendered_and_labelled_where_it_is(tmp_path):
-    """A ship's deck: the pad's world pose rolls, pitches and heaves as the spec says (each a
+def test_a_rolling_pitching_yawing_heaving_deck_is_rendered_and_labelled_where_it_is(tmp_path):
+    """A ship's deck: the pad's world pose rolls, pitches, yaws and heaves as the spec says (each a
     sinusoid of its period), the descent follows the heave but not the tilt, frames.csv's pad
     velocity is the heave's rate, and the image shows the pad where T_P_C says (verify's image
     check, and the cells of the pad at every near frame)."""
@@ -953,11 +954,12 @@ def test_a_rolling_pitching_heaving_deck_is_rendered_and_labelled_where_it_is(tm
     t = np.asarray(c["t"])
     T_W_P = [transform_from_tum([c[f"pad2world_{q}"][k] for q in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
              for k in range(len(seq))]
-    # roll about the pad's x, pitch about its y: R = R_y(pitch) R_x(roll)
+    # roll about the pad's x, pitch about its y, yaw about its normal: R = R_z(yaw) R_y(pitch) R_x(roll)
     roll = np.degrees([math.atan2(T[2, 1], T[2, 2]) for T in T_W_P])
     pitch = np.degrees([math.asin(-T[2, 0]) for T in T_W_P])
+    yaw = np.degrees([math.atan2(T[1, 0], T[0, 0]) for T in T_W_P])
     heave = np.array([T[2, 3] for T in T_W_P]) - (1.5 + PAD_THICKNESS_M)
-    for series, amp, period in ((roll, 10.0, 7.0), (pitch, 6.0, 5.0), (heave, 0.4, 6.0)):
+    for series, amp, period in ((roll, 10.0, 7.0), (pitch, 6.0, 5.0), (yaw, 4.0, 9.0), (heave, 0.4, 6.0)):
         # a sinusoid of that amplitude and period: a least-squares fit of sin and cos explains it exactly
         w = 2 * np.pi / period
         A = np.column_stack([np.sin(w * t), np.cos(w * t)])
