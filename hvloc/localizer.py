@@ -757,9 +757,12 @@ class FalsePoseGates:
                     if self.imu_rejects >= 8:  # the reference itself was wrong: start again
                         self.R_W_P, self.imu_rejects = R_W_P, 0
                     return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
-                # slow drift: move the reference a little toward the new offset
+                # slow drift: move the reference a little toward the new offset.  A ship's deck also
+                # yaws: its pad's heading moves with it (5 degrees over 10 s lagged the reference past
+                # the jump's bar near the ground), so there the reference is the last accepted pose's
+                # (a naming a quarter turn off still jumps)
                 d = so3_log(self.R_W_P.T @ R_W_P)
-                self.R_W_P = self.R_W_P @ so3_exp(cfg.imu_drift_rate * d)
+                self.R_W_P = self.R_W_P @ so3_exp((1.0 if cfg.pad_tilt_deg > 0 else cfg.imu_drift_rate) * d)
             self.imu_rejects = 0
         return ""
 
