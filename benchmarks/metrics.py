@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from hvloc.geometry import rotation_angle, transform_from_tum
+from hvloc.geometry import heading_turn, rotation_angle, transform_from_tum
 
 PHASES = ("approaching", "adjustment", "touchdown")
 FALSE_ACCEPT_REL = 0.10   # an accepted pose off by more than 10 % of height ...
@@ -66,8 +66,7 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
             if np.all(np.isfinite(C)) and np.all(np.linalg.eigvalsh(C) > 0):
                 nees[k] = float(d @ np.linalg.solve(C, d))
         rot_err[k] = math.degrees(rotation_angle(E[:3, :3], G[:3, :3]))
-        ye = math.atan2(E[1, 0], E[0, 0]) - math.atan2(G[1, 0], G[0, 0])
-        yaw_err[k] = abs(math.degrees((ye + math.pi) % (2 * math.pi) - math.pi))
+        yaw_err[k] = abs(math.degrees(heading_turn(G[:3, :3], E[:3, :3])))
     return {"pos_err_m": pos_err, "z_err_m": z_err, "rot_err_deg": rot_err, "yaw_err_deg": yaw_err,
             "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
             "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),

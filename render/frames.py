@@ -92,6 +92,7 @@ class SequenceRenderer:
         self.material = plan.material
         # how far a moving deck's box reaches below the ground (it must never lift off as the deck moves)
         self.deck_drop_m = spec.platform.max_edge_drop_m() + 0.05 if spec.platform.deck_moves() else 0.0
+        self._deck_tilts = spec.platform.roll_deg > 0 or spec.platform.pitch_deg > 0
         self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
                                   self.imaging.render_camera, pad.spec.border_color,
                                   np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,
@@ -407,7 +408,8 @@ class SequenceRenderer:
         drone's shadow or a box's).  ``(rows, cols, factor or None, glare or None)``, or ``None``
         when there is nothing to add."""
         relief, gloss = self.material.get("relief"), self.material["gloss"]
-        tilts = self.scene.deck_turns  # a deck's roll and pitch turn the pad from the sun (its yaw, its frame)
+        turns = self.scene.deck_turns  # the pad's frame is turned from the world's: normals, sun, shadows
+        tilts = self._deck_tilts       # ... and from the sun: a flat pad's light changes (a yaw alone does not)
         if relief is None and not gloss > 0 and not tilts:
             return None
         got = self._pad_pixels(depth, cam2pad)
@@ -421,7 +423,7 @@ class SequenceRenderer:
         T_W_P = self._pad2world_now
         R_W_P = T_W_P[:3, :3]
         if self.scene.shadows and self.scene.pad_may_be_shaded(T_W_P[:2, 3], self.pad.side_m / math.sqrt(2.0) + 0.01):
-            if tilts:  # the drone's shadow lies in the deck's plane: the window's points in the pad's frame
+            if turns:  # the drone's shadow lies in the deck's plane: the window's points in the pad's frame
                 vis = self.scene.pad_sun_visibility_on_deck(np.ascontiguousarray(P[..., :2]))
             else:  # the window's points in the world (x, y): one OpenCV pass, not numpy's strided copy
                 to_world = np.array([[1, 0, 0, T_W_P[0, 3]], [0, 1, 0, T_W_P[1, 3]]], np.float32)
@@ -431,7 +433,7 @@ class SequenceRenderer:
         if relief is not None:
             # the facets' light varies over a wrinkle (>= 3 cm): evaluated on every 4th pixel, interpolated
             normals = relief.normal(P[::4, ::4, :2].reshape(-1, 2).astype(np.float64))
-            f = self.scene.relative_light(normals @ R_W_P.T if tilts else normals).reshape(P[::4, ::4].shape[:2])
+            f = self.scene.relative_light(normals @ R_W_P.T if turns else normals).reshape(P[::4, ::4].shape[:2])
             f = cv2.resize(f.astype(np.float32), (f.shape[1] * 4, f.shape[0] * 4), interpolation=cv2.INTER_LINEAR)
             f = f[:on.shape[0], :on.shape[1]]
         elif tilts:  # a flat pad on a tilted deck: one factor over it
@@ -449,7 +451,7 @@ class SequenceRenderer:
             Q = P[::step, ::step].reshape(-1, 3).astype(np.float64)
             view = cam2pad[:3, 3][None, :] - Q  # toward the camera, pad frame
             view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-9)
-            sun_P = self.plan.scene_draw.sun_dir_W @ R_W_P if tilts else self.plan.scene_draw.sun_dir_W
+            sun_P = self.plan.scene_draw.sun_dir_W @ R_W_P if turns else self.plan.scene_draw.sun_dir_W
             half_v = view + sun_P[None, :]
             half_v /= np.maximum(np.linalg.norm(half_v, axis=1, keepdims=True), 1e-9)
             cos_nh = half_v[:, 2] if normals is None else np.sum(half_v * normals, axis=1)

@@ -175,9 +175,9 @@ class Trajectory:
 
     @property
     def pad_moves(self) -> bool:
-        d = self.deck
-        return bool(np.any(self.pad_vel != 0)) or (d is not None and (d.heave_m > 0 or d.roll_rad > 0 or d.pitch_rad > 0
-                                                                       or d.yaw_rad > 0))
+        """Whether the pad moves at all: the platform's velocity, or a deck's motion (one is given only
+        where the spec's deck moves: render.plan)."""
+        return bool(np.any(self.pad_vel != 0)) or self.deck is not None
 
     def state(self, t, h: float = 1e-3) -> TrajectoryState:
         t = np.atleast_1d(np.asarray(t, np.float64))
