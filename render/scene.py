@@ -139,6 +139,8 @@ class LandingScene:
     ``render(cam2world)`` returns an ``(H, W, 3)`` uint8 RGB image in OpenCV's pixel convention.
     """
 
+    DRONE_TOP_TEXELS = 64  # the alpha texels a side of the drone's shadow where a platform's edge cuts it
+
     def __init__(self, pad, draw: SceneDraw, platform_height: float, platform_size: float,
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
                  znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
@@ -295,7 +297,7 @@ class LandingScene:
                                                  parent=self.body_node))
         self.drone_size = drone_size_m
         self.drone_shadow = None
-        self.drone_masked = None  # the drone's shadow where it falls into other shadows (see set_drone)
+        self.drone_parts = []  # the drone's shadow where other shadows or the platform's edge cut it (set_drone)
         self._drone_shadow_at = None  # (xy, yaw) of the drone's shadow square as last placed (world)
         self._drone_shadow_on_pad = None  # the same in the pad's frame, where it lies on a tilting deck
         if shadows and self.shadow_alpha > 0:
@@ -447,7 +449,7 @@ class LandingScene:
 
     def set_drone(self, body2world: np.ndarray) -> None:
         """Move the drone: its legs, and its shadow (a flat square cast along the sun onto the
-        surface below)."""
+        surface below: a platform's top where the square meets it, the ground beyond the top's edge)."""
         self.scene.set_pose(self.body_node, np.asarray(body2world, np.float64))
         if self.drone_shadow is None:
             return
@@ -455,61 +457,91 @@ class LandingScene:
         p = body2world[:3, 3]
         yaw = math.atan2(body2world[1, 0], body2world[0, 0])
         self._drone_shadow_on_pad = None
-        if self.deck_turns and self._drone_shadow_on_deck(p, yaw, s):
+        for node in self.drone_parts:
+            self.scene.remove_node(node)
+        self.drone_parts = []
+        top = self._drone_shadow_on_top(p, yaw, s)
+        if top == "whole":
             return
-        # a heaving deck's top is where it is now; a tilting one's was tried above (off it: the ground)
-        for surface in ((0.0,) if self.deck_turns else (float(self.pad2world[2, 3]), 0.0)):
-            k = (p[2] - surface) / max(s[2], 0.05)
-            xy = p[:2] - s[:2] * k
-            rel = xy - self.platform_xy
-            on_platform = max(abs(rel[0]), abs(rel[1])) <= max(self.platform_size, 0.0) / 2 and self.platform_height > 0
-            if surface == 0.0 or on_platform:
-                break
+        # the ground: where the platform's top took the rest, the platform's own shadow lies (the
+        # cover below leaves it out)
+        k = p[2] / max(s[2], 0.05)
+        xy = p[:2] - s[:2] * k
         # one layer above the others (a translucent layer in another's plane z-fights with it too)
-        z = surface + self.relief_top_m + SHADOW_LIFT_M if surface > 0 else self.ground_shadow_z + SHADOW_LIFT_M
-        pose = make_transform(rotation_z(yaw), (xy[0], xy[1], z))
-        self._drone_shadow_at = (np.array(xy, np.float64), yaw)
-        if self.drone_masked is not None:
-            self.scene.remove_node(self.drone_masked)
-            self.drone_masked = None
+        pose = make_transform(rotation_z(yaw), (xy[0], xy[1], self.ground_shadow_z + SHADOW_LIFT_M))
+        if not top:
+            self._drone_shadow_at = (np.array(xy, np.float64), yaw)
         # on the ground, where a box's or the platform's shadow already lies, the sun is already gone:
         # there the drone's shadow takes nothing more (two translucent layers used to darken twice)
         cover = None
-        if surface == 0.0 and self._ground_shadow_maps:
-            n, h = 24, self.drone_size / 2
-            g = (np.arange(n) + 0.5) / n * 2 * h - h
-            gx, gy = np.meshgrid(g, g[::-1])  # row 0 at the far +y edge, as _shadow_mesh lays it
-            c, sn = math.cos(yaw), math.sin(yaw)
-            pts = np.column_stack([xy[0] + c * gx.ravel() - sn * gy.ravel(), xy[1] + sn * gx.ravel() + c * gy.ravel()])
-            cover = self._ground_shadow_cover(pts).reshape(n, n)
+        if self._ground_shadow_maps:
+            n = 24
+            cover = self._ground_shadow_cover(self._square_points(xy, yaw, n)).reshape(n, n)
         if cover is None or cover.max() <= 0.0:
             self.scene.set_pose(self.drone_shadow, pose)
             return
-        self.scene.set_pose(self.drone_shadow, make_transform(np.eye(3), (0.0, 0.0, -100.0)))  # out of sight
-        alpha = np.round(self.shadow_alpha * (1.0 - cover) * 255).astype(np.uint8)
-        mesh = self._shadow_mesh(alpha, 2 * h, 2 * h, (-h, -h))
-        self.drone_masked = self._add(mesh, pose, "shadow_dronemasked")
+        if not top:
+            self.scene.set_pose(self.drone_shadow, make_transform(np.eye(3), (0.0, 0.0, -100.0)))  # out of sight
+        self._masked_drone_shadow(1.0 - cover, pose)
 
-    def _drone_shadow_on_deck(self, p_W: np.ndarray, yaw: float, sun_W: np.ndarray) -> bool:
-        """Lay the drone's shadow (from its centre ``p_W``) in a tilting deck's plane if it falls on
-        the platform's top: ``False`` (nothing done) if it falls beyond, on the ground."""
+    def _square_points(self, centre, yaw: float, n: int) -> np.ndarray:
+        """``(n * n, 2)``: the centres of an n x n grid over the drone's shadow square at ``centre``
+        turned by ``yaw``, row 0 at its far +y edge (as :meth:`_shadow_mesh` lays a texture)."""
+        h = self.drone_size / 2
+        g = (np.arange(n) + 0.5) / n * 2 * h - h
+        gx, gy = np.meshgrid(g, g[::-1])
+        c, sn = math.cos(yaw), math.sin(yaw)
+        return np.column_stack([centre[0] + c * gx.ravel() - sn * gy.ravel(), centre[1] + sn * gx.ravel() + c * gy.ravel()])
+
+    def _masked_drone_shadow(self, alpha01: np.ndarray, pose: np.ndarray) -> None:
+        """A part of the drone's shadow square at ``pose``: its texels' share of the shadow ``alpha01``
+        (n, n), row 0 at the square's far +y edge."""
+        h = self.drone_size / 2
+        alpha = np.round(self.shadow_alpha * alpha01 * 255).astype(np.uint8)
+        self.drone_parts.append(self._add(self._shadow_mesh(alpha, 2 * h, 2 * h, (-h, -h)), pose, "shadow_dronemasked"))
+
+    def _drone_shadow_on_top(self, p_W: np.ndarray, yaw: float, sun_W: np.ndarray) -> str:
+        """Lay the drone's shadow (from its centre ``p_W``) on the platform's top, in the deck's plane
+        where it is now, as far as it falls there: ``"whole"``, ``"part"`` (the part on the top laid;
+        the rest falls past its edge, to the ground) or ``""`` (none).  (The whole square used to be laid
+        on the top when its centre fell there, hanging in the air past the edge, and none of it when
+        the centre fell beyond.)"""
         if not self.has_platform_box:
-            return False
+            return ""
         T = self.pad2world
-        R, o = T[:3, :3], T[:3, 3]
-        p, s = R.T @ (p_W - o), R.T @ sun_W
-        xy = p[:2] - s[:2] * (p[2] / max(s[2], 0.05))
-        if max(abs(xy[0]), abs(xy[1])) > self.platform_size / 2:
-            return False
-        yaw_P = yaw - math.atan2(R[1, 0], R[0, 0])
-        self._drone_shadow_on_pad = (xy.copy(), yaw_P)
-        self._drone_shadow_at = None
-        if self.drone_masked is not None:
-            self.scene.remove_node(self.drone_masked)
-            self.drone_masked = None
-        self.scene.set_pose(self.drone_shadow, T @ make_transform(rotation_z(yaw_P), (xy[0], xy[1],
-                                                                                     self.relief_top_m + SHADOW_LIFT_M)))
-        return True
+        if self.deck_turns:  # in the pad's frame, about its centre
+            R, o = T[:3, :3], T[:3, 3]
+            p, s = R.T @ (p_W - o), R.T @ sun_W
+            xy = p[:2] - s[:2] * (p[2] / max(s[2], 0.05))
+            yaw_top = yaw - math.atan2(R[1, 0], R[0, 0])
+            rel = xy
+            pose = T @ make_transform(rotation_z(yaw_top), (xy[0], xy[1], self.relief_top_m + SHADOW_LIFT_M))
+        else:
+            surface = float(T[2, 3])
+            xy = p_W[:2] - sun_W[:2] * ((p_W[2] - surface) / max(sun_W[2], 0.05))
+            yaw_top = yaw
+            rel = xy - self.platform_xy
+            pose = make_transform(rotation_z(yaw), (xy[0], xy[1], surface + self.relief_top_m + SHADOW_LIFT_M))
+        half = self.platform_size / 2
+        h = self.drone_size / 2
+        c, sn = math.cos(yaw_top), math.sin(yaw_top)
+        corners = rel + np.array([[-h, -h], [h, -h], [h, h], [-h, h]]) @ np.array([[c, sn], [-sn, c]])
+        whole = bool(np.abs(corners).max() <= half)
+        if not whole:
+            n = self.DRONE_TOP_TEXELS
+            on = (np.abs(self._square_points(rel, yaw_top, n)) <= half).all(axis=1)
+            if not on.any():
+                return ""
+        if self.deck_turns:
+            self._drone_shadow_on_pad, self._drone_shadow_at = (np.array(xy, np.float64), yaw_top), None
+        else:
+            self._drone_shadow_at = (np.array(xy, np.float64), yaw)
+        if whole:
+            self.scene.set_pose(self.drone_shadow, pose)
+            return "whole"
+        self.scene.set_pose(self.drone_shadow, make_transform(np.eye(3), (0.0, 0.0, -100.0)))  # out of sight
+        self._masked_drone_shadow(on.reshape(n, n).astype(np.float64), pose)
+        return "part"
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
         """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""

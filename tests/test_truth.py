@@ -1081,6 +1081,68 @@ def test_the_drones_shadow_lies_in_a_moving_decks_plane(motion):
     assert checked >= 2, checked
 
 
+@pytest.mark.parametrize("deck", [False, True], ids=["level", "rolling"])
+def test_the_drones_shadow_falls_past_a_platforms_edge_to_the_ground(deck):
+    """A low sun casts the drone's square shadow across a platform's edge: the part that meets the
+    platform's top lies there (in the deck's plane, on a rolling deck), the rest falls past the edge
+    to the ground, further along the sun, outside the platform's own shadow.  The pixels it darkens
+    (against the drone far away) are the surface points, from the rendered depth, whose ray to the
+    sun meets the drone's square.  (The whole square used to be laid on the top when its centre fell
+    there, hanging in the air past the edge, and on the ground when the centre fell beyond.)"""
+    over = {"environment.sun_elevation_deg": [45.0, 45.0], "degradations.shot_noise": [0.0, 0.0],
+            "degradations.read_noise": [0.0, 0.0], "degradations.motion_blur": False,
+            "camera.width": 480, "camera.height": 480, "camera.hfov_deg": 100.0}
+    if not deck:
+        over.update({"platform.roll_deg": 0.0, "platform.pitch_deg": 0.0, "platform.yaw_deg": 0.0,
+                     "platform.heave_m": 0.0})
+    with SequenceRenderer(_deck_spec(**over), 0) as r, \
+            SequenceRenderer(_deck_spec(**over, **{"environment.shadows": False}), 0) as r_lit:
+        sc, cam = r.scene, r.scene.camera
+        sun, half, edge = r.plan.scene_draw.sun_dir_W, sc.drone_size / 2, sc.platform_size / 2
+        T_W_P = r.pad2world[0]
+        sc.set_platform(T_W_P)
+        r_lit.scene.set_platform(T_W_P)
+        away = make_transform(np.eye(3), (200.0, 200.0, 10.0))
+        sun_P = T_W_P[:3, :3].T @ sun
+        u = -sun_P[:2] / np.linalg.norm(sun_P[:2])  # the way shadows fall, in the pad's frame
+        checked, parts = [], []  # IoU; pixels of the shadow on the top and on the ground
+        for along in (edge - 0.1, edge + 0.1):  # the square's centre on the top's plane, inside and past the edge
+            centre_P = along * u / np.abs(u).max()  # (the top's edge lies at the square's max norm)
+            body_P = np.array([*centre_P, 0.0]) + sun_P / sun_P[2]
+            body = make_transform(np.eye(3), T_W_P[:3, :3] @ body_P + T_W_P[:3, 3])
+            look = make_transform(np.diag([1.0, -1.0, -1.0]), (*(T_W_P[:2, 3] - sun[:2] / np.linalg.norm(sun[:2]) * (edge + 0.6)),
+                                                               T_W_P[2, 3] + 2.5))
+            sc.set_drone(away)
+            ref, _ = sc.render_with_depth(look)
+            unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
+            sc.set_drone(body)
+            img, z = sc.render_with_depth(look)
+            v, col = np.mgrid[0:cam.height, 0:cam.width]
+            ray = np.stack([(col - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones(z.shape)], -1)
+            q = (look[:3, :3] @ (ray * z[..., None]).reshape(-1, 3).T).T + look[:3, 3]
+            q_P = (T_W_P[:3, :3].T @ (q - T_W_P[:3, 3]).T).T
+            up = (np.abs(q[:, 2]) < 0.02) | ((np.abs(q_P[:, 2]) < 0.03) & (np.abs(q_P[:, :2]).max(axis=1) < edge))
+            t = (body[2, 3] - q[:, 2]) / sun[2]  # along the sun, to the body's height
+            hit = np.abs(q[:, :2] + sun[:2] * t[:, None] - body[:2, 3]).max(axis=1) <= half
+            # unless the platform stands in the way (its box: the top's square, down to the ground)
+            k = np.flatnonzero(hit)
+            x_P = (q_P[k, None, :] + sun_P * (t[k, None, None] * np.linspace(0.0, 1.0, 48)[None, :, None]))
+            inside = (np.abs(x_P[..., :2]).max(axis=2) < edge - 1e-3) & (x_P[..., 2] < -0.005)
+            hit[k[inside.any(axis=1)]] = False
+            # lit, and in no other shadow (the platform's own on the ground: the sun does not reach there)
+            lit = (ref.astype(float).sum(axis=2).reshape(-1) > 60) & (ref.astype(float).sum(axis=2).reshape(-1)
+                                                                     > 0.9 * unshaded)
+            dark = img.astype(float).sum(axis=2).reshape(-1) < 0.8 * ref.astype(float).sum(axis=2).reshape(-1)
+            region = up & lit & np.isfinite(z).reshape(-1)
+            want, got = hit & region, dark & region
+            on_top = want & (np.abs(q_P[:, 2]) < 0.03)
+            parts.append((int(on_top.sum()), int((want & ~on_top).sum())))
+            iou = (want & got).sum() / (want | got).sum()
+            checked.append(round(float(iou), 3))
+        assert min(p[0] for p in parts) > 300 and max(p[1] for p in parts) > 100, parts
+        assert min(checked) > 0.9, checked
+
+
 def test_a_deck_that_would_reach_the_ground_or_the_camera_is_refused():
     from pad_design.errors import InputError, validate_model
 
