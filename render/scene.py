@@ -29,6 +29,7 @@ from .textures import GROUND_TILE_M, aruco_image, finder_marker_image, ground_te
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 PAD_THICKNESS_M = 0.002
 SHADOW_LIFT_M = 0.001
+PLATFORM_SHADOW_M_PER_PX = 0.01  # the platform's shadow's texels on the ground
 
 
 def pyrender_camera_pose(cam2world_cv: np.ndarray) -> np.ndarray:
@@ -276,13 +277,16 @@ class LandingScene:
         self.pad2world = make_transform(np.eye(3), (0.0, 0.0, self.pad_surface_z))
         if shadows and self.shadow_alpha > 0 and draw.boxes:
             self._add_box_shadows(draw.boxes)
-        # the platform's shadow lies on the ground: it follows the platform's position, not its
-        # heave, roll or pitch (the shape a tilting deck casts is not redrawn: a level box's)
+        # the platform's shadow lies on the ground: it follows the platform's position, and where the
+        # deck turns, its shape is cast again from the box as it stands (set_platform)
         self.platform_shadow_node = pr.Node(name="platform_shadow", matrix=np.eye(4))
         scene.add_node(self.platform_shadow_node)
+        self._deck_drop_m = float(deck_drop_m)
+        self._platform_shadow = None  # (its node, its index in _ground_shadow_maps)
         if shadows and self.shadow_alpha > 0 and self.has_platform_box:  # moves with the platform
-            self._add_box_shadows([(0.0, 0.0, 0.0, platform_size, platform_size, platform_height, None)],
-                                  parent=self.platform_shadow_node, m_per_px=0.01)
+            self._platform_shadow = self._add_shadow_map(
+                [self._platform_shadow_polygon(make_transform(np.eye(3), (0.0, 0.0, self.pad_surface_z)))],
+                parent=self.platform_shadow_node, m_per_px=PLATFORM_SHADOW_M_PER_PX)
         # the drone's own legs: children of the body node (set_drone moves them)
         self.body_node = pr.Node(name="body", matrix=np.eye(4))
         scene.add_node(self.body_node)
@@ -318,7 +322,6 @@ class LandingScene:
     def _add_box_shadows(self, boxes, m_per_px: float = 0.02, parent=None):
         """All boxes' shadows on the ground as one alpha texture: the union of each box's corners
         cast along the sun (overlapping shadows darken once, and the draw order cannot matter)."""
-        pr = self.pr
         s = self.draw.sun_dir_W
         shift = -s[:2] / max(s[2], 0.05)
         polys = []
@@ -330,6 +333,30 @@ class LandingScene:
                     bx, by = x + c * dx - sn * dy, y + sn * dx + c * dy
                     pts += [(bx, by), (bx + shift[0] * sz, by + shift[1] * sz)]
             polys.append(cv2.convexHull(np.array(pts, np.float32))[:, 0, :].astype(np.float64))
+        self._add_shadow_map(polys, m_per_px, parent)
+
+    def _platform_shadow_polygon(self, pad2world: np.ndarray) -> np.ndarray:
+        """``(M, 2)``: the platform's shadow on the ground, about the platform's centre (x, y): the
+        part of its box above the ground (its top's corners and where its sides meet the ground, a
+        box that reaches below the ground by the deck's travel), cast along the sun.  A level box's
+        is its footprint and its top cast."""
+        s = self.draw.sun_dir_W
+        shift = -s[:2] / max(s[2], 0.05)
+        node = np.asarray(pad2world, np.float64) @ make_transform(np.eye(3), (0.0, 0.0, -self.pad_surface_z))
+        half, top, bottom = self.platform_size / 2, self.platform_height, -self._deck_drop_m
+        pts = []
+        for dx in (-half, half):
+            for dy in (-half, half):
+                a = node[:3, :3] @ np.array([dx, dy, top]) + node[:3, 3]
+                b = node[:3, :3] @ np.array([dx, dy, bottom]) + node[:3, 3]
+                g = b + (a - b) * (-b[2] / (a[2] - b[2])) if b[2] < 0.0 < a[2] else b
+                pts += [g[:2] + shift * g[2], a[:2] + shift * a[2]]
+        pts = np.array(pts) - np.asarray(pad2world, np.float64)[:2, 3]  # (the shadow's node is at the pad's centre)
+        return cv2.convexHull(pts.astype(np.float32))[:, 0, :].astype(np.float64)
+
+    def _add_shadow_map(self, polys, m_per_px: float, parent=None, index: int | None = None) -> tuple:
+        """Shadow polygons on the ground (in the frame of ``parent``, else the world's) as one alpha
+        texture; ``(its node, its index in _ground_shadow_maps)`` (``index``: the map it replaces)."""
         allp = np.concatenate(polys)
         lo, hi = allp.min(axis=0) - 0.1, allp.max(axis=0) + 0.1
         w, h = (np.ceil((hi - lo) / m_per_px)).astype(int) + 1
@@ -339,11 +366,17 @@ class LandingScene:
             cv2.fillPoly(alpha, [np.round(px * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
         # the map, kept to tell where the ground is already in shadow (the drone's shadow must not
         # darken it twice), in the frame of its parent (the platform's moves with it)
-        self._ground_shadow_maps.append((alpha.astype(np.float32) / 255.0, lo, hi, m_per_px, parent is not None))
+        entry = (alpha.astype(np.float32) / 255.0, lo, hi, m_per_px, parent is not None)
+        if index is None:
+            self._ground_shadow_maps.append(entry)
+            index = len(self._ground_shadow_maps) - 1
+        else:
+            self._ground_shadow_maps[index] = entry
         sx, sy = w * m_per_px, h * m_per_px
         mesh = self._shadow_mesh((alpha.astype(np.float32) * self.shadow_alpha).astype(np.uint8), sx, sy, (0.0, 0.0))
-        self._add(mesh, make_transform(np.eye(3), (lo[0], hi[1] - sy, self.ground_shadow_z)), "shadow_boxes",
-                  parent=parent)
+        node = self._add(mesh, make_transform(np.eye(3), (lo[0], hi[1] - sy, self.ground_shadow_z)), "shadow_boxes",
+                         parent=parent)
+        return node, index
 
     def _shadow_mesh(self, alpha: np.ndarray, sx: float, sy: float, origin: tuple):
         """A flat translucent black quad ``sx`` x ``sy`` m whose corner ``(0, 0)`` of the texture (its
@@ -446,6 +479,11 @@ class LandingScene:
         self.platform_xy = T[:2, 3].copy()
         self.scene.set_pose(self.platform_node, T @ make_transform(np.eye(3), (0.0, 0.0, -self.pad_surface_z)))
         self.scene.set_pose(self.platform_shadow_node, make_transform(np.eye(3), (*self.platform_xy, 0.0)))
+        if self.deck_turns and self._platform_shadow is not None:
+            node, i = self._platform_shadow
+            self.scene.remove_node(node)
+            self._platform_shadow = self._add_shadow_map([self._platform_shadow_polygon(T)], PLATFORM_SHADOW_M_PER_PX,
+                                                         parent=self.platform_shadow_node, index=i)
 
     def set_drone(self, body2world: np.ndarray) -> None:
         """Move the drone: its legs, and its shadow (a flat square cast along the sun onto the

@@ -1143,6 +1143,45 @@ def test_the_drones_shadow_falls_past_a_platforms_edge_to_the_ground(deck):
         assert min(checked) > 0.9, checked
 
 
+def test_a_turning_decks_platform_casts_its_shadow_as_it_stands():
+    """A deck rolled, pitched and yawed: the platform's shadow on the ground is its box as it stands
+    (its top's corners, and its sides down to the ground) cast along the sun.  The ground pixels
+    it darkens (against a render without shadows) are the ground points, from the rendered depth,
+    whose ray to the sun meets the box.  (It was a level box's, turned with nothing.)"""
+    over = {"environment.sun_elevation_deg": [40.0, 40.0], "degradations.shot_noise": [0.0, 0.0],
+            "degradations.read_noise": [0.0, 0.0], "degradations.motion_blur": False,
+            "camera.width": 480, "camera.height": 480, "camera.hfov_deg": 100.0}
+    ious = []
+    with SequenceRenderer(_deck_spec(**over), 0) as r, \
+            SequenceRenderer(_deck_spec(**over, **{"environment.shadows": False}), 0) as r_lit:
+        sc, cam, sun = r.scene, r.scene.camera, r.plan.scene_draw.sun_dir_W
+        edge = sc.platform_size / 2
+        for rpy in ((12.0, 0.0, 0.0), (-6.0, 9.0, 25.0)):
+            T_W_P = make_transform(so3_exp(np.radians([0.0, 0.0, rpy[2]])) @ so3_exp(np.radians([0.0, rpy[1], 0.0]))
+                                   @ so3_exp(np.radians([rpy[0], 0.0, 0.0])), (0.3, -0.2, sc.pad_surface_z))
+            for s in (sc, r_lit.scene):
+                s.set_platform(T_W_P)
+                s.set_drone(make_transform(np.eye(3), (200.0, 200.0, 10.0)))
+            look = make_transform(np.diag([1.0, -1.0, -1.0]), (*(T_W_P[:2, 3] - sun[:2] / np.linalg.norm(sun[:2])),
+                                                               T_W_P[2, 3] + 3.5))
+            img, z = sc.render_with_depth(look)
+            unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
+            v, col = np.mgrid[0:cam.height, 0:cam.width]
+            ray = np.stack([(col - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones(z.shape)], -1)
+            q = (look[:3, :3] @ (ray * z[..., None]).reshape(-1, 3).T).T + look[:3, 3]
+            ground = (np.abs(q[:, 2]) < 0.02) & np.isfinite(z).reshape(-1) & (unshaded > 60)
+            k = np.flatnonzero(ground)
+            t = np.linspace(0.0, (T_W_P[2, 3] + 0.5) / sun[2], 96)
+            x = q[k, None, :] + sun * t[None, :, None]
+            x_P = (x - T_W_P[:3, 3]) @ T_W_P[:3, :3]
+            want = np.zeros(len(q), bool)
+            want[k] = ((np.abs(x_P[..., :2]).max(axis=2) < edge) & (x_P[..., 2] < -0.005)).any(axis=1)
+            got = ground & (img.astype(float).sum(axis=2).reshape(-1) < 0.8 * unshaded)
+            assert want.sum() > 2000, want.sum()
+            ious.append(round(float((want & got).sum() / (want | got).sum()), 3))
+    assert min(ious) > 0.95, ious
+
+
 def test_a_deck_that_would_reach_the_ground_or_the_camera_is_refused():
     from pad_design.errors import InputError, validate_model
 
