@@ -48,7 +48,7 @@ from pad_design.spec import PadSpec
 #      gave field1080's camera 332 strong corners per 256 px patch from 15 m where real asphalt
 #      shows 3; its finest octave weighs 1.6 (benchmarks/realism.py, eight draws).  Only specs one
 #      of whose sequences draws asphalt move, with or without ground detail.
-RENDER_REVISION = 8
+RENDER_REVISION = 9
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
 ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
@@ -56,6 +56,8 @@ ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
+    if spec.environment.shadows and spec.platform.height_m > 0:
+        return 9  # the drone's shadow past a platform's edge; a turning deck's platform shadow
     drawn = set()
     if (HARD_SURFACES | GRASSES) & set(spec.environment.ground):
         from .plan import drawn_ground_kinds

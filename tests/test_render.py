@@ -487,6 +487,12 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     assert revision(ground=["dry_grass"], ground_detail=False) == 7
     assert revision(ground=["sand"]) == 7  # ground detail, on by default, is drawn on every kind
     assert revision(ground=["concrete"]) == 7 and revision(ground=["asphalt"]) == 8
+    # revision 9: the drone's shadow past a platform's edge, a turning deck's platform's shadow
+    # (a spec with a platform and shadows, whatever its ground)
+    platform = {"platform": {"height_m": 0.5}}
+    assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"]}})) == 9
+    assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"], "shadows": False,
+                                                                                   "ground_detail": False}})) == 2
 
 
 @pytest.mark.parametrize("kind", ["asphalt", "concrete"])
