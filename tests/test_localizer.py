@@ -3768,6 +3768,35 @@ def test_the_localizer_fits_a_far_pads_design_when_asked():
 
 # ----------------------------------------------------------------------------- a tilting deck
 
+def _rendered_descent(tmp_path, spec: dict) -> tuple:
+    """Render ``spec``'s first descent into ``tmp_path/ds``: ``(its T_P_C per frame, its heights)``."""
+    from render.dataset import Dataset
+    from render.generate import generate
+    from render.spec import DatasetSpec
+
+    generate(DatasetSpec.model_validate(spec), tmp_path / "ds", show_progress=False)
+    seq = Dataset(tmp_path / "ds")[0]
+    truth = [seq.frame(k).cam2pad for k in range(len(seq))]
+    return truth, np.array([T[2, 3] for T in truth])
+
+
+def _localized_descent(tmp_path, name: str, truth, cfg: LocalizerConfig, use_imu: bool = True) -> tuple:
+    """The rendered descent localized into ``tmp_path/name``: ``(its estimates, ok, wrong)``, wrong
+    being an ok pose off by more than a tenth of the height or 5 degrees (a false accept)."""
+    from benchmarks.run import localize_dataset, read_estimates
+    from hvloc.geometry import transform_from_tum
+
+    localize_dataset(tmp_path / "ds", tmp_path / name, config=cfg, use_imu=use_imu, show_progress=False)
+    est = read_estimates(tmp_path / name / "seq_0000" / "estimates.csv")
+    ok = est["status"] == "ok"
+    wrong = np.zeros(len(truth), bool)
+    for k in np.flatnonzero(ok):
+        E = transform_from_tum([est[c][k] for c in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
+        wrong[k] = (np.linalg.norm(E[:3, 3] - truth[k][:3, 3]) > 0.1 * truth[k][2, 3]
+                    or math.degrees(rotation_angle(E[:3, :3], truth[k][:3, :3])) > 5.0)
+    return est, ok, wrong
+
+
 def test_on_a_rolling_deck_a_level_pad_is_not_assumed_when_the_user_says_it_tilts(tmp_path):
     """A ship's deck rolling 8, pitching 5 and yawing 5 degrees.  Taking the pad for level (the default), the
     gravity prior holds every pose's tilt to the IMU's and the poses are wrong by the deck's tilt
@@ -3775,37 +3804,15 @@ def test_on_a_rolling_deck_a_level_pad_is_not_assumed_when_the_user_says_it_tilt
     weighs the IMU's up by that, refuses the far poses whose tilt the image cannot fix, and poses
     the near ones right: no false accept, and far more of the descent below 5 m posed (the deck's yaw
     followed: the vision-IMU heading's slow reference lagged it past the jump's bar near the ground)."""
-    from benchmarks.run import localize_dataset, read_estimates
-    from hvloc.geometry import transform_from_tum
-    from render.dataset import Dataset
-    from render.generate import generate
-    from render.spec import DatasetSpec
-
-    spec = DatasetSpec.model_validate({
+    truth, h = _rendered_descent(tmp_path, {
         "name": "deck", "seed": 7, "sequences": 1, "pad_ppm": 1000,
         "camera": {"width": 480, "height": 480, "hfov_deg": 60, "fps": 4, "exposure_s": 0.004},
         "platform": {"height_m": 2.0, "size_m": 1.6, "roll_deg": 8.0, "pitch_deg": 5.0, "heave_m": 0.5,
                      "yaw_deg": 5.0, "yaw_period_s": 10.0},
         "trajectory": {"families": ["spiral"], "start_height_m": 10.0, "duration_s": [16, 16],
                        "lateral_offset_m": [0.0, 1.0]}})
-    generate(spec, tmp_path / "ds", show_progress=False)
-    seq = Dataset(tmp_path / "ds")[0]
-    truth = [seq.frame(k).cam2pad for k in range(len(seq))]
-    h = np.array([T[2, 3] for T in truth])
-
-    def run(cfg, name):
-        localize_dataset(tmp_path / "ds", tmp_path / name, config=cfg, show_progress=False)
-        est = read_estimates(tmp_path / name / "seq_0000" / "estimates.csv")
-        ok = est["status"] == "ok"
-        wrong = np.zeros(len(seq), bool)
-        for k in np.flatnonzero(ok):
-            E = transform_from_tum([est[c][k] for c in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
-            wrong[k] = (np.linalg.norm(E[:3, 3] - truth[k][:3, 3]) > 0.1 * h[k]
-                        or math.degrees(rotation_angle(E[:3, :3], truth[k][:3, :3])) > 5.0)
-        return ok, wrong
-
-    ok_level, wrong_level = run(LocalizerConfig(), "level")
-    ok_deck, wrong_deck = run(LocalizerConfig(pad_tilt_deg=15.0), "deck")
+    _, ok_level, wrong_level = _localized_descent(tmp_path, "level", truth, LocalizerConfig())
+    _, ok_deck, wrong_deck = _localized_descent(tmp_path, "deck", truth, LocalizerConfig(pad_tilt_deg=15.0))
     assert wrong_level.sum() >= 5  # the failure this guards against: wrong, and saying ok
     assert wrong_deck.sum() == 0
     near = h < 5.0
@@ -3820,34 +3827,16 @@ def test_without_the_imu_a_pose_whose_tilt_the_image_hardly_fixes_is_refused_not
     off sideways.  Such a pose is refused with its reason (its pose and covariance kept in the
     row), not stated ``ok``; the poses whose tilt the markers fix, nearer, are kept.  Without the
     refusal this descent had 4 false accepts."""
-    from benchmarks.run import localize_dataset, read_estimates
-    from hvloc.geometry import transform_from_tum
-    from render.dataset import Dataset
-    from render.generate import generate
-    from render.spec import DatasetSpec
-
-    spec = DatasetSpec.model_validate({
+    truth, h = _rendered_descent(tmp_path, {
         "name": "oblique_deck", "seed": 7, "sequences": 1, "pad_ppm": 1000,
         "camera": {"width": 480, "height": 360, "hfov_deg": 90, "fps": 4, "exposure_s": 0.004,
                    "dist": [-0.2, 0.04, 0.0, 0.0, 0.0], "mount": {"rpy_deg": [200.0, 0.0, -90.0]}},
         "platform": {"height_m": 2.0, "size_m": 1.6, "roll_deg": 8.0, "pitch_deg": 5.0, "heave_m": 0.5},
         "trajectory": {"families": ["spiral"], "start_height_m": 10.0, "duration_s": [16, 16],
                        "lateral_offset_m": [0.0, 1.0]}})
-    generate(spec, tmp_path / "ds", show_progress=False)
-    seq = Dataset(tmp_path / "ds")[0]
-    truth = [seq.frame(k).cam2pad for k in range(len(seq))]
-    h = np.array([T[2, 3] for T in truth])
-    localize_dataset(tmp_path / "ds", tmp_path / "est", config=LocalizerConfig(), use_imu=False, show_progress=False)
-    est = read_estimates(tmp_path / "est" / "seq_0000" / "estimates.csv")
-    ok = est["status"] == "ok"
-    wrong = []
-    for k in np.flatnonzero(ok):
-        E = transform_from_tum([est[c][k] for c in ("tx", "ty", "tz", "qx", "qy", "qz", "qw")])
-        if (np.linalg.norm(E[:3, 3] - truth[k][:3, 3]) > 0.1 * h[k]
-                or math.degrees(rotation_angle(E[:3, :3], truth[k][:3, :3])) > 5.0):
-            wrong.append(k)
-    assert wrong == [], [(k, round(h[k], 1)) for k in wrong]
-    loose = [k for k in range(len(seq)) if "without the IMU's gravity the image fixes the pad's tilt too loosely"
+    est, ok, wrong = _localized_descent(tmp_path, "est", truth, LocalizerConfig(), use_imu=False)
+    assert not wrong.any(), [(k, round(h[k], 1)) for k in np.flatnonzero(wrong)]
+    loose = [k for k in range(len(truth)) if "without the IMU's gravity the image fixes the pad's tilt too loosely"
              in str(est["reason"][k])]
     assert loose and all(est["status"][k] == "rejected" and np.isfinite(est["tz"][k]) for k in loose), loose
     assert min(h[k] for k in loose) > 2.0, [(k, round(h[k], 1)) for k in loose]
