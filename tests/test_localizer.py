@@ -3482,6 +3482,32 @@ def test_a_far_pad_seen_from_the_side_without_an_imu_is_refused_when_its_mirror_
         assert pose_error(level.cam2pad, G)[0] < 0.125 * h, (h, off, level.status, level.reason)
 
 
+def test_without_an_imu_the_previous_pose_tells_a_pose_from_its_mirror_by_position(pad):
+    """Without an IMU the previous pose chooses between a planar pose and its mirror.  Far and
+    oblique, the two lie a fifth of the height and more apart, and a previous pose (a far outline's,
+    whose tilt the image hardly fixes) knows its position far better than its tilt.  Given a
+    previous pose where the camera is but turned as the mirror is, the right pose is taken (by
+    rotation alone the mirror was: conditions' snow_airframe_offnadir, 54 % of the height off).
+    Near, a previous pose a frame's motion away (5 % of the height, 3 degrees) chooses right too."""
+    geo = pad.geometry
+    pts = np.concatenate([geo.outer_corners] + [m.points for m in geo.markers_in("corner")])
+    for eye, far in (((-14.0, 0.3, 20.0), True), ((-6.0, 2.0, 12.0), True), ((0.05, 0.0, 1.0), False)):
+        G = look_at_cam2world(eye, (0.0, 0.0, 0.0), up=(0.0, 0.0, -1.0))
+        px = CAM.project_from(G, pts)
+        free = solve_planar_pose(CAM, pts, px)
+        mirror = max((free.cam2pad, free.other_cam2pad), key=lambda c: rotation_angle(c[:3, :3], G[:3, :3]))
+        assert np.linalg.norm(mirror[:3, 3] - G[:3, 3]) > 0.1 * eye[2]
+        prev = G.copy()
+        if far:
+            prev[:3, :3] = mirror[:3, :3]
+        else:
+            prev[:3, :3] = G[:3, :3] @ so3_exp(np.radians([2.0, -2.0, 1.0]))
+            prev[:3, 3] += np.array([0.03, -0.03, 0.02]) * eye[2]
+        chosen = solve_planar_pose(CAM, pts, px, prev_cam2pad=prev)
+        assert chosen.flip_choice == "previous"
+        assert pose_error(chosen.cam2pad, G)[0] < 0.01 * eye[2], (eye, pose_error(chosen.cam2pad, G))
+
+
 def test_without_an_imu_a_level_body_is_a_soft_prior_on_the_tilt(pad_fine, monkeypatch):
     """Without an IMU the body's up seen through the mount is where a drone flying nearly level has
     the world's: a prior of LEVEL_SIGMA_DEG on the pad's normal.  A far pad's four corners fix its
