@@ -92,7 +92,7 @@ class SequenceRenderer:
         self.material = plan.material
         # how far a moving deck's box reaches below the ground (it must never lift off as the deck moves)
         self.deck_drop_m = spec.platform.max_edge_drop_m() + 0.05 if spec.platform.deck_moves() else 0.0
-        self._deck_tilts = spec.platform.roll_deg > 0 or spec.platform.pitch_deg > 0
+        self._deck_tilts = spec.platform.deck_tilts()
         self.scene = LandingScene(pad, plan.scene_draw, spec.platform.height_m, spec.platform.size_m,
                                   self.imaging.render_camera, pad.spec.border_color,
                                   np.random.default_rng(plan.seed ^ 0x5EED), shadows=spec.environment.shadows,

@@ -231,10 +231,14 @@ class PlatformSpec(_Model):
     def deck_moves(self) -> bool:
         return self.deck_turns() or self.heave_m > 0
 
+    def deck_tilts(self) -> bool:
+        """Whether the deck rolls or pitches (a flat pad's light then changes with its tilt to the sun)."""
+        return self.roll_deg > 0 or self.pitch_deg > 0
+
     def deck_turns(self) -> bool:
         """Whether the deck rolls, pitches or yaws (the pad's light and the drone's shadow on it are
         then worked out in the pad's frame)."""
-        return self.roll_deg > 0 or self.pitch_deg > 0 or self.yaw_deg > 0
+        return self.deck_tilts() or self.yaw_deg > 0
 
     def max_edge_drop_m(self) -> float:
         """How far the deck's motion may take the platform top's lowest point below its mean height."""

@@ -1081,6 +1081,13 @@ def test_the_drones_shadow_lies_in_a_moving_decks_plane(motion):
     assert checked >= 2, checked
 
 
+def _surface_points_W(cam, cam2world: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``(H * W, 3)``: the world points a render shows at each pixel, from its depth ``z`` (H, W)."""
+    v, u = np.mgrid[0:cam.height, 0:cam.width]
+    return transform_points(cam2world, cam.unproject(np.column_stack([u.ravel(), v.ravel()]).astype(np.float64),
+                                                     z.reshape(-1).astype(np.float64)))
+
+
 @pytest.mark.parametrize("deck", [False, True], ids=["level", "rolling"])
 def test_the_drones_shadow_falls_past_a_platforms_edge_to_the_ground(deck):
     """A low sun casts the drone's square shadow across a platform's edge: the part that meets the
@@ -1117,9 +1124,7 @@ def test_the_drones_shadow_falls_past_a_platforms_edge_to_the_ground(deck):
             unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
             sc.set_drone(body)
             img, z = sc.render_with_depth(look)
-            v, col = np.mgrid[0:cam.height, 0:cam.width]
-            ray = np.stack([(col - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones(z.shape)], -1)
-            q = (look[:3, :3] @ (ray * z[..., None]).reshape(-1, 3).T).T + look[:3, 3]
+            q = _surface_points_W(cam, look, z)
             q_P = (T_W_P[:3, :3].T @ (q - T_W_P[:3, 3]).T).T
             up = (np.abs(q[:, 2]) < 0.02) | ((np.abs(q_P[:, 2]) < 0.03) & (np.abs(q_P[:, :2]).max(axis=1) < edge))
             t = (body[2, 3] - q[:, 2]) / sun[2]  # along the sun, to the body's height
@@ -1166,9 +1171,7 @@ def test_a_turning_decks_platform_casts_its_shadow_as_it_stands():
                                                                T_W_P[2, 3] + 3.5))
             img, z = sc.render_with_depth(look)
             unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
-            v, col = np.mgrid[0:cam.height, 0:cam.width]
-            ray = np.stack([(col - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, np.ones(z.shape)], -1)
-            q = (look[:3, :3] @ (ray * z[..., None]).reshape(-1, 3).T).T + look[:3, 3]
+            q = _surface_points_W(cam, look, z)
             ground = (np.abs(q[:, 2]) < 0.02) & np.isfinite(z).reshape(-1) & (unshaded > 60)
             k = np.flatnonzero(ground)
             t = np.linspace(0.0, (T_W_P[2, 3] + 0.5) / sun[2], 96)
