@@ -130,8 +130,9 @@ def deck_as_seen(rows, pad_tilt_deg: float = 0.0) -> str:
     line = (f"the pad lay p50/p90/max {p50:.1f}/{p90:.1f}/{top:.1f} deg from the IMU's up where {len(t)} poses fixed its tilt "
             f"from the image (sigma under {DECK_SURE_TILT_DEG:g} deg): further than an AHRS errs")
     if pad_tilt_deg <= 0:
-        line += (f"\n    a deck that rolls and pitches? The localizer takes the pad for level: state pad_tilt_deg of at "
-                 f"least {math.ceil(top)} (README: Landing on a ship)")
+        line += (f"\n    a deck that rolls and pitches? The localizer takes the pad for level until its markers show it "
+                 f"tilting, and its far poses until then are wrong: state pad_tilt_deg of at least {math.ceil(top)} "
+                 f"(README: Landing on a ship)")
     return line
 
 

@@ -565,12 +565,16 @@ class DeckTilt:
     PERIOD_MIN_S = 4.0  # the shortest swell it follows at full amplitude
 
     def __init__(self, amplitude_deg: float, ahrs_sigma_deg: float):
-        self.A = math.radians(amplitude_deg)
         self.ahrs = math.radians(ahrs_sigma_deg)
+        self.widen(amplitude_deg)
+        self.reset()
+
+    def widen(self, amplitude_deg: float) -> None:
+        """How far the deck may tilt (degrees), what it is tracked and bounded with; its track kept."""
+        self.A = math.radians(amplitude_deg)
         w = 2.0 * math.pi / self.PERIOD_MIN_S
         self.q = (self.A * w * w) ** 2  # the white acceleration's spectral density (rad^2 / s^3)
         self.rate0 = self.A * w
-        self.reset()
 
     def reset(self) -> None:
         self.x = np.zeros((2, 2))  # [tilt, rate] x [world x, world y] (rotation vector, rad)
@@ -701,6 +705,35 @@ def loose_tilt_refusal(est: "Estimate", cfg: LocalizerConfig, imu: bool) -> str:
     return ""
 
 
+SURE_TILT_DEG = 1.0  # a pose whose image alone fixes the pad's tilt to this (one sigma) sees how the pad lies
+DECK_SEEN_POSES = 3  # so many such poses within DECK_SEEN_WINDOW_S contradicting the IMU's up: the pad tilts (a deck)
+DECK_SEEN_WINDOW_S = 5.0
+DECK_AMPLITUDE_SHARE = 1.5  # a deck seen tilting d is taken to tilt up to this times d
+
+
+def sure_tilt(est: "Estimate") -> bool:
+    """Whether ``est``'s image alone fixed the pad's tilt to :data:`SURE_TILT_DEG`: markers or texture,
+    12 points or more, not a smeared drawing's affine warp (:mod:`hvloc.synthesis`).  Not the outline's
+    four corners: one corner a few pixels off (a shadow across it) tilts their pose by 10 degrees or
+    more "confidently"."""
+    return (est.method in ("markers", "texture") and est.n_corr >= 12 and est.extras.get("by") != "synthesis"
+            and float(est.extras.get("tilt_sigma_deg", math.inf)) < SURE_TILT_DEG)
+
+
+def image_tilt_contradicts(est: "Estimate", cfg: LocalizerConfig, allowed_deg: float) -> bool:
+    """Whether the pad's tilt as ``est``'s image alone fixes it (before the gravity prior pulls it
+    toward the IMU's up) contradicts the IMU by far more than both can err: five times their sigmas
+    together (the image's fit, the IMU's up as the config knows it), from 12 points or more, and
+    further than the tilt gate's ``allowed_deg``; twice that unless the image fixed the tilt to
+    :data:`SURE_TILT_DEG`: a far markers fit can have a second minimum degrees away, and its sigma
+    understates.  (Not five sigmas alone: told an AHRS of 0.05 degrees, the image's own bias of a
+    few tenths near the ground would be five of them.)"""
+    alone, sigma = est.extras.get("tilt_err_deg", math.nan), est.extras.get("tilt_sigma_deg", math.nan)
+    if est.n_corr < 12 or not alone > 5.0 * math.hypot(sigma, cfg.up_sigma_deg()):
+        return False
+    return alone > (1.0 if sure_tilt(est) else 2.0) * allowed_deg
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -745,13 +778,10 @@ class FalsePoseGates:
         if why:
             return why
         # the gravity prior pulls a refined pose toward the IMU: where many points fix the tilt (the
-        # markers), also ask what the image alone said, and reject when it contradicts the IMU by far
-        # more than both can err.  Not with the outline's four corners: one corner a few pixels off (a
-        # shadow across it) tilts their pose by 10 degrees or more "confidently", and the IMU is right
-        alone, sigma = est.extras.get("tilt_err_deg", 0.0), est.extras.get("tilt_sigma_deg", 0.0)
-        if est.n_corr >= 12 and alone > 2 * allowed and alone > 5.0 * math.hypot(sigma, cfg.up_sigma_deg()):
-            return (f"tilt from the image alone disagrees with the IMU's gravity by {alone:.1f} deg "
-                    f"(+-{sigma:.1f} deg)")
+        # markers), also ask what the image alone said (image_tilt_contradicts)
+        if image_tilt_contradicts(est, cfg, allowed):
+            return (f"tilt from the image alone disagrees with the IMU's gravity by {est.extras['tilt_err_deg']:.1f} "
+                    f"deg (+-{est.extras['tilt_sigma_deg']:.1f} deg)")
         R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
         if self.R_W_P is None:
             self.R_W_P = R_W_P
@@ -822,6 +852,12 @@ class HierarchicalLocalizer:
         self.reset()
 
     def reset(self) -> None:
+        if getattr(self, "told_config", None) is not None:  # a deck it saw (_pad_tilt_seen) is forgotten with the track
+            self.config, self.told_config = self.told_config, None
+        self.told_config: LocalizerConfig | None = None  # the config as given, once the pad was seen to tilt
+        self.tilted: list = []  # the recent sure poses whose image contradicted a level pad: (t, normal W, sigma, tilt)
+        self.deck_note = ""  # this frame's word that the pad was seen to tilt
+        self.deck_seen: list = []  # ... and the poses that showed it, taken for a deck from the next frame
         self.phase = "approaching"
         self.last: Estimate | None = None       # last accepted estimate
         self.last_t: float | None = None         # time of the last frame processed (any status)
@@ -922,8 +958,10 @@ class HierarchicalLocalizer:
         # the accelerations since the velocity filter last predicted (_update_twist)
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
                        + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
+        self.deck_tracked, self.deck_note = False, ""
+        if self.deck_seen:
+            self._take_for_deck()
         R_use = self.ahrs.corrected(R_W_B)
-        self.deck_tracked = False
         if self.deck is not None and R_W_B is not None and math.isfinite(t):
             # the attitude relative to the deck's tracked tilt: its up is the pad's normal as predicted
             tilt, self.up_sigma_deg, self.up_tolerance_deg, self.deck_tracked = self.deck.prior(float(t))
@@ -933,7 +971,7 @@ class HierarchicalLocalizer:
         est = self._estimate(image, t, R_use, R_W_B)
         # said in the reason too, whatever the frame's status (DESIGN.md for the clock), after a
         # failure's own reasons: estimates.csv does not carry the extras
-        for key, note in (("clock", clock), ("imu", imu_why and imu_why + ": vision alone")):
+        for key, note in (("clock", clock), ("imu", imu_why and imu_why + ": vision alone"), ("deck", self.deck_note)):
             if note:
                 est.extras[key] = note
                 est.reason = f"{est.reason}; {note}" if est.reason else note
@@ -994,6 +1032,7 @@ class HierarchicalLocalizer:
             est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                            extras=extras)
             verdict = self._gate(est, R_W_B)
+            self._pad_tilt_seen(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
             if verdict:
                 est.status, est.reason = "rejected", verdict
                 self.twist = twist
@@ -1036,6 +1075,75 @@ class HierarchicalLocalizer:
             rejected.reason = "; ".join(reasons)
             return rejected
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
+
+    def _pad_tilt_seen(self, est: Estimate, R_W_B) -> None:
+        """A pad taken for level that the image shows tilting is taken for a deck from the next frame.
+
+        By default the pad lies level (``pad_tilt_deg`` 0): the gravity prior draws every pose to the
+        IMU's up, and on a deck that rolls 5 degrees the poses are off by the roll, saying ``ok``
+        (the decks suite: 312 false accepts in 723 frames; unseen76: 45).  Markers and texture near
+        the pad fix its tilt from the image alone to a degree and better (:func:`sure_tilt`), and
+        there a level pad's tilt never contradicted the IMU (:func:`image_tilt_contradicts`; such a
+        pose is refused).  After :data:`DECK_SEEN_POSES` such poses within
+        :data:`DECK_SEEN_WINDOW_S` (not in a row: a rolling deck passes level) the localizer does what
+        ``pad_tilt_deg`` would have had it do: the deck's tilt tracked from these poses on
+        (:class:`DeckTilt`, bounded by 1.5 times the most the image has shown, widened as it shows
+        more), far poses whose tilt the image cannot fix refused, the AHRS's error no longer learnt
+        (the deck's tilt is not it), and the poses, velocity and keyframe made on a level pad
+        forgotten.  Said in the frame's reason (``deck``).  Before that the far poses are as wrong
+        as ever: only the user, stating ``pad_tilt_deg``, can tell a far pad's tilt."""
+        if R_W_B is None or not sure_tilt(est) or est.extras.get("normal_img_C") is None:
+            return
+        n_W = R_W_B @ self.T_B_C[:3, :3] @ np.asarray(est.extras["normal_img_C"], np.float64)
+        n_W = n_W / np.linalg.norm(n_W)
+        tilt = math.degrees(math.acos(float(np.clip(n_W[2], -1.0, 1.0))))
+        sigma = float(est.extras["tilt_sigma_deg"])
+        if self.told_config is not None:  # a deck it saw: as far as the image shows it tilting
+            if DECK_AMPLITUDE_SHARE * tilt > self.config.pad_tilt_deg:
+                self._deck_amplitude(DECK_AMPLITUDE_SHARE * tilt)
+            return
+        if self.deck is not None or self.deck_seen:
+            return
+        if not image_tilt_contradicts(est, self.config, self.config.max_tilt_error_deg + self.gates.tilt_allowance_deg):
+            return
+        self.tilted = [r for r in self.tilted if 0.0 <= est.t - r[0] <= DECK_SEEN_WINDOW_S] + [(est.t, n_W, sigma, tilt)]
+        if len(self.tilted) < DECK_SEEN_POSES:
+            return
+        self.deck_seen, self.tilted = self.tilted, []
+        self.deck_note = (f"the pad lay {min(r[3] for r in self.deck_seen):.1f}-{max(r[3] for r in self.deck_seen):.1f} "
+                          f"deg from the IMU's up where {len(self.deck_seen)} poses fixed its tilt (a deck, a slope, or an AHRS that "
+                          f"far off): taken for a deck "
+                          f"tilting up to {self._seen_amplitude():.1f} deg from the next frame (state pad_tilt_deg; "
+                          f"README: Landing on a ship)")
+
+    def _seen_amplitude(self) -> float:
+        return min(DECK_AMPLITUDE_SHARE * max(r[3] for r in self.deck_seen), 30.0)
+
+    def _take_for_deck(self) -> None:
+        """What the config would have had the localizer do had it said the pad tilts as far as
+        :meth:`_pad_tilt_seen` saw, from this frame on; the poses, velocity and keyframe made on a
+        level pad forgotten, and the AHRS's error no longer learnt."""
+        a = self._seen_amplitude()
+        self.told_config = self.config
+        self.deck = DeckTilt(a, self.config.ahrs_tilt_sigma_deg)
+        self._deck_amplitude(a)
+        for t, n, s, _ in self.deck_seen:
+            self.deck.update(t, n, s)
+        self.deck_seen = []
+        self.ahrs = AHRSTiltBias(0.0, self.config.ahrs_tilt_sigma_deg)
+        self.last, self.velocity = None, None
+        self.vfilter.reset()
+        self.flow.reset()
+
+    def _deck_amplitude(self, amplitude_deg: float) -> None:
+        """From now on, the pad may tilt ``amplitude_deg`` (at most 30): as if the config said so."""
+        a = min(float(amplitude_deg), 30.0)
+        self.config = self.config.model_copy(update={"pad_tilt_deg": a, "ahrs_bias_time_s": 0.0})
+        self.gates.config = self.config
+        self.deck.widen(a)
+        self.up_sigma_deg, self.up_tolerance_deg = self.config.up_sigma_deg(), a
+        self.gates.tilt_allowance_deg = a
+        self.flow.gravity_sigma_deg = self.up_sigma_deg
 
     def _update_twist(self, t: float, imu: bool) -> None:
         """The camera's motion at ``t`` for the rolling shutter's correction: its angular rate from
@@ -1717,6 +1825,8 @@ class HierarchicalLocalizer:
         return det, "ok"
 
     def _gate(self, est: Estimate, R_W_B) -> str:
+        if self.deck_seen:  # (_pad_tilt_seen, earlier this frame)
+            return "the image has just shown the pad tilting: no pose drawn to a level pad's up is taken this frame"
         return self.gates.check(est, R_W_B, self.last)
 
     def _after_accept(self, method: str, est: Estimate, gray) -> None:
