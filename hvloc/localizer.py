@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, heading_turn, invert, make_transform, matrix_from_quat_xyzw, rotation_angle,
-                       so3_exp, so3_log)
+                       rotation_z, so3_exp, so3_log)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
@@ -734,6 +734,22 @@ def image_tilt_contradicts(est: "Estimate", cfg: LocalizerConfig, allowed_deg: f
     return alone > (1.0 if sure_tilt(est) else 2.0) * allowed_deg
 
 
+PAD_YAW_DEG, PAD_YAW_PERIOD_S = 20.0, 8.0  # the deck's yaw swell the pad's heading filter follows (PadHeading)
+PAD_HEADING_SIGMA_DEG = 1.0  # a pose's heading noise, as that filter weighs it where its covariance does not say
+PAD_YAW_HORIZON_S = 1.0  # ... and how long on it carries the pad's turn
+PAD_YAW_MIN_RATE_DEG_S = 1.0  # a slower turn is no turn (PadHeading.turning)
+PAD_HEADING_MIN_SIGMA_DEG = 0.05  # a pose's heading is taken no surer than this
+
+
+def heading_var(est: "Estimate") -> float | None:
+    """How well ``est`` fixes the pad's heading (rad^2): its covariance's rotation about the pad's
+    normal (the covariance turns about the camera's axes); ``None`` without one."""
+    if est.cov is None or est.cam2pad is None:
+        return None
+    n_C = est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    return float(n_C @ est.cov[3:, 3:] @ n_C)
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -744,7 +760,8 @@ class FalsePoseGates:
         self.reset()
 
     def reset(self) -> None:
-        self.R_W_P: np.ndarray | None = None  # running vision-IMU rotation offset
+        self.R_W_P: np.ndarray | None = None  # running vision-IMU rotation offset (the pad's orientation in the world) ...
+        self.heading = PadHeading()  # ... whose heading turns as the accepted poses show
         self.imu_rejects = 0
         # how far the pad may lie from the up the gates are given (a tilting deck: its tracked tilt's
         # tolerance, set per frame by the localizer; else the deck's whole amplitude)
@@ -786,21 +803,94 @@ class FalsePoseGates:
         if self.R_W_P is None:
             self.R_W_P = R_W_P
         else:
-            jump = math.degrees(rotation_angle(self.R_W_P, R_W_P) if cfg.pad_tilt_deg <= 0
-                                else abs(heading_turn(self.R_W_P, R_W_P)))
+            ref = self.pad_orientation(est.t)
+            jump = math.degrees(rotation_angle(ref, R_W_P) if cfg.pad_tilt_deg <= 0 else abs(heading_turn(ref, R_W_P)))
             if jump > cfg.imu_jump_deg:
                 self.imu_rejects += 1
                 if self.imu_rejects >= 8:  # the reference itself was wrong: start again
                     self.R_W_P, self.imu_rejects = R_W_P, 0
+                    self.heading.reset()
+                    self.heading.update(est.t, R_W_P, heading_var(est))
                 return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
-            # slow drift: move the reference a little toward the new offset.  A ship's deck also
-            # yaws: its pad's heading moves with it (5 degrees over 10 s lagged the reference past
-            # the jump's bar near the ground), so there the reference is the last accepted pose's
-            # (a naming a quarter turn off still jumps)
-            d = so3_log(self.R_W_P.T @ R_W_P)
-            self.R_W_P = self.R_W_P @ so3_exp((1.0 if cfg.pad_tilt_deg > 0 else cfg.imu_drift_rate) * d)
+            # slow drift (the AHRS's): move the reference a little toward the new offset; its heading
+            # is the one the pad's turn has reached (PadHeading).  On a tilting deck the reference is
+            # the last accepted pose's (a naming a quarter turn off still jumps)
+            d = so3_log(ref.T @ R_W_P)
+            self.R_W_P = ref @ so3_exp((1.0 if cfg.pad_tilt_deg > 0 else cfg.imu_drift_rate) * d)
+        self.heading.update(est.t, R_W_P, heading_var(est))
         self.imu_rejects = 0
         return ""
+
+    def pad_orientation(self, t: float) -> np.ndarray | None:
+        """The pad's orientation in the world (the vision-IMU offset) expected at ``t``: the running
+        reference's tilt, and the heading its turn is predicted to have reached (:class:`PadHeading`)."""
+        if self.R_W_P is None:
+            return None
+        psi = self.heading.predicted(t)[0] if math.isfinite(t) else None
+        if psi is None:
+            return self.R_W_P
+        return rotation_z(psi - math.atan2(self.R_W_P[1, 0], self.R_W_P[0, 0])) @ self.R_W_P
+
+
+class PadHeading:
+    """The pad's heading in the world (the vision-IMU offset's, so the AHRS's heading drift with it)
+    and its turn rate: a Kalman filter on the accepted poses' headings with the white turn
+    acceleration of a deck yawing :data:`PAD_YAW_DEG` in :data:`PAD_YAW_PERIOD_S`.  A ship turning or
+    its deck yawing in a swell turns the pad under the camera; the reference of a level pad, drawn
+    a twentieth of the way toward each pose, lagged a deck yawing 20 degrees in 9 s past the jump's
+    bar (unseen78: 91 of 383 frames refused, all right), and a rate fitted to the last two seconds'
+    poses lagged it too (the rate grows 10 degrees a second each second).  Of a still pad it follows
+    the poses' own heading noise, a few tenths of a degree: a quarter-turn misnaming still jumps."""
+
+    def __init__(self):
+        w = 2.0 * math.pi / PAD_YAW_PERIOD_S
+        self.q = (math.radians(PAD_YAW_DEG) * w * w) ** 2  # white turn acceleration (rad^2 / s^3)
+        self.r = math.radians(PAD_HEADING_SIGMA_DEG) ** 2
+        self.reset()
+
+    def reset(self) -> None:
+        self.x: np.ndarray | None = None  # heading (unwrapped), rate
+        self.P = np.zeros((2, 2))
+        self.t = 0.0
+
+    def turning(self) -> bool:
+        """Whether the poses show the pad turning: a rate past three of its sigmas and
+        :data:`PAD_YAW_MIN_RATE_DEG_S`; only then is the heading carried on at it (a rate drawn from
+        far outlines' noisy headings and carried on put the reference 8-16 degrees off on
+        soft_gusty_deck at 15 m), and the IMU's accelerations turned by this heading, not the
+        gates' slow reference (a still pad's heading followed at its poses' noise drifted a flow
+        chain at 0.15 m 13 -> 19 mm on tiny_aruco_nested)."""
+        return bool(self.x is not None and abs(self.x[1]) > max(3.0 * math.sqrt(self.P[1, 1]),
+                                                                 math.radians(PAD_YAW_MIN_RATE_DEG_S)))
+
+    def predicted(self, t: float) -> tuple:
+        """``(heading rad, its variance)`` at ``t``, or ``(None, None)`` before the first pose.  The
+        turn is carried at most :data:`PAD_YAW_HORIZON_S` on: after a gap, a rate a few degrees a
+        second off must not name the outline a quarter turn wrong (:meth:`HierarchicalLocalizer._heading_hint`)."""
+        if self.x is None:
+            return None, None
+        dt = max(t - self.t, 0.0)
+        F = np.array([[1.0, dt], [0.0, 1.0]])
+        Q = self.q * np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
+        self._pred = (F @ self.x, F @ self.P @ F.T + Q)
+        rate = self.x[1] if self.turning() else 0.0
+        return float(self.x[0] + rate * min(dt, PAD_YAW_HORIZON_S)), float(self._pred[1][0, 0])
+
+    def update(self, t: float, R_W_P: np.ndarray, var: float | None = None) -> None:
+        """One accepted pose's offset at ``t``, its heading known to ``var`` (rad^2; by default
+        :data:`PAD_HEADING_SIGMA_DEG` squared)."""
+        psi = math.atan2(R_W_P[1, 0], R_W_P[0, 0])
+        r = self.r if var is None or not math.isfinite(var) else max(float(var), math.radians(PAD_HEADING_MIN_SIGMA_DEG) ** 2)
+        if self.x is None or not math.isfinite(t):
+            self.x, self.t = np.array([psi, 0.0]), t if math.isfinite(t) else self.t
+            self.P = np.diag([r, math.radians(PAD_YAW_DEG * 2.0 * math.pi / PAD_YAW_PERIOD_S) ** 2])
+            return
+        self.predicted(t)
+        x, P = self._pred
+        nu = math.remainder(psi - x[0], 2.0 * math.pi)
+        S = P[0, 0] + r
+        K = P[:, 0] / S
+        self.x, self.P, self.t = x + K * nu, P - np.outer(K, K) * S, max(self.t, t)
 
 
 class HierarchicalLocalizer:
@@ -1191,7 +1281,7 @@ class HierarchicalLocalizer:
         gives 0.02); ``None`` where the rows do not cover that time at 50 Hz or more
         (:func:`imu_accel`) or the pad's heading is not known."""
         since = [(ta, a, dt) for ta, a, dt in self.accels if t0 < ta <= t + 1e-9 and dt <= IMU_DENSE_S]
-        R_W_P = self.gates.R_W_P
+        R_W_P = self.gates.pad_orientation(t) if self.gates.heading.turning() else self.gates.R_W_P
         if not since or R_W_P is None or sum(dt for _, _, dt in since) < 0.8 * (t - t0):
             return None
         ta, a, dt = (np.array(c) for c in zip(*since))
@@ -1492,7 +1582,7 @@ class HierarchicalLocalizer:
         its turns are a quarter apart, so the AHRS's heading drift of a degree or two cannot swap
         them.  This names the outline where the cue cannot be read (a few pixels of yellow under
         JPEG's chroma) and the last pose is too old to be a prior."""
-        R_W_P = self.gates.R_W_P
+        R_W_P = self.gates.pad_orientation(t)
         if R_W_B is None or R_W_P is None or self.heading_t is None or not 0.0 <= t - self.heading_t <= HEADING_MAX_AGE_S:
             return None
         R_P_C = R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
@@ -1812,8 +1902,8 @@ class HierarchicalLocalizer:
         T = self.last.cam2pad.copy()
         if self.velocity is not None:
             T[:3, 3] += self.velocity * (t - self.last.t)
-        if self.gates.R_W_P is not None:  # the pad's heading in the world, as last seen
-            T[:3, :3] = self.gates.R_W_P.T @ R_W_B @ self.T_B_C[:3, :3]
+        if self.gates.R_W_P is not None:  # the pad's orientation in the world, as expected now
+            T[:3, :3] = self.gates.pad_orientation(t).T @ R_W_B @ self.T_B_C[:3, :3]
         rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         sh = self.shutter
         det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(self.velocity), array_key(rate_C),

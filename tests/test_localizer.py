@@ -427,6 +427,26 @@ def _imu_from(G, T_B_C=DEFAULT_T_B_C, extra=np.eye(3)):
     return extra @ R_W_C @ T_B_C[:3, :3].T
 
 
+def test_a_pad_turning_under_the_camera_is_followed_and_a_heading_jump_still_refused(pad):
+    """A ship turning, or its deck yawing in a swell (20 degrees, period 9 s): the pad turns in the
+    world under the camera, and the vision-IMU offset's heading with it.  The reference of a level
+    pad, drawn a twentieth of the way toward each pose, lagged past the jump's bar (before: 9 of
+    these 40 frames refused); the pad's heading is now followed at its turn rate
+    (:class:`hvloc.localizer.PadHeading`): every frame posed.  A pose whose heading jumps 10
+    degrees off that turn in one frame is still refused."""
+    views = _views(pad, 40, 3.0, 2.0)
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    for k, (img, G) in enumerate(views):
+        t = 0.1 * k
+        yaw = math.radians(20.0) * math.sin(2.0 * math.pi * t / 9.0) + (math.radians(10.0) if k == 25 else 0.0)
+        e = loc.process(img, t, _imu_from(G, extra=so3_exp([0.0, 0.0, yaw])))
+        if k == 25:
+            assert e.status == "rejected" and "vision-IMU rotation jumped" in e.reason, e.reason
+        else:
+            assert e.ok, f"frame {k}: {e.status} {e.reason}"
+            assert np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.01 * G[2, 3], k
+
+
 def test_injected_orientation_jump_is_rejected_smooth_drift_is_not(pad):
     views = _views(pad, 14)
     loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
