@@ -549,6 +549,14 @@ class AHRSTiltBias:
         self.n += 1
 
 
+def constant_rate_prediction(x: np.ndarray, P: np.ndarray, q: float, dt: float) -> tuple:
+    """A value and its rate ``x`` (first axis; any further axes share ``P``), with covariance ``P``,
+    carried ``dt`` on under white acceleration of spectral density ``q``: ``(x, P)`` then."""
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    Q = q * np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
+    return F @ x, F @ P @ F.T + Q
+
+
 class DeckTilt:
     """A tilting deck's tilt in the world, tracked from the image, for the gravity prior.
 
@@ -582,10 +590,7 @@ class DeckTilt:
         self.t: float | None = None
 
     def _predicted(self, t: float):
-        dt = max(t - self.t, 0.0)
-        F = np.array([[1.0, dt], [0.0, 1.0]])
-        Q = self.q * np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
-        return F @ self.x, F @ self.P @ F.T + Q
+        return constant_rate_prediction(self.x, self.P, self.q, max(t - self.t, 0.0))
 
     def _known(self, P) -> bool:
         return math.sqrt(P[0, 0]) < self.A / math.sqrt(2.0)
@@ -870,11 +875,9 @@ class PadHeading:
         if self.x is None:
             return None, None
         dt = max(t - self.t, 0.0)
-        F = np.array([[1.0, dt], [0.0, 1.0]])
-        Q = self.q * np.array([[dt ** 3 / 3.0, dt * dt / 2.0], [dt * dt / 2.0, dt]])
-        self._pred = (F @ self.x, F @ self.P @ F.T + Q)
         rate = self.x[1] if self.turning() else 0.0
-        return float(self.x[0] + rate * min(dt, PAD_YAW_HORIZON_S)), float(self._pred[1][0, 0])
+        return (float(self.x[0] + rate * min(dt, PAD_YAW_HORIZON_S)),
+                float(constant_rate_prediction(self.x, self.P, self.q, dt)[1][0, 0]))
 
     def update(self, t: float, R_W_P: np.ndarray, var: float | None = None) -> None:
         """One accepted pose's offset at ``t``, its heading known to ``var`` (rad^2; by default
@@ -885,8 +888,7 @@ class PadHeading:
             self.x, self.t = np.array([psi, 0.0]), t if math.isfinite(t) else self.t
             self.P = np.diag([r, math.radians(PAD_YAW_DEG * 2.0 * math.pi / PAD_YAW_PERIOD_S) ** 2])
             return
-        self.predicted(t)
-        x, P = self._pred
+        x, P = constant_rate_prediction(self.x, self.P, self.q, max(t - self.t, 0.0))
         nu = math.remainder(psi - x[0], 2.0 * math.pi)
         S = P[0, 0] + r
         K = P[:, 0] / S
