@@ -3893,7 +3893,8 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     outline's four corners, not a loose markers fit, not three such poses spread over a minute.  It
     says so in the frame, takes no other pose that frame, and from the next one is a deck tilting 1.5
     times as far, its tilt tracked from those poses, widened as the image shows more; a new track
-    (time going back) forgets it."""
+    (time going back) forgets it.  A deck told too small a tilt is widened where a sure pose lies
+    three of its sigmas past it."""
     from hvloc.localizer import Estimate
 
     loc = HierarchicalLocalizer(pad, CAM)
@@ -3923,6 +3924,16 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     assert loc.config.pad_tilt_deg == pytest.approx(12.0) and math.degrees(loc.deck.A) == pytest.approx(12.0)
     loc.process(blank, 50.0, np.eye(3))  # time went back: a new track
     assert loc.config.pad_tilt_deg == 0.0 and loc.deck is None and loc.told_config is None
+
+    # told too small a tilt: widened only where a sure pose lies three of its sigmas past it
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(pad_tilt_deg=3.0))
+    seen(1.0, 3.4)
+    assert loc.config.pad_tilt_deg == 3.0
+    seen(1.1, 6.0)
+    assert loc.config.pad_tilt_deg == pytest.approx(9.0) and "it was told" in loc.deck_note
+    loc.process(blank, 1.2, np.eye(3))
+    loc.process(blank, 0.5, np.eye(3))  # time went back: as told again
+    assert loc.config.pad_tilt_deg == 3.0 and loc.deck is not None and loc.told_config is None
 
 
 def test_without_the_imu_a_pose_whose_tilt_the_image_hardly_fixes_is_refused_not_stated(tmp_path):
