@@ -716,13 +716,18 @@ DECK_SEEN_WINDOW_S = 5.0
 DECK_AMPLITUDE_SHARE = 1.5  # a deck seen tilting d is taken to tilt up to this times d
 
 
+def image_tilt_from_many(est: "Estimate") -> bool:
+    """Whether ``est``'s image-only pad normal comes from many points: markers or texture, 12 or
+    more, not a smeared drawing's affine warp (:mod:`hvloc.synthesis`).  Not the outline's four
+    corners, whose tilt moves 0.5 degrees for a 0.03 px bias of its corners far away, and 10 degrees
+    or more "confidently" for a corner a few pixels off (a shadow across it)."""
+    return est.method in ("markers", "texture") and est.n_corr >= 12 and est.extras.get("by") != "synthesis"
+
+
 def sure_tilt(est: "Estimate") -> bool:
-    """Whether ``est``'s image alone fixed the pad's tilt to :data:`SURE_TILT_DEG`: markers or texture,
-    12 points or more, not a smeared drawing's affine warp (:mod:`hvloc.synthesis`).  Not the outline's
-    four corners: one corner a few pixels off (a shadow across it) tilts their pose by 10 degrees or
-    more "confidently"."""
-    return (est.method in ("markers", "texture") and est.n_corr >= 12 and est.extras.get("by") != "synthesis"
-            and float(est.extras.get("tilt_sigma_deg", math.inf)) < SURE_TILT_DEG)
+    """Whether ``est``'s image alone fixed the pad's tilt from many points (:func:`image_tilt_from_many`)
+    to :data:`SURE_TILT_DEG`."""
+    return image_tilt_from_many(est) and float(est.extras.get("tilt_sigma_deg", math.inf)) < SURE_TILT_DEG
 
 
 def image_tilt_contradicts(est: "Estimate", cfg: LocalizerConfig, allowed_deg: float) -> bool:
@@ -831,7 +836,7 @@ class FalsePoseGates:
         reference's tilt, and the heading its turn is predicted to have reached (:class:`PadHeading`)."""
         if self.R_W_P is None:
             return None
-        psi = self.heading.predicted(t)[0] if math.isfinite(t) else None
+        psi = self.heading.predicted(t) if math.isfinite(t) else None
         if psi is None:
             return self.R_W_P
         return rotation_z(psi - math.atan2(self.R_W_P[1, 0], self.R_W_P[0, 0])) @ self.R_W_P
@@ -868,16 +873,14 @@ class PadHeading:
         return bool(self.x is not None and abs(self.x[1]) > max(3.0 * math.sqrt(self.P[1, 1]),
                                                                  math.radians(PAD_YAW_MIN_RATE_DEG_S)))
 
-    def predicted(self, t: float) -> tuple:
-        """``(heading rad, its variance)`` at ``t``, or ``(None, None)`` before the first pose.  The
-        turn is carried at most :data:`PAD_YAW_HORIZON_S` on: after a gap, a rate a few degrees a
-        second off must not name the outline a quarter turn wrong (:meth:`HierarchicalLocalizer._heading_hint`)."""
+    def predicted(self, t: float) -> float | None:
+        """The heading (rad) at ``t``, or ``None`` before the first pose.  The turn is carried at most
+        :data:`PAD_YAW_HORIZON_S` on: after a gap, a rate a few degrees a second off must not name the
+        outline a quarter turn wrong (:meth:`HierarchicalLocalizer._heading_hint`)."""
         if self.x is None:
-            return None, None
-        dt = max(t - self.t, 0.0)
+            return None
         rate = self.x[1] if self.turning() else 0.0
-        return (float(self.x[0] + rate * min(dt, PAD_YAW_HORIZON_S)),
-                float(constant_rate_prediction(self.x, self.P, self.q, dt)[1][0, 0]))
+        return float(self.x[0] + rate * min(max(t - self.t, 0.0), PAD_YAW_HORIZON_S))
 
     def update(self, t: float, R_W_P: np.ndarray, var: float | None = None) -> None:
         """One accepted pose's offset at ``t``, its heading known to ``var`` (rad^2; by default
@@ -992,9 +995,7 @@ class HierarchicalLocalizer:
         if event == "reset":
             self.reset()
         elif event == "drop":
-            self.last, self.velocity = None, None
-            self.vfilter.reset()
-            self.flow.reset()
+            self._forget_motion()
         dt = t - self.last_t if self.last_t is not None else None
         self.gap = bool(dt is not None and self.frame_dt is not None and dt > 1.5 * self.frame_dt)
         if dt is not None and dt > 0:
@@ -1146,20 +1147,16 @@ class HierarchicalLocalizer:
             self.unposed = 0
             if R_W_B is not None:
                 self.heading_t = t
-                # the image's own view of the normal, from many points: not the outline's four corners,
-                # whose tilt moves 0.5 degrees for a 0.03 px bias of its corners far away (field1080's
-                # outline tilts were 0.6 degrees off on average: they taught the AHRS a wrong error); nor a
-                # smeared drawing's, whose tilt is an affine warp's (hvloc.synthesis)
-                if method in ("markers", "texture") and est.n_corr >= 12 and est.extras.get("by") != "synthesis":
+                # the image's own view of the normal, from many points (field1080's outline tilts were
+                # 0.6 degrees off on average: they taught the AHRS a wrong error)
+                if image_tilt_from_many(est):
                     self.ahrs.update(R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
                                      est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
                                      est.extras.get("mirror_normal_img_C"),
                                      est.extras.get("mirror_chi2_gap", float("inf")))
-                    normal_C = est.extras.get("normal_img_C")
-                    if self.deck is not None and normal_C is not None:  # (the AHRS's error is not learnt on a deck)
-                        R_W_C = (R_W_B if R_W_B_raw is None else R_W_B_raw) @ self.T_B_C[:3, :3]
-                        self.deck.update(t, R_W_C @ np.asarray(normal_C, np.float64),
-                                         est.extras.get("tilt_sigma_deg", float("nan")))
+                    normal_W = self._pad_normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
+                    if self.deck is not None and normal_W is not None:  # (the AHRS's error is not learnt on a deck)
+                        self.deck.update(t, normal_W, est.extras.get("tilt_sigma_deg", float("nan")))
             self._after_accept(method, est, gray)
             return est
         self.flow.skip()
@@ -1188,10 +1185,9 @@ class HierarchicalLocalizer:
         A deck told too small a ``pad_tilt_deg`` is widened the same way where a sure pose's tilt
         lies three of its sigmas past it (unseen79, a deck tilting to 6.7 degrees told 2: touchdown
         31 % posed, the tracked tilt held to 2 degrees and the tracks' poses refused)."""
-        if R_W_B is None or not sure_tilt(est) or est.extras.get("normal_img_C") is None:
+        n_W = self._pad_normal_W(est, R_W_B) if sure_tilt(est) else None
+        if n_W is None:
             return
-        n_W = R_W_B @ self.T_B_C[:3, :3] @ np.asarray(est.extras["normal_img_C"], np.float64)
-        n_W = n_W / np.linalg.norm(n_W)
         tilt = math.degrees(math.acos(float(np.clip(n_W[2], -1.0, 1.0))))
         sigma = float(est.extras["tilt_sigma_deg"])
         if self.told_config is not None:  # a deck it saw: as far as the image shows it tilting
@@ -1235,9 +1231,22 @@ class HierarchicalLocalizer:
             self.deck.update(t, n, s)
         self.deck_seen = []
         self.ahrs = AHRSTiltBias(0.0, self.config.ahrs_tilt_sigma_deg)
+        self._forget_motion()
+
+    def _forget_motion(self) -> None:
+        """The last pose, the velocity and the flow's keyframe no longer steer what comes next."""
         self.last, self.velocity = None, None
         self.vfilter.reset()
         self.flow.reset()
+
+    def _pad_normal_W(self, est: Estimate, R_W_B) -> np.ndarray | None:
+        """The pad's normal in the world (unit) as ``est``'s image alone fixes it, turned by the
+        AHRS's attitude ``R_W_B``; ``None`` without either."""
+        normal_C = est.extras.get("normal_img_C")
+        if R_W_B is None or normal_C is None:
+            return None
+        n = R_W_B @ self.T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
+        return n / np.linalg.norm(n)
 
     def _deck_amplitude(self, amplitude_deg: float) -> None:
         """From now on, the pad may tilt ``amplitude_deg`` (at most 30): as if the config said so."""

@@ -322,8 +322,7 @@ class LandingScene:
     def _add_box_shadows(self, boxes, m_per_px: float = 0.02, parent=None):
         """All boxes' shadows on the ground as one alpha texture: the union of each box's corners
         cast along the sun (overlapping shadows darken once, and the draw order cannot matter)."""
-        s = self.draw.sun_dir_W
-        shift = -s[:2] / max(s[2], 0.05)
+        shift = self._sun_shift()
         polys = []
         for x, y, yaw, sx, sy, sz, _ in boxes:
             c, sn = math.cos(yaw), math.sin(yaw)
@@ -335,13 +334,18 @@ class LandingScene:
             polys.append(cv2.convexHull(np.array(pts, np.float32))[:, 0, :].astype(np.float64))
         self._add_shadow_map(polys, m_per_px, parent)
 
+    def _sun_shift(self) -> np.ndarray:
+        """How far (x, y) a point's shadow on the ground lies from it per metre of its height (the sun
+        held at least a little above the horizon)."""
+        s = self.draw.sun_dir_W
+        return -s[:2] / max(s[2], 0.05)
+
     def _platform_shadow_polygon(self, pad2world: np.ndarray) -> np.ndarray:
         """``(M, 2)``: the platform's shadow on the ground, about the platform's centre (x, y): the
         part of its box above the ground (its top's corners and where its sides meet the ground, a
         box that reaches below the ground by the deck's travel), cast along the sun.  A level box's
         is its footprint and its top cast."""
-        s = self.draw.sun_dir_W
-        shift = -s[:2] / max(s[2], 0.05)
+        shift = self._sun_shift()
         node = np.asarray(pad2world, np.float64) @ make_transform(np.eye(3), (0.0, 0.0, -self.pad_surface_z))
         half, top, bottom = self.platform_size / 2, self.platform_height, -self._deck_drop_m
         pts = []
