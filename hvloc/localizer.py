@@ -388,20 +388,32 @@ ACCEL_MAX_MPS2 = 200.0  # an accelerometer's 16 g (157 m/s^2): past it, a corrup
 IMU_DENSE_S = 0.02  # rows further apart than this (under 50 Hz) are not integrated
 
 
-def imu_accel(imu, t: float, R_corr=None) -> list:
+def imu_accel(imu, t: float, R_corr=None, since_t: float | None = None) -> list:
     """``[(time, a_W, dt), ...]``: each usable row of an IMU block (every value finite, the
-    accelerometer within its range; the first row only starts the clock) as the body's acceleration in the
-    world (m/s^2: its accelerometer's specific force turned by its own attitude, gravity taken out),
-    its time on the camera's clock (the block's last row is taken to be at ``t``) and the time
-    since the row before it.  ``R_corr(R_W_B)``: the attitude with its learnt error taken out."""
+    accelerometer within its range) as the body's acceleration in the world (m/s^2: its
+    accelerometer's specific force turned by its own attitude, gravity taken out), its time on the
+    camera's clock (the block's last row is taken to be at ``t``) and the time since the row before
+    it.  ``R_corr(R_W_B)``: the attitude with its learnt error taken out.  ``since_t``: the IMU time
+    of the row before the block's first (the last block's last), from which the first row is
+    integrated; without it the first row only starts the clock.
+
+    That first row is a frame's share of the motion: one of four rows at 50 Hz from a 200 Hz IMU.
+    Dropped, the rows integrated too little velocity (a twentieth at 10 Hz: gusty_blur's 0.8 s
+    without a pose near the ground, 0.41 of the rows' 0.43 m/s), and at 50 Hz they covered too
+    little of the time for the velocity filter to take them (three quarters, under its four
+    fifths): it never used the IMU, and coasted (unseen81, 50 Hz: its velocity 3-4 times further
+    off than with the rows)."""
     try:
         a = np.asarray(imu, np.float64)
     except (TypeError, ValueError):
         return []
-    if a.ndim != 2 or a.shape[1] != IMU_ROW or len(a) < 2 or not np.isfinite(a[-1, 0]):
+    if a.ndim != 2 or a.shape[1] != IMU_ROW or len(a) < 1 or not np.isfinite(a[-1, 0]):
         return []
+    before = np.full((1, IMU_ROW), np.nan)
+    if since_t is not None and math.isfinite(since_t) and since_t < a[0, 0]:
+        before[0, 0] = since_t
     out = []
-    for prev, row in zip(a[:-1], a[1:]):
+    for prev, row in zip(np.vstack([before, a[:-1]]), a):
         dt = row[0] - prev[0]
         f = row[4:7]
         if not (np.isfinite(row).all() and 0.0 < dt and np.linalg.norm(f) <= ACCEL_MAX_MPS2):
@@ -1046,11 +1058,12 @@ class HierarchicalLocalizer:
         if not self.config.imu_rows:
             imu = imu_last_row(imu)
         R_W_B, imu_why = imu_check(imu)
+        imu_t = self.gyro_t  # the IMU time of the last block's last row
         self.turn_B, self.gyro_t = gyro_turn(imu, self.gyro_t, self.turn_B)
         self.rate_B, self.rate_doubt = imu_turn(imu, self.rate_span_s) if R_W_B is not None else (None, None)
         # the accelerations since the velocity filter last predicted (_update_twist)
         self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
-                       + (imu_accel(imu, t, self.ahrs.corrected) if R_W_B is not None else []))
+                       + (imu_accel(imu, t, self.ahrs.corrected, imu_t) if R_W_B is not None else []))
         self.deck_tracked, self.deck_note = False, ""
         if self.deck_seen:
             self._take_for_deck()

@@ -292,6 +292,16 @@ def test_an_imu_block_is_read_row_by_row_and_a_single_row_localizer_gets_its_las
     assert [round(a[0], 6) for a in acc] == [6.99, 7.0] and all(abs(a[2] - 0.005) < 1e-9 for a in acc)
     assert np.allclose(acc[-1][1], 0.0, atol=1e-9)  # a constant velocity: no acceleration
     assert imu_accel(rows[-1], 7.0) == [] and imu_accel(rows[:1], 7.0) == []  # one row: nothing to integrate
+    # told when the last block's last row was, a block's first row is integrated from it: at 50 Hz
+    # from a 200 Hz IMU a quarter of the frame's motion (left out, the velocity filter coasted without them)
+    block = np.array([imu_row(0.005 * k) for k in range(4)])
+    block[:, 4] += 1.0  # the specific force forward: the body accelerates
+    full = imu_accel(block, 7.0, since_t=-0.005)
+    assert [round(a[2], 6) for a in full] == [0.005] * 4 and round(full[0][0], 6) == 6.985
+    assert len(imu_accel(block, 7.0)) == 3 and len(imu_accel(block, 7.0, since_t=0.0)) == 3  # not before it: not told
+    dv = sum(a[1] * a[2] for a in full)
+    assert abs(np.linalg.norm(dv) - 0.02) < 1e-5, dv  # 1 m/s^2 over the block's 20 ms (the body turning a little)
+    assert len(imu_accel(block[:1], 7.0, since_t=-0.005)) == 1  # one row after a known one: its share
 
     class OneRow:  # a localizer written for one row
         pass
