@@ -40,7 +40,10 @@ METHOD_ORDER = {"approaching": ("outline", "markers", "texture"),
 
 TEXTURE_COLD_EVERY = 4  # with no height known, in Approaching the texture is tried on every 4th frame without a pose
 HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines this long (the AHRS drifts)
-SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at most this old (hvloc.synthesis)
+SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at most this old (hvloc.synthesis) ...
+# ... or, where the IMU's rows carry the velocity filter's position on, this old, as long as that position's
+# doubt (1 sigma, its largest axis) stays within the alignment's reach (hvloc.synthesis.PadSynthesis.reach_m)
+SYNTHESIS_COAST_S = 1.0
 SHUTTER_VELOCITY_DOUBT = 0.5  # the share of a pose that the shutter's velocity moved, counted uncertain (its lag)
 SHUTTER_UNKNOWN_SPEED_MPS = 0.5  # per axis: the speed relative to the pad a pose is counted uncertain by while no velocity is known
 SHUTTER_MIN_SPEED_MPS = 0.1  # ... and at least this speed, spread over the axes, where two poses give one
@@ -991,10 +994,11 @@ class HierarchicalLocalizer:
         self.flow.gravity_sigma_deg = self.config.up_sigma_deg()
         self.flow.ground = self.config.anchor_once  # (the pad's own corners only: FlowTracker.ground)
         self.twist: Twist | None = None          # the camera's motion at this frame (hvloc.shutter)
-        self.vfilter = VelocityFilter(TWIST_WINDOW_S)  # the shutter's velocity, from the poses and the IMU's rows
+        # the shutter's velocity, from the poses and the IMU's rows (and the position they carry on: _synthesized)
+        self.vfilter = VelocityFilter(TWIST_WINDOW_S, coast_s=SYNTHESIS_COAST_S)
         self.rate_B: np.ndarray | None = None    # the gyro's body rate at this frame, when the IMU gives one
         self.rate_doubt: np.ndarray | None = None  # ... and its standard deviation per body axis (imu_rate_doubt)
-        self.accels: list = []                   # the IMU's rows of the last TWIST_WINDOW_S (imu_accel)
+        self.accels: list = []                   # the IMU's rows of the last SYNTHESIS_COAST_S (imu_accel)
         self.policy_h: float | None = None       # the height the switching policy uses this frame (policy_height)
 
     # ------------------------------------------------------------------ public
@@ -1037,9 +1041,9 @@ class HierarchicalLocalizer:
         if self.last is None:
             return None
         T, guessed = self.last.cam2pad.copy(), False
-        pred = self.vfilter.pred
-        if pred is not None and self.vfilter.n >= 2 and abs(pred[0] - t) < 1e-9:
-            T[:3, 3] = pred[1][:3]
+        pred = self.vfilter.position(t)
+        if pred is not None:
+            T[:3, 3] = pred[0]
             guessed = True
         elif self.gap and self.velocity is not None:
             T[:3, 3] += self.velocity * (t - self.last.t)
@@ -1062,7 +1066,7 @@ class HierarchicalLocalizer:
         self.turn_B, self.gyro_t = gyro_turn(imu, self.gyro_t, self.turn_B)
         self.rate_B, self.rate_doubt = imu_turn(imu, self.rate_span_s) if R_W_B is not None else (None, None)
         # the accelerations since the velocity filter last predicted (_update_twist)
-        self.accels = ([r for r in self.accels if 0.0 < t - r[0] < TWIST_WINDOW_S]
+        self.accels = ([r for r in self.accels if 0.0 < t - r[0] < self.vfilter.coast_s]
                        + (imu_accel(imu, t, self.ahrs.corrected, imu_t) if R_W_B is not None else []))
         self.deck_tracked, self.deck_note = False, ""
         if self.deck_seen:
@@ -1298,7 +1302,7 @@ class HierarchicalLocalizer:
         107 -> 109 false accepts and touchdown 2.2 -> 5.7 mm with the velocity's correction)."""
         if not imu:
             self.twist = None
-            self.vfilter.pred = None
+            self.vfilter.pred = self.vfilter.coast = None
             return
         if self.vfilter.t is not None:
             motion = self._imu_motion(self.vfilter.t, t)
@@ -1726,12 +1730,8 @@ class HierarchicalLocalizer:
         # there would hide what the corners showed
         if _rms_share(start.rms_px, det.info) > self.config.max_outline_rms_share:
             return det
-        if self._synthesis is None:
-            from .synthesis import PadSynthesis
-
-            self._synthesis = PadSynthesis(self.pad)
         fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g),
-                                 fit_pose_to_design, rgb, self.camera, self._synthesis, start.cam2pad)
+                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)
@@ -1917,34 +1917,63 @@ class HierarchicalLocalizer:
         return self.phase != "approaching" or self.unposed % TEXTURE_COLD_EVERY == 1
 
     def _prediction_age_ok(self, t: float | None) -> bool:
-        return (self.last is not None and t is not None and self.pad is not None
-                and 0.0 < t - self.last.t <= SYNTHESIS_MAX_AGE_S)
+        return self._drawn_position(t) is not None
 
-    def _synthesized(self, gray, t: float, R_W_B, why: str):
-        """``(Detection | None, reason)``: the pad drawn where the last pose, moved on at its velocity
-        and turned as the AHRS has turned since, puts it, smeared by that velocity and the gyro's
-        rate over the exposure, and aligned to the frame (:mod:`hvloc.synthesis`); only within
-        :data:`SYNTHESIS_MAX_AGE_S` of the last pose, and only with an attitude: without one the
-        drawing's tilt is the last pose's, which alone (no gravity to choose between a pose and its
-        mirror) can be degrees off (bench_v1's no_imu ablation: 1.4 m at 19.8 m, accepted)."""
-        if not self._prediction_age_ok(t):
-            return None, why or "no recent pose to draw the pad at"
-        if R_W_B is None:
-            return None, why or "no attitude to draw the pad at"
+    def _drawn_position(self, t: float | None):
+        """``(position, velocity)`` the pad is drawn at and smeared by (:meth:`_synthesized`), or
+        ``None``: within :data:`SYNTHESIS_MAX_AGE_S` of the last pose, where the velocity filter
+        predicts it (the poses carried by the IMU's rows), else moved on at the last two poses'
+        velocity; and up to :data:`SYNTHESIS_COAST_S` where the filter's position is carried by the
+        rows alone and its doubt (1 sigma) is within the alignment's reach
+        (:meth:`hvloc.synthesis.PadSynthesis.reach_m`).
+
+        A gust that swings the pad out of the frame near the ground breaks the flow's chain, and
+        when the pad comes back, smeared, only the drawing places it: gusty_blur lost 8 frames in a
+        row at 0.67-0.41 m, 0.4-0.8 s after the last pose."""
+        if self.last is None or t is None or self.pad is None or not 0.0 < t - self.last.t <= SYNTHESIS_COAST_S:
+            return None
+        pred = self.vfilter.position(t)
+        if pred is not None:
+            p, P, v = pred
+            if t - self.last.t <= SYNTHESIS_MAX_AGE_S or (
+                    math.sqrt(max(np.linalg.eigvalsh(P)[-1], 0.0)) <= self._drawing().reach_m(self.camera, p[2])):
+                return p, v
+        if t - self.last.t > SYNTHESIS_MAX_AGE_S:
+            return None
+        p = self.last.cam2pad[:3, 3].copy()
+        if self.velocity is not None:
+            p += self.velocity * (t - self.last.t)
+        return p, self.velocity
+
+    def _drawing(self):
+        """The pad's drawing (:class:`hvloc.synthesis.PadSynthesis`), made when first needed."""
         if self._synthesis is None:
             from .synthesis import PadSynthesis
 
             self._synthesis = PadSynthesis(self.pad)
+        return self._synthesis
+
+    def _synthesized(self, gray, t: float, R_W_B, why: str):
+        """``(Detection | None, reason)``: the pad drawn where the last pose, moved on
+        (:meth:`_drawn_position`) and turned as the AHRS has turned since, puts it, smeared by that
+        velocity and the gyro's rate over the exposure, and aligned to the frame
+        (:mod:`hvloc.synthesis`); only with an attitude: without one the drawing's tilt is the last
+        pose's, which alone (no gravity to choose between a pose and its mirror) can be degrees off
+        (bench_v1's no_imu ablation: 1.4 m at 19.8 m, accepted)."""
+        drawn = self._drawn_position(t)
+        if drawn is None:
+            return None, why or "no recent pose to draw the pad at"
+        if R_W_B is None:
+            return None, why or "no attitude to draw the pad at"
         T = self.last.cam2pad.copy()
-        if self.velocity is not None:
-            T[:3, 3] += self.velocity * (t - self.last.t)
+        T[:3, 3], velocity = drawn
         if self.gates.R_W_P is not None:  # the pad's orientation in the world, as expected now
             T[:3, :3] = self.gates.pad_orientation(t).T @ R_W_B @ self.T_B_C[:3, :3]
         rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         sh = self.shutter
-        det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(self.velocity), array_key(rate_C),
+        det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(velocity), array_key(rate_C),
                                        self.exposure_s),
-                              self._synthesis.locate, gray, self.camera, T, self.velocity, rate_C, self.exposure_s,
+                              self._drawing().locate, gray, self.camera, T, velocity, rate_C, self.exposure_s,
                               sh.line_s if sh.active else 0.0, sh.ref_row)
         if det is None:
             return None, f"{why}; drawn at the predicted pose: {why2}" if why else f"drawn at the predicted pose: {why2}"

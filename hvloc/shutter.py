@@ -123,10 +123,16 @@ class VelocityFilter:
 
     ``predict(t, motion)`` before a frame (``motion``: the IMU's ``(dv, dp)`` since the last pose,
     in the pad frame, or ``None``), ``update(t, p, cov)`` with the frame's accepted position;
-    ``velocity`` is the prediction's, once two poses are in."""
+    ``velocity`` is the prediction's, once two poses are in.
 
-    def __init__(self, max_gap_s: float, q_imu: float = VELOCITY_Q_IMU, q_free: float = VELOCITY_Q_FREE):
+    Past ``max_gap_s`` and up to ``coast_s`` without a pose, the IMU's rows still carry the last
+    state to the frame (:attr:`coast`, for a guess of where the pad is: :meth:`position`), but
+    nothing reads a velocity from it, and the next pose starts the filter again."""
+
+    def __init__(self, max_gap_s: float, q_imu: float = VELOCITY_Q_IMU, q_free: float = VELOCITY_Q_FREE,
+                 coast_s: float = 0.0):
         self.max_gap_s, self.q_imu, self.q_free = float(max_gap_s), float(q_imu), float(q_free)
+        self.coast_s = max(float(coast_s), self.max_gap_s)
         self.reset()
 
     def reset(self) -> None:
@@ -135,16 +141,32 @@ class VelocityFilter:
         self.P = np.zeros((9, 9))
         self.n = 0                    # poses since the filter started
         self.pred: tuple | None = None  # (t, x, P) predicted for the frame at hand
+        self.coast: tuple | None = None  # ... the same past max_gap_s, carried by the IMU's rows alone
         self.shared: tuple = (None, None)  # the last pose's error shared with others: (what names it, its covariance)
 
     def predict(self, t: float, motion=None, q_extra: float = 0.0) -> None:
-        self.pred = None
+        self.pred = self.coast = None
         if self.t is None:
             return
         D = t - self.t
-        if not 0.0 < D <= self.max_gap_s:
-            self.reset()
+        if self.max_gap_s < D <= self.coast_s and motion is not None and self.n >= 2:
+            self.coast = (t, *self._propagated(D, motion, q_extra))
             return
+        if not 0.0 < D <= self.max_gap_s:
+            if D > self.coast_s or D <= 0.0:
+                self.reset()
+            return
+        self.pred = (t, *self._propagated(D, motion, q_extra))
+
+    def position(self, t: float):
+        """``(p, P, v)``: the position predicted for ``t`` (within the gap, or coasting on the IMU's
+        rows), its covariance and the velocity there; ``None`` before two poses or for another time."""
+        for pred in (self.pred, self.coast):
+            if pred is not None and self.n >= 2 and abs(pred[0] - t) < 1e-9:
+                return pred[1][:3].copy(), pred[2][:3, :3].copy(), pred[1][3:6].copy()
+        return None
+
+    def _propagated(self, D: float, motion, q_extra: float):
         F = np.eye(9)
         F[:3, 3:6] = D * np.eye(3)
         q = self.q_free
@@ -160,7 +182,7 @@ class VelocityFilter:
         Q = np.zeros((9, 9))
         Q[:6, :6] = np.kron(np.array([[D ** 3 / 3.0, D ** 2 / 2.0], [D ** 2 / 2.0, D]]) * q, np.eye(3))
         Q[6:, 6:] = ACCEL_BIAS_WALK ** 2 * D * np.eye(3)
-        self.pred = (t, x, F @ self.P @ F.T + Q)
+        return x, F @ self.P @ F.T + Q
 
     @property
     def velocity(self) -> np.ndarray | None:

@@ -185,6 +185,13 @@ class PadSynthesis:
         self.levels = box_levels(srgb_to_linear(gray), pad.side_m, 64)
         self._ideal = None  # (camera, (H, W, 2) float32 every pixel's place in the ideal pinhole image)
 
+    def reach_m(self, camera: Camera, height_m: float) -> float:
+        """How far off (m, across the pad's plane) a prediction from ``height_m`` above the pad may
+        be for the alignment to carry the drawing back: :data:`MAX_SHIFT` of the window's longer
+        side, the window being the pad or, near the ground, the frame's view of its plane."""
+        view = max(camera.width / camera.fx, camera.height / camera.fy) * max(height_m, 0.0)
+        return MAX_SHIFT * min(self.pad.side_m, view)
+
     def _ideal_pixels(self, camera: Camera) -> np.ndarray:
         """``(H, W, 2)`` float32: every pixel's place in the ideal pinhole image (kept per camera)."""
         if self._ideal is None or self._ideal[0] is not camera:

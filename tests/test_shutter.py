@@ -520,6 +520,49 @@ def test_the_velocity_filter_weighs_each_pose_by_its_covariance():
     assert np.sqrt(np.mean(np.square(errs[0.001]))) < 0.03, errs[0.001]
 
 
+def test_the_velocity_filter_coasts_on_the_imu_past_its_gap_but_reads_no_velocity_there():
+    """Past ``max_gap_s`` without a pose the IMU's rows still carry the last state to the frame, as
+    a position and its growing doubt (where the pad's drawing is looked for, hvloc.localizer's
+    ``_drawn_position``), but no velocity is read from it (the shutter's correction), the next pose
+    starts the filter again, and past ``coast_s`` (or without rows) it carries nothing."""
+    from hvloc.shutter import VelocityFilter
+
+    a = np.array([0.8, -0.5, 0.2])  # accelerating: the rows carry it, a constant velocity would not
+    def truth(t):
+        return np.array([0.1, 0.2, 1.0]) + np.array([0.3, 0.0, -0.4]) * t + 0.5 * a * t * t
+
+    f = VelocityFilter(0.45, coast_s=1.0)
+    for k in range(6):
+        t = 0.1 * k
+        if k:
+            D = t - f.t
+            dv = a * D
+            f.predict(t, (dv, 0.5 * a * D * D))
+        f.update(t, truth(t), 1e-6 * np.eye(3))
+    t_last, docs = f.t, []
+    for t in (1.0, 1.2, 1.45):  # 0.5-0.95 s after the last pose
+        D = t - t_last
+        f.predict(t, (a * D, 0.5 * a * D * D))
+        got = f.position(t)
+        assert got is not None and f.velocity is None and f.pred is None, t
+        p, P, v = got
+        assert np.linalg.norm(p - truth(t)) < 0.01, (t, p - truth(t))
+        assert np.allclose(v, np.array([0.3, 0.0, -0.4]) + a * t, atol=0.02)
+        docs.append(np.trace(P))
+    assert docs == sorted(docs)  # less sure the longer it coasts
+    f.predict(1.45, None)  # no rows: nothing carries it
+    assert f.position(1.45) is None and f.t == t_last
+    f.predict(1.6, (a * 1.1, 0.5 * a * 1.21))  # past coast_s: forgotten
+    assert f.position(1.6) is None and f.t is None
+    f2 = VelocityFilter(0.45, coast_s=1.0)
+    f2.update(0.0, truth(0.0), 1e-6 * np.eye(3))
+    f2.update(0.1, truth(0.1), 1e-6 * np.eye(3))  # (no prediction between: the second starts it again)
+    f2.predict(0.9, (a * 0.8, 0.32 * a))
+    assert f2.position(0.9) is None  # one pose: no velocity to coast on
+    f.update(1.6, truth(1.6), 1e-6 * np.eye(3))  # a pose after the gap starts it again
+    assert f.n == 1
+
+
 def test_the_velocity_filter_reads_each_twin_by_how_its_solver_answers_the_velocity():
     """A rolling-shutter pose's velocity-free twin is off by its own solver's skew, ``-M v``, and M
     differs from solver to solver: on the airframe suite's 10 Hz camera at 0.4 m and 0.5 m/s, the
