@@ -45,7 +45,7 @@ SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at m
 # doubt (1 sigma, its largest axis) stays within the alignment's reach (hvloc.synthesis.PadSynthesis.reach_m)
 SYNTHESIS_COAST_S = 1.0
 SHUTTER_VELOCITY_DOUBT = 0.5  # the share of a pose that the shutter's velocity moved, counted uncertain (its lag)
-SHUTTER_UNKNOWN_SPEED_MPS = 0.5  # per axis: the speed relative to the pad a pose is counted uncertain by while no velocity is known
+UNKNOWN_SPEED_MPS = 0.5  # per axis: the speed relative to the pad a pose is counted uncertain by while no velocity is known (shutter, smear)
 SHUTTER_MIN_SPEED_MPS = 0.1  # ... and at least this speed, spread over the axes, where two poses give one
 RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by this much is not solved for
 # Lucas-Kanade's tracks (the flow's, the texture's refinement) in a smeared frame shift together by this
@@ -1450,7 +1450,7 @@ class HierarchicalLocalizer:
     def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
         the first after a loss; every pose without an IMU), its rows' skew left in.  Its covariance
-        gains what a velocity of :data:`SHUTTER_UNKNOWN_SPEED_MPS` along each pad axis would have
+        gains what a velocity of :data:`UNKNOWN_SPEED_MPS` along each pad axis would have
         moved it (solved again with each one's unrolling: three solves, on these poses only).  Those
         poses stated the covariance of a still camera: on unseen38 (read in 32 ms) two texture poses
         at 0.28 m, the track lost for 0.4 s and the drone at 0.65 m/s, were 6-8 mm off with 1 mm
@@ -1462,7 +1462,7 @@ class HierarchicalLocalizer:
         if self.velocity is not None and self.unposed == 1:  # the last frame was posed
             speed = max(float(np.linalg.norm(self.velocity)), SHUTTER_MIN_SPEED_MPS)
             return self._velocity_spread(pose, pts_P, px, solve, speed / math.sqrt(3.0), extras=extras)
-        return self._velocity_spread(pose, pts_P, px, solve, SHUTTER_UNKNOWN_SPEED_MPS, extras=extras)
+        return self._velocity_spread(pose, pts_P, px, solve, UNKNOWN_SPEED_MPS, extras=extras)
 
     def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None,
                          extras: dict | None = None) -> PoseResult:
@@ -1506,8 +1506,15 @@ class HierarchicalLocalizer:
                 - self.camera.project_from(motion.moved(cam2pad, -0.5 * e), pts_P))
 
     def _motion(self) -> Twist:
-        """The motion this frame is exposed under, as the last poses and the gyro say."""
-        return Twist(self.velocity, None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B)
+        """The motion this frame is exposed under: the velocity filter's velocity for it (the poses
+        carried by the IMU's rows, through a gap up to its coast), else the last two poses' where
+        the frame before was posed, and the gyro's rate.  No velocity after a loss that nothing
+        carried the motion through: the drone may be another speed there."""
+        w = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+        pred = None if self.last_t is None else self.vfilter.position(self.last_t)
+        if pred is not None:
+            return Twist(pred[2], w)
+        return Twist(self.velocity if self.unposed <= 1 else None, w)
 
     def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None) -> PoseResult:
         """``pose`` with, in its position covariance, how far it moves when every one of its points
@@ -1523,21 +1530,24 @@ class HierarchicalLocalizer:
         conditions suite's deck pitched 30 degrees under a 1 m/s relative motion (30-37 px of smear
         at 0.15-0.2 m), flow poses were 1.4-2.2 mm off with 1.1-1.3 mm stated (NEES up to 27); a
         texture pose at 0.25 m under some 20 px (unseen49) 1.1 mm off with 0.2-0.3 mm stated (NEES 61)."""
-        d = None if pose.cov is None else self._image_motion(pose.cam2pad, self._motion(), pts_P)
-        if d is None:
+        if pose.cov is None:
             return pose
-        if keyframe is not None:  # (no motion known for the keyframe: counted as sharp)
+        motion = self._motion()
+        smears = [self._image_motion(pose.cam2pad, motion, pts_P)]
+        if keyframe is not None and smears[0] is not None:  # (no motion known for the keyframe: counted as sharp)
             then = self._image_motion(keyframe.cam2pad, keyframe.motion, pts_P)
-            d = d if then is None else d - then
-        fin = np.isfinite(d).all(axis=1)
-        if not fin.any() or float(np.linalg.norm(d[fin], axis=1).max()) < TRACK_SMEAR_MIN_PX:
-            return pose
-        other = solve(np.where(fin[:, None], px + TRACK_SMEAR_DOUBT * np.nan_to_num(d), px))
-        if other is None:
-            return pose
-        delta = other.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
+            smears[0] = smears[0] if then is None else smears[0] - then
+        if motion.v_P is None:  # no velocity known: what one of UNKNOWN_SPEED_MPS along each pad axis smears
+            smears += [self._image_motion(pose.cam2pad, Twist(UNKNOWN_SPEED_MPS * a, None), pts_P) for a in np.eye(3)]
         cov = pose.cov.copy()
-        cov[:3, :3] += np.outer(delta, delta)
+        for d in smears:
+            fin = None if d is None else np.isfinite(d).all(axis=1)
+            if d is None or not fin.any() or float(np.linalg.norm(d[fin], axis=1).max()) < TRACK_SMEAR_MIN_PX:
+                continue
+            other = solve(np.where(fin[:, None], px + TRACK_SMEAR_DOUBT * np.nan_to_num(d), px))
+            if other is not None:
+                delta = other.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
+                cov[:3, :3] += np.outer(delta, delta)
         return replace(pose, cov=cov)
 
     def _edge_fit_outrun(self, pose: PoseResult, pts_P, read_px: float | None) -> str:
@@ -1551,9 +1561,10 @@ class HierarchicalLocalizer:
         7-21 px out and posed 98 mm off, beyond its 3 sigma.  Only with a velocity from the last poses
         (no motion is predicted whole without one: the first frame's gyro rate, a single row at a
         descent's start, read 2.2 rad/s where the frame was smeared 9-11 px, and the pad was lost)."""
-        if read_px is None or self.velocity is None:
+        motion = self._motion()
+        if read_px is None or motion.v_P is None:
             return ""
-        d = self._image_motion(pose.cam2pad, self._motion(), pts_P)
+        d = self._image_motion(pose.cam2pad, motion, pts_P)
         if d is None:
             return ""
         n = ph.side_normals(self.camera.project_from(pose.cam2pad, pts_P))[1]  # side j smeared as its two ends are

@@ -479,7 +479,7 @@ def test_without_an_imu_the_doubt_is_the_speed_the_poses_show(pad, monkeypatch):
     frames[4] = (0.4, np.zeros_like(frames[4][1]))  # a frame with nothing in it: after it, the speed is not known
     runs = {}
     for assumed in (0.5, 5.0):
-        monkeypatch.setattr(L, "SHUTTER_UNKNOWN_SPEED_MPS", assumed)
+        monkeypatch.setattr(L, "UNKNOWN_SPEED_MPS", assumed)
         # the gates off: a pose doubted at 5 m/s is looser sideways than a pose without the IMU may be
         # (loose_tilt_refusal), and a refused pose would leave the next without a speed
         loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_flow=False, false_pose_detection=False), line_s=line_s)
