@@ -1153,6 +1153,8 @@ class HierarchicalLocalizer:
                 est.extras["before"] = "; ".join(reasons)
             if self.last is not None and 0 < est.t - self.last.t < 0.5:
                 self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
+            else:  # poses that far apart tell no velocity, and one from before them is another moment's
+                self.velocity = None
             self.last = est
             self.last_attitude, self.turn_B = self.attitude, np.eye(3)
             # the velocity filter (the rolling shutter's correction reads it, and the flow's guess: _predicted)

@@ -126,8 +126,9 @@ class VelocityFilter:
     ``velocity`` is the prediction's, once two poses are in.
 
     Past ``max_gap_s`` and up to ``coast_s`` without a pose, the IMU's rows still carry the last
-    state to the frame (:attr:`coast`, for a guess of where the pad is: :meth:`position`), but
-    nothing reads a velocity from it, and the next pose starts the filter again."""
+    state to the frame (:attr:`coast`, for a guess of where the pad is: :meth:`position`), and the
+    next pose updates it as any prediction; but no velocity is read from a coasting state (the
+    shutter's correction), and without rows or past ``coast_s`` the next pose starts it again."""
 
     def __init__(self, max_gap_s: float, q_imu: float = VELOCITY_Q_IMU, q_free: float = VELOCITY_Q_FREE,
                  coast_s: float = 0.0):
@@ -159,11 +160,12 @@ class VelocityFilter:
         self.pred = (t, *self._propagated(D, motion, q_extra))
 
     def position(self, t: float):
-        """``(p, P, v)``: the position predicted for ``t`` (within the gap, or coasting on the IMU's
-        rows), its covariance and the velocity there; ``None`` before two poses or for another time."""
-        for pred in (self.pred, self.coast):
-            if pred is not None and self.n >= 2 and abs(pred[0] - t) < 1e-9:
-                return pred[1][:3].copy(), pred[2][:3, :3].copy(), pred[1][3:6].copy()
+        """``(p, P, v)``: the position for ``t`` (predicted within the gap or coasting on the IMU's
+        rows, or the estimate once a pose at ``t`` updated it), its covariance and the velocity
+        there; ``None`` before two poses or for another time."""
+        for x_t in (self.pred, self.coast, (self.t, self.x, self.P)):
+            if x_t is not None and x_t[0] is not None and self.n >= 2 and abs(x_t[0] - t) < 1e-9:
+                return x_t[1][:3].copy(), x_t[2][:3, :3].copy(), x_t[1][3:6].copy()
         return None
 
     def _propagated(self, D: float, motion, q_extra: float):
@@ -212,8 +214,9 @@ class VelocityFilter:
             self.reset()
             return
         H = np.hstack([np.eye(3), -M, np.zeros((3, 3))])
-        if self.pred is not None and abs(self.pred[0] - t) < 1e-9:
-            _, x, P = self.pred
+        pred = next((c for c in (self.pred, self.coast) if c is not None and abs(c[0] - t) < 1e-9), None)
+        if pred is not None:  # (carried through a gap by the IMU's rows, the state goes on from there)
+            _, x, P = pred
             if key is None or key != self.shared[0]:  # the shared error changed: the position jumps by it
                 P = P.copy()
                 P[:3, :3] += _key_jump(S, self.shared[1], parent is not None and parent == self.shared[0])
@@ -232,4 +235,4 @@ class VelocityFilter:
             self.P[3:6, 3:6] = Pv
             self.P[6:, 6:] = ACCEL_BIAS_PRIOR_MPS2 ** 2 * np.eye(3)
             self.n = 1
-        self.t, self.pred, self.shared = t, None, (key, S)
+        self.t, self.pred, self.coast, self.shared = t, None, None, (key, S)
