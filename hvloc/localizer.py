@@ -1531,7 +1531,12 @@ class HierarchicalLocalizer:
         without it: a steady descent's flow is not doubted for its smear).  On the
         conditions suite's deck pitched 30 degrees under a 1 m/s relative motion (30-37 px of smear
         at 0.15-0.2 m), flow poses were 1.4-2.2 mm off with 1.1-1.3 mm stated (NEES up to 27); a
-        texture pose at 0.25 m under some 20 px (unseen49) 1.1 mm off with 0.2-0.3 mm stated (NEES 61)."""
+        texture pose at 0.25 m under some 20 px (unseen49) 1.1 mm off with 0.2-0.3 mm stated (NEES 61).
+
+        With no velocity known (:meth:`_motion`: a track's first pose, the first after a loss the
+        IMU did not carry the motion through) the smear of :data:`UNKNOWN_SPEED_MPS` along each pad
+        axis is counted too (three more solves): unseen83's first texture poses at 0.3 m after 2 s
+        lost in a gale stated a still camera's doubt, 1.3-3.4 mm off for 0.3-0.7 mm (NEES 18-99)."""
         if pose.cov is None:
             return pose
         motion = self._motion()
@@ -1942,7 +1947,8 @@ class HierarchicalLocalizer:
 
         A gust that swings the pad out of the frame near the ground breaks the flow's chain, and
         when the pad comes back, smeared, only the drawing places it: gusty_blur lost 8 frames in a
-        row at 0.67-0.41 m, 0.4-0.8 s after the last pose."""
+        row at 0.67-0.41 m, 0.1-0.8 s after the last pose (the last 5, the pad back in view, are
+        drawn and posed now)."""
         if self.last is None or t is None or self.pad is None or not 0.0 < t - self.last.t <= SYNTHESIS_COAST_S:
             return None
         pred = self.vfilter.position(t)
