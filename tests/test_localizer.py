@@ -3324,7 +3324,9 @@ def test_a_pad_lost_for_half_a_second_is_drawn_where_the_imu_carried_it(pad):
     assert not any(e.ok for k, G, e in out[5:10])
     k, G, e = out[10]  # 0.6 s after the last pose, 0.1 m across from where the last velocity puts it
     assert e.ok and e.extras.get("by") == "synthesis", (e.status, e.method, e.reason[-300:])
-    assert all(e.ok and np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.005 * G[2, 3] for k, G, e in out[10:])
+    assert np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.005 * G[2, 3]
+    # the next: the filter starts again from the drawn pose, its velocity not known yet
+    assert all(e.ok and np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.01 * G[2, 3] for k, G, e in out[10:])
     alone = _gust_through_a_blackout(pad, 1)
     k, G, e = alone[10]
     assert not e.ok and "drawn" not in e.reason, (e.status, e.method, e.reason[-300:])
