@@ -1065,8 +1065,9 @@ class HierarchicalLocalizer:
         imu_t = self.gyro_t  # the IMU time of the last block's last row
         self.turn_B, self.gyro_t = gyro_turn(imu, self.gyro_t, self.turn_B)
         self.rate_B, self.rate_doubt = imu_turn(imu, self.rate_span_s) if R_W_B is not None else (None, None)
-        # the accelerations since the velocity filter last predicted (_update_twist)
-        self.accels = ([r for r in self.accels if 0.0 < t - r[0] < self.vfilter.coast_s]
+        # the accelerations since the velocity filter's last pose, up to its coast (_update_twist)
+        since = -math.inf if self.vfilter.t is None else self.vfilter.t
+        self.accels = ([r for r in self.accels if since < r[0] < t and t - r[0] < self.vfilter.coast_s]
                        + (imu_accel(imu, t, self.ahrs.corrected, imu_t) if R_W_B is not None else []))
         self.deck_tracked, self.deck_note = False, ""
         if self.deck_seen:
@@ -1461,8 +1462,9 @@ class HierarchicalLocalizer:
         axes is counted instead: a descent at 0.2 m/s is not doubted as one at 0.9.  Only from the
         frame just before: after a loss the drone may be another speed (unseen38's texture poses
         above, after 0.4 s lost, read the speed before the loss as 0.2 m/s and were NEES 36-63)."""
-        if self.velocity is not None and self.unposed == 1:  # the last frame was posed
-            speed = max(float(np.linalg.norm(self.velocity)), SHUTTER_MIN_SPEED_MPS)
+        v = self._recent_velocity()
+        if v is not None:
+            speed = max(float(np.linalg.norm(v)), SHUTTER_MIN_SPEED_MPS)
             return self._velocity_spread(pose, pts_P, px, solve, speed / math.sqrt(3.0), extras=extras)
         return self._velocity_spread(pose, pts_P, px, solve, UNKNOWN_SPEED_MPS, extras=extras)
 
@@ -1516,7 +1518,12 @@ class HierarchicalLocalizer:
         pred = None if self.last_t is None else self.vfilter.position(self.last_t)
         if pred is not None:
             return Twist(pred[2], w)
-        return Twist(self.velocity if self.unposed <= 1 else None, w)
+        return Twist(self._recent_velocity(), w)
+
+    def _recent_velocity(self) -> np.ndarray | None:
+        """The last two accepted poses' velocity where the frame before this one was posed (or this
+        one is): after a loss the drone may be another speed."""
+        return self.velocity if self.unposed <= 1 else None
 
     def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None) -> PoseResult:
         """``pose`` with, in its position covariance, how far it moves when every one of its points
@@ -1931,11 +1938,8 @@ class HierarchicalLocalizer:
         if not self._texture.usable:
             return False
         if h is not None:
-            return h <= self._texture.max_height_m(self.camera) or (not orb and self._prediction_age_ok(self.last_t))
+            return h <= self._texture.max_height_m(self.camera) or (not orb and self._drawn_position(self.last_t) is not None)
         return self.phase != "approaching" or self.unposed % TEXTURE_COLD_EVERY == 1
-
-    def _prediction_age_ok(self, t: float | None) -> bool:
-        return self._drawn_position(t) is not None
 
     def _drawn_position(self, t: float | None):
         """``(position, velocity)`` the pad is drawn at and smeared by (:meth:`_synthesized`), or
