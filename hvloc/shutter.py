@@ -126,11 +126,15 @@ class VelocityFilter:
     ``velocity`` is the prediction's, once two poses are in.
 
     Past ``max_gap_s`` and up to ``coast_s`` without a pose, the IMU's rows still carry the last
-    state to the frame (:attr:`coast`, for a guess of where the pad is: :meth:`position`), but no
-    velocity is read from a coasting state (the shutter's correction), and the next pose starts
-    the filter again.  Going on from the coasted state instead posed 5 more of unseen85's 21
-    touchdown frames (4 Hz, 30 % of frames dropped) but put a flow chain there 3-6 mm off stating
-    1.8 mm (NEES 21-62), where restarted it was within 0.7 mm: not done."""
+    state to the frame (:attr:`coast`, for a guess of where the pad is: :meth:`position`, once two
+    poses are in), and the next pose updates it as any prediction; no velocity is read from a
+    coasting state (the shutter's correction).  A single pose's state coasts too, its velocity
+    unknown: a camera at 2 Hz has no two poses within ``max_gap_s``, and started again at every
+    pose its filter never had a velocity (unseen84: the pad's drawing and the smear's doubt had
+    none to go by, and one descent lost its last 8 frames).  Without the rows, or past
+    ``coast_s``, the next pose starts it again.  (Tried in b004f14 and withdrawn in f67181f: a
+    flow chain on unseen85 went 3-6 mm off stating 1.8; that was RANSAC keeping a chance subset
+    of noisy tracks, mended in 7511434, not the filter.)"""
 
     def __init__(self, max_gap_s: float, q_imu: float = VELOCITY_Q_IMU, q_free: float = VELOCITY_Q_FREE,
                  coast_s: float = 0.0):
@@ -152,7 +156,7 @@ class VelocityFilter:
         if self.t is None:
             return
         D = t - self.t
-        if self.max_gap_s < D <= self.coast_s and motion is not None and self.n >= 2:
+        if self.max_gap_s < D <= self.coast_s and motion is not None:
             self.coast = (t, *self._propagated(D, motion, q_extra))
             return
         if not 0.0 < D <= self.max_gap_s:
@@ -216,8 +220,9 @@ class VelocityFilter:
             self.reset()
             return
         H = np.hstack([np.eye(3), -M, np.zeros((3, 3))])
-        if self.pred is not None and abs(self.pred[0] - t) < 1e-9:
-            _, x, P = self.pred
+        pred = next((c for c in (self.pred, self.coast) if c is not None and abs(c[0] - t) < 1e-9), None)
+        if pred is not None:  # (carried through a gap by the IMU's rows, the state goes on from there)
+            _, x, P = pred
             if key is None or key != self.shared[0]:  # the shared error changed: the position jumps by it
                 P = P.copy()
                 P[:3, :3] += _key_jump(S, self.shared[1], parent is not None and parent == self.shared[0])
