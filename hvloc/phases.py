@@ -2222,7 +2222,8 @@ def noise_inliers(src: np.ndarray, dst: np.ndarray, H: np.ndarray, inl: np.ndarr
     """RANSAC's inliers ``inl`` of the homography ``H`` (``src`` -> ``dst``), taken again where the
     points' own noise is larger than its threshold ``min_thr``: every point within
     :data:`FLOW_INLIER_SIGMAS` of that noise (read as the median residual of the points within
-    ``max_thr``, as a 2-D normal error's), at most ``max_thr``, the homography refitted on them (three rounds at most).
+    ``max_thr``, as a 2-D normal error's), at most ``max_thr``, the homography refitted on them
+    (three rounds at most).
 
     A threshold under the noise keeps a chance subset, and the pose is wherever that subset agrees.
     unseen85's tracks at 0.25 m, into a frame smeared by a 25 ms exposure in a gust, scatter 2.4 px
@@ -2241,7 +2242,7 @@ def noise_inliers(src: np.ndarray, dst: np.ndarray, H: np.ndarray, inl: np.ndarr
             return inl
         wider = fin & (r <= thr)
         if wider.sum() < 4 or np.array_equal(wider, inl):
-            return inl if wider.sum() < 4 else wider
+            return inl
         inl = wider
         H2, _ = cv2.findHomography(src[inl].astype(np.float64), dst[inl].astype(np.float64), 0)
         if H2 is None:

@@ -118,8 +118,9 @@ class VelocityFilter:
     50-100 mm off at 7 m (a small pad far off, its tilt barely seen), made a velocity 0.5 m/s off,
     and its unrolling moved the next poses as much again (the airframe suite's 5 Hz camera).
     Weighed, far poses barely move the velocity and near ones (1 mm off at 0.3 m) set it.  The
-    filter forgets everything after ``max_gap_s`` without a pose, and a pose or covariance that is
-    not finite starts it again (nothing is learnt from it).
+    filter forgets everything after ``max_gap_s`` without a pose (``coast_s`` where the IMU's rows
+    carry it: below), and a pose or covariance that is not finite starts it again (nothing is
+    learnt from it).
 
     ``predict(t, motion)`` before a frame (``motion``: the IMU's ``(dv, dp)`` since the last pose,
     in the pad frame, or ``None``), ``update(t, p, cov)`` with the frame's accepted position;
