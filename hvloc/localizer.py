@@ -52,6 +52,9 @@ RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by
 # share of each one's own smear over the exposure, counted in the pose's covariance (:meth:`_smear_spread`) ...
 TRACK_SMEAR_DOUBT = 0.1
 TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
+# ORB's keypoints (a texture pose its drawing did not refine) land anywhere along a smear: a uniform spread
+# over it, 1/sqrt(12) of its length (unseen84/85, at 0.2-0.28 m under 31-52 px: 3.9-5.8 mm off stating 1.9-2.4)
+KEYPOINT_SMEAR_DOUBT = 0.29
 # an outline whose sides an edge fit placed is not taken where the motion predicts over this many times the
 # smear read across one of them, and more than the edge fit holds to (:meth:`HierarchicalLocalizer._edge_fit_outrun`)
 EDGE_FIT_OUTRUN = 2.0
@@ -94,6 +97,11 @@ DESIGN_FIT_MAX_MOVE = 0.1  # the design's fit may move the outline's corners by 
 MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
+# a texture pose's position in the pad's plane is no surer than this share of a texel: the pad is known
+# as a raster (pad.png), drawn and printed to a fraction of a texel.  Landed at 0.15-0.18 m over a
+# texture printed at 1000 px/m (4-5 px a texel), unseen84's texture poses were 0.2-0.3 mm off stating
+# 0.1-0.2 (NEES 20-42), and the flow chained from them with it
+TEXTURE_TEXEL_DOUBT = 0.25
 MARKER_MIN_MODULE_PX = 2.0  # a finder marker's module must span this many pixels to be found (render/phase.py's rule)
 
 
@@ -1525,7 +1533,8 @@ class HierarchicalLocalizer:
         one is): after a loss the drone may be another speed."""
         return self.velocity if self.unposed <= 1 else None
 
-    def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None) -> PoseResult:
+    def _smear_spread(self, pose: PoseResult, pts_P, px, solve, keyframe=None,
+                      doubt: float = TRACK_SMEAR_DOUBT) -> PoseResult:
         """``pose`` with, in its position covariance, how far it moves when every one of its points
         ``px`` (tracked by Lucas-Kanade, solved by ``solve(pixels)``) shifts by
         :data:`TRACK_SMEAR_DOUBT` of how much more (or otherwise) it is smeared over the exposure than
@@ -1543,7 +1552,10 @@ class HierarchicalLocalizer:
         With no velocity known (:meth:`_motion`: a track's first pose, the first after a loss the
         IMU did not carry the motion through) the smear of :data:`UNKNOWN_SPEED_MPS` along each pad
         axis is counted too (three more solves): unseen83's first texture poses at 0.3 m after 2 s
-        lost in a gale stated a still camera's doubt, 1.3-3.4 mm off for 0.3-0.7 mm (NEES 18-99)."""
+        lost in a gale stated a still camera's doubt, 1.3-3.4 mm off for 0.3-0.7 mm (NEES 18-99).
+
+        ``doubt``: the share of the smear counted (:data:`TRACK_SMEAR_DOUBT` for tracked points;
+        :data:`KEYPOINT_SMEAR_DOUBT` for ORB's keypoints, which land anywhere along a smear)."""
         if pose.cov is None:
             return pose
         motion = self._motion()
@@ -1558,7 +1570,7 @@ class HierarchicalLocalizer:
             fin = None if d is None else np.isfinite(d).all(axis=1)
             if d is None or not fin.any() or float(np.linalg.norm(d[fin], axis=1).max()) < TRACK_SMEAR_MIN_PX:
                 continue
-            other = solve(np.where(fin[:, None], px + TRACK_SMEAR_DOUBT * np.nan_to_num(d), px))
+            other = solve(np.where(fin[:, None], px + doubt * np.nan_to_num(d), px))
             if other is not None:
                 delta = other.cam2pad[:3, 3] - pose.cam2pad[:3, 3]
                 cov[:3, :3] += np.outer(delta, delta)
@@ -1687,7 +1699,9 @@ class HierarchicalLocalizer:
         if method == "texture":
             det, why = None, ""
             if self._texture_allowed(self.policy_h, orb=True):
-                det, why = self.work(lambda: ("texture", id(self._texture)), self._texture.locate, gray, self.camera)
+                h = self.policy_h
+                det, why = self.work(lambda: ("texture", id(self._texture), self._texture.shrinks(self.camera, h)),
+                                     self._texture.locate, gray, self.camera, h)
             if det is None:
                 det, why = self._synthesized(gray, t, R_W_B, why)
             return self._posed(det, why, prior, up_C, False)
@@ -1908,7 +1922,12 @@ class HierarchicalLocalizer:
             cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
             pose = replace(pose, cov=cov)
         if det.kind == "texture" and info.get("by") != "synthesis":  # its points tracked from a sharp drawing
-            pose = self._smear_spread(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed))
+            if pose.cov is not None:  # (a copy: the pose may be shared image work)
+                cov = pose.cov.copy()
+                cov[:2, :2] += np.eye(2) * (TEXTURE_TEXEL_DOUBT / self.pad.ppm) ** 2
+                pose = replace(pose, cov=cov)
+            pose = self._smear_spread(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed),
+                                      doubt=TRACK_SMEAR_DOUBT if "refined" in info else KEYPOINT_SMEAR_DOUBT)
         pose = self._velocity_free(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed), info)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C,
