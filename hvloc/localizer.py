@@ -1915,17 +1915,18 @@ class HierarchicalLocalizer:
                 pose, weighed = again, True
         if weighed and np.ndim(pose.sigma_px) == 0:
             info["px_sigma"] = round(float(pose.sigma_px), 3)
-        if self.config.pad_relief_m > 0 and pose.cov is not None:
-            # every pose from the pad is seen from its surface, not the plane it lies on (the tracker's
-            # poses inherit this from their keyframe); a copy: the pose may be shared image work
+        textured = det.kind == "texture" and info.get("by") != "synthesis"  # its points tracked from a sharp drawing
+        # doubts the fit cannot show: every pose from the pad is seen from its surface, not the plane it
+        # lies on (the tracker's poses inherit this from their keyframe); a texture pose's place on the
+        # pad is known to a fraction of a texel (per axis, m)
+        doubt = np.array([self.config.pad_relief_m / 2.0] * 3)
+        if textured:
+            doubt[:2] = np.hypot(doubt[:2], TEXTURE_TEXEL_DOUBT / self.pad.ppm)
+        if pose.cov is not None and doubt.any():  # (a copy: the pose may be shared image work)
             cov = pose.cov.copy()
-            cov[:3, :3] += np.eye(3) * (self.config.pad_relief_m / 2.0) ** 2
+            cov[:3, :3] += np.diag(doubt ** 2)
             pose = replace(pose, cov=cov)
-        if det.kind == "texture" and info.get("by") != "synthesis":  # its points tracked from a sharp drawing
-            if pose.cov is not None:  # (a copy: the pose may be shared image work)
-                cov = pose.cov.copy()
-                cov[:2, :2] += np.eye(2) * (TEXTURE_TEXEL_DOUBT / self.pad.ppm) ** 2
-                pose = replace(pose, cov=cov)
+        if textured:
             pose = self._smear_spread(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed),
                                       doubt=TRACK_SMEAR_DOUBT if "refined" in info else KEYPOINT_SMEAR_DOUBT)
         pose = self._velocity_free(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed), info)

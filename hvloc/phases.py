@@ -16,6 +16,7 @@ from .features import (_inside, band_centroid_offsets, banded_edge_offsets, band
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
+from .pose import robust_sigma
 from .work import ImageWork, array_key
 
 
@@ -2214,15 +2215,14 @@ FLOW_MIN_INLIERS = 20
 
 FLOW_INLIER_SIGMAS = 3.0   # a track within this many of the tracks' own noise of their consensus is one of it ...
 FLOW_INLIER_MAX_PX = 8.0   # ... up to this far: a track that slipped a checker cell (35-75 px) stays out
-RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))  # a 2-D normal error's median length, in sigmas
 
 
 def noise_inliers(src: np.ndarray, dst: np.ndarray, H: np.ndarray, inl: np.ndarray, min_thr: float,
                   max_thr: float) -> np.ndarray:
     """RANSAC's inliers ``inl`` of the homography ``H`` (``src`` -> ``dst``), taken again where the
     points' own noise is larger than its threshold ``min_thr``: every point within
-    :data:`FLOW_INLIER_SIGMAS` of that noise (read as the median residual of the points within
-    ``max_thr``, as a 2-D normal error's), at most ``max_thr``, the homography refitted on them
+    :data:`FLOW_INLIER_SIGMAS` of that noise (:func:`hvloc.pose.robust_sigma` of the points within
+    ``max_thr``), at most ``max_thr``, the homography refitted on them
     (three rounds at most).
 
     A threshold under the noise keeps a chance subset, and the pose is wherever that subset agrees.
@@ -2237,7 +2237,7 @@ def noise_inliers(src: np.ndarray, dst: np.ndarray, H: np.ndarray, inl: np.ndarr
         near = fin & (r <= max_thr)
         if near.sum() < 4:
             return inl
-        thr = min(FLOW_INLIER_SIGMAS * float(np.median(r[near])) / RAYLEIGH_MEDIAN, max_thr)
+        thr = min(FLOW_INLIER_SIGMAS * robust_sigma(r[near]), max_thr)
         if not thr > min_thr:
             return inl
         wider = fin & (r <= thr)

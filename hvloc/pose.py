@@ -202,6 +202,15 @@ def point_residuals(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
     return np.linalg.norm(_residuals(camera, cam2pad, pts_P, px).reshape(-1, 2), axis=1)
 
 
+RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))  # the median length of a 2-D normal error, in sigmas (1.1774)
+
+
+def robust_sigma(r: np.ndarray) -> float:
+    """The per-axis noise that 2-D residual lengths ``r`` show, read from their median (robust to
+    the outliers among them while they are fewer than half)."""
+    return float(np.median(r)) / RAYLEIGH_MEDIAN
+
+
 def outlying_points(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     floor_px: float = 1.0, k: float = 4.0, max_share: float = 0.25) -> np.ndarray | None:
     """Indices of correspondences that a pose from many points shows to be wrong: reprojected
@@ -211,7 +220,7 @@ def outlying_points(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
     r = point_residuals(camera, cam2pad, pts_P, px)
     if not np.isfinite(r).all():
         return None
-    sigma = float(np.median(r)) / 1.1774  # the median of a 2-D Gaussian's radius is 1.1774 sigma
+    sigma = robust_sigma(r)
     bad = np.nonzero(r > max(floor_px, k * sigma))[0]
     return bad if 0 < len(bad) <= max_share * len(r) else None
 
