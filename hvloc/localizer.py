@@ -64,6 +64,8 @@ TWIST_WINDOW_S = 0.45  # the shutter's velocity filter forgets after this long w
 # Mahalanobis distance of the velocity filter's prediction (3 degrees of freedom, 99 %) ...
 SHUTTER_VELOCITY_SEARCH_CHI2 = 11.34
 SHUTTER_VELOCITY_SEARCH_PX = 1.0  # ... each track's pixel counted this far off (1 sigma) against that prediction
+VELOCITY_SEARCH_STEPS = 4  # ... Gauss-Newton steps at most
+VELOCITY_FROM_IMAGE_MIN_POINTS = 12  # ... and a pad pose (markers, texture) of at least this many points too
 
 
 def next_phase(phase: str, h: float | None, last_method: str, cfg: LocalizerConfig) -> str:
@@ -1396,6 +1398,9 @@ class HierarchicalLocalizer:
         if still is None:
             return pose
         extras["still_p"] = still.cam2pad[:3, 3].copy()
+        if extras.get("velocity_from_image_cov") is not None:  # the image's velocity: as sure as it and the prediction make it
+            return self._velocity_spread(pose, pts_P, px, solve, 0.0, extras=extras,
+                                         cov_mps=extras["velocity_from_image_cov"])
         speed = float(np.linalg.norm(tw.v_P))
         if pose.cov is None or speed == 0.0:
             return pose
@@ -1438,25 +1443,35 @@ class HierarchicalLocalizer:
         def residuals(at, seen):
             return (self.camera.project_from(at.cam2pad, pts_P) - seen).ravel()
 
-        r0 = residuals(pose, px)
-        J = np.empty((len(r0), 3))
-        for i in range(3):
-            moved = unrolled(axes[:, i])
-            other = solve(moved)
-            if other is None:
+        a, at, seen = np.zeros(3), pose, px
+        s2 = SHUTTER_VELOCITY_SEARCH_PX ** 2
+        for _ in range(VELOCITY_SEARCH_STEPS):
+            r0 = residuals(at, seen)
+            J = np.empty((len(r0), 3))
+            for i in range(3):
+                moved = unrolled(axes @ (a + np.eye(3)[i]))
+                other = solve(moved)
+                if other is None:
+                    return None
+                J[:, i] = residuals(other, moved) - r0
+            if not (np.isfinite(J).all() and np.isfinite(r0).all()):
                 return None
-            J[:, i] = residuals(other, moved) - r0
-        if not (np.isfinite(J).all() and np.isfinite(r0).all()):
+            # r(a + d) = r0 + J d, weighed against the prediction (a = 0)
+            d = -np.linalg.solve(J.T @ J + s2 * np.eye(3), J.T @ r0 + s2 * a)
+            a = a + d
+            if float(a @ a) > SHUTTER_VELOCITY_SEARCH_CHI2:
+                return None
+            seen = unrolled(axes @ a)
+            at = solve(seen)
+            if at is None:
+                return None
+            if float(d @ d) < 1e-4:
+                break
+        if not at.rms_px <= gate:
             return None
-        # r(a) = r0 + J a, weighed against the prediction (a = 0)
-        a = -np.linalg.solve(J.T @ J + SHUTTER_VELOCITY_SEARCH_PX ** 2 * np.eye(3), J.T @ r0)
-        if float(a @ a) > SHUTTER_VELOCITY_SEARCH_CHI2:
-            return None
-        seen = unrolled(axes @ a)
-        again = solve(seen)
-        if again is None or not again.rms_px <= gate:
-            return None
-        return again, seen, Twist(tw.v_P + axes @ a, tw.w_C)
+        # its doubt: the prediction's, narrowed by what the pixels (each SHUTTER_VELOCITY_SEARCH_PX) tell
+        cov = axes @ np.linalg.inv(J.T @ J / s2 + np.eye(3)) @ axes.T
+        return at, seen, Twist(tw.v_P + axes @ a, tw.w_C), cov
 
     def _velocity_unknown(self, pose: PoseResult, pts_P, px, solve, extras: dict) -> PoseResult:
         """``pose`` under a rolling shutter before any velocity is known (a track's first two poses,
@@ -1477,34 +1492,38 @@ class HierarchicalLocalizer:
         return self._velocity_spread(pose, pts_P, px, solve, UNKNOWN_SPEED_MPS, extras=extras)
 
     def _velocity_spread(self, pose: PoseResult, pts_P, px, solve, sigma_mps: float, along=None,
-                         extras: dict | None = None) -> PoseResult:
+                         extras: dict | None = None, cov_mps=None) -> PoseResult:
         """``pose`` with what an error of ``sigma_mps`` along each of three orthogonal directions in
         the shutter's velocity would move it in its covariance: the pad's axes, each solved again
         (three solves); or, given ``along`` = (a unit direction, the move along it, already known),
-        that direction and two across it (two solves).
+        that direction and two across it (two solves); or, given the velocity's covariance
+        ``cov_mps`` (3x3), its principal axes, each by its own sigma (three solves).
 
         The same solves say how the pose's velocity-free twin (the pose itself where no velocity
         unrolled it) answers the true velocity: ``twin = p - M v`` to first order, ``M`` (3x3,
         m per m/s) to ``extras["still_dv"]``, so the velocity filter reads the twin for what it is.
         Left out, a change of solver (texture to flow: the flow's twin 22 mm off at 0.4 m and 0.5
         m/s, the texture's 4) read as a jump in position: the velocity 0.2 m/s off for 3-4 frames."""
-        if pose.cov is None or sigma_mps <= 0:
+        if pose.cov is None or (cov_mps is None and sigma_mps <= 0):
             return pose
-        axes, known = np.eye(3), None
+        axes, known = [(axis, sigma_mps) for axis in np.eye(3)], None
         M = np.zeros((3, 3))
-        if along is not None:
+        if cov_mps is not None:
+            lam, U = np.linalg.eigh(0.5 * (cov_mps + cov_mps.T))
+            axes = [(U[:, i], math.sqrt(lam[i])) for i in range(3) if lam[i] > 0.0]
+        elif along is not None:
             u, moved = along
             known = np.outer(moved, moved)
             M += np.outer(moved / sigma_mps, u)
             a = np.cross(u, np.eye(3)[int(np.argmin(np.abs(u)))])
             a /= np.linalg.norm(a)
-            axes = (a, np.cross(u, a))
+            axes = [(a, sigma_mps), (np.cross(u, a), sigma_mps)]
         moves = []
-        out = self._twist_spread(pose, pts_P, px, solve, [Twist(sigma_mps * axis, None) for axis in axes], known,
+        out = self._twist_spread(pose, pts_P, px, solve, [Twist(s * axis, None) for axis, s in axes], known,
                                  moves=moves)
         if extras is not None and len(moves) == len(axes):
-            for axis, delta in zip(axes, moves):
-                M += np.outer(delta / sigma_mps, axis)
+            for (axis, s), delta in zip(axes, moves):
+                M += np.outer(delta / s, axis)
             extras["still_dv"] = M
         return out
 
@@ -1690,7 +1709,7 @@ class HierarchicalLocalizer:
                 kf = self.flow.kf
                 found = self._velocity_from_image(res, P, seen, solve)
                 if found is not None:
-                    again, seen, self.twist = found
+                    again, seen, self.twist, extras["velocity_from_image_cov"] = found
                     res = self.flow.fitted_pose(again, P, seen)
                     extras["velocity_from_image"] = self.twist.v_P.copy()
                 res = self._smear_spread(res, P, seen, solve, kf)
@@ -1846,11 +1865,18 @@ class HierarchicalLocalizer:
         # (hvloc.synthesis): it draws every band of rows at its own time and gives each point where
         # the reference row's projection lands, so they are unrolled already (unrolled again, a
         # spiral's turn at 0.35 m under 50-260 px of smear fitted at 3-5 px and was refused)
+        twist = self.twist  # the frame's: its velocity may be the image's (kept only if this pose is returned)
         if self.shutter.active and self.twist is not None and det.info.get("by") != "synthesis":
             px = self._unrolled(px, pose.cam2pad, P)
             pose = pose_of(P, px, sigma, weighed)
             if pose is None:
                 return None, "pose failed"
+            # many points skewed row by row by a velocity the filter has wrong (a drone that stopped at
+            # touchdown while the filter still carried its approach): the velocity they ask for
+            found = self._velocity_from_image(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed)) \
+                if len(P) >= VELOCITY_FROM_IMAGE_MIN_POINTS else None
+            if found is not None:
+                pose, px, twist, vcov = found
         refusal = _mirror_refusal(pose) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
         if refusal:
             return None, refusal
@@ -1929,6 +1955,9 @@ class HierarchicalLocalizer:
         if textured:
             pose = self._smear_spread(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed),
                                       doubt=TRACK_SMEAR_DOUBT if "refined" in info else KEYPOINT_SMEAR_DOUBT)
+        if twist is not self.twist:
+            info["velocity_from_image"], info["velocity_from_image_cov"] = twist.v_P.copy(), vcov
+        self.twist = twist
         pose = self._velocity_free(pose, P, px, lambda seen: pose_of(P, seen, sigma, weighed), info)
         return (pose, len(P), dict(info, roi=roi, tilt_err_deg=pose.tilt_err_deg,
                                    tilt_sigma_deg=pose.tilt_sigma_deg, normal_img_C=pose.normal_img_C,
