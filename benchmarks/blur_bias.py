@@ -59,11 +59,9 @@ def _views(pad, camera, side_px: float, n: int, seed: int) -> list:
 def in_linear_light(img: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     """8-bit sRGB ``img`` filtered by ``kernel`` in linear light (a lens and an exposure both mix
     light, not encoded values; :mod:`render.imaging` blurs its frames so), back to 8-bit sRGB."""
-    from hvloc.features import srgb_to_linear
+    from hvloc.features import linear_to_srgb, srgb_to_linear
 
-    v = cv2.filter2D(srgb_to_linear(img), -1, kernel / kernel.sum(), borderType=cv2.BORDER_REPLICATE) / 255.0
-    return np.clip(255.0 * np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(np.clip(v, 0, None), 1 / 2.4) - 0.055)
-                   + 0.5, 0, 255).astype(np.uint8)
+    return linear_to_srgb(cv2.filter2D(srgb_to_linear(img), -1, kernel / kernel.sum(), borderType=cv2.BORDER_REPLICATE))
 
 
 def defocused(img: np.ndarray, sigma_px: float) -> np.ndarray:

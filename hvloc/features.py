@@ -346,6 +346,12 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
     return _SRGB_TO_LINEAR[a]
 
 
+def linear_to_srgb(lin: np.ndarray) -> np.ndarray:
+    """Linear light on the 0..255 scale (:func:`srgb_to_linear`'s) back to 8-bit sRGB."""
+    v = np.clip(np.asarray(lin, np.float64) / 255.0, 0.0, 1.0)
+    return (255.0 * np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055) + 0.5).astype(np.uint8)
+
+
 def _stretch_samples(length: np.ndarray, t0: np.ndarray, t1: np.ndarray, segments: int) -> int:
     """How many cross-profiles each of ``segments`` equal stretches of the sides' spans ``t0``..``t1``
     (fractions of sides ``length`` px long) is read over: about one per px of the longest, 4 to 20."""
