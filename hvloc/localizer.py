@@ -55,6 +55,7 @@ TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
 # ORB's keypoints (a texture pose its drawing did not refine) land anywhere along a smear: a uniform spread
 # over it, 1/sqrt(12) of its length (unseen84/85, at 0.2-0.28 m under 31-52 px: 3.9-5.8 mm off stating 1.9-2.4)
 KEYPOINT_SMEAR_DOUBT = 0.29
+KEYPOINT_SIGMA_PER_RMS = 1.0  # ... and each keypoint's own noise is its fit's residual RMS (at least PIXEL_SIGMA)
 # an outline whose sides an edge fit placed is not taken where the motion predicts over this many times the
 # smear read across one of them, and more than the edge fit holds to (:meth:`HierarchicalLocalizer._edge_fit_outrun`)
 EDGE_FIT_OUTRUN = 2.0
@@ -1817,8 +1818,14 @@ class HierarchicalLocalizer:
         # position almost whole), and to 0.2-0.3 px under JPEG and a wide lens, where the prior
         # should count more.  Three times the image-only fit's residual: JPEG's and the lens's
         # errors are correlated within a marker, and the residual shows only part of them
+        # ORB's keypoints (a texture pose its drawing did not refine) are each placed on a pyramid's grid
+        # and anywhere along a smear: their noise is what their fit shows, each its own (unseen85's at
+        # 0.2 m under 28 px of smear: 26 keypoints fitting at 2.2 px, the pose 3.9 mm off in scale and
+        # stated at the corners' 0.3 px, NEES 27)
+        keypoints = det.kind == "texture" and "refined" not in det.info and det.info.get("by") != "synthesis"
+
         def weighable(P):
-            return up_C is not None and np.ndim(sigma) == 0 and len(markers_seen(P)[1]) >= 3
+            return up_C is not None and np.ndim(sigma) == 0 and (keypoints or len(markers_seen(P)[1]) >= 3)
 
         # a pose from fewer than three markers is not weighed by its residual (too few to show the
         # noise); its markers' corners share errors besides their own (SharedNoise): MARKER_SHARED_PER_SIGMA
@@ -1836,7 +1843,8 @@ class HierarchicalLocalizer:
             return SharedNoise(np.where(outer_of(P), len(self.geometry.markers), markers_seen(P)[0]), v, v)
 
         def pose_of(P, px, s, weigh=False, share=True):
-            w = (MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX) if weigh else None
+            w = None if not weigh else (KEYPOINT_SIGMA_PER_RMS, PIXEL_SIGMA) if keypoints else (
+                MARKER_SIGMA_PER_RMS, MARKER_MIN_SIGMA_PX)
             sh = shared_for(P, s, weigh) if share else None
             # without an IMU a drone flying level has its body's up, seen through the mount, as the
             # world's: it may choose between a far pad's pose and its mirror (hvloc.pose)
