@@ -14,12 +14,14 @@ work per frame is bounded by a feature count; OpenCV's RANSAC has a fixed seed).
 """
 from __future__ import annotations
 
+import math
 import cv2
 import numpy as np
 
 from pad_design.texture import texture_to_pad
 
-from .geometry import Camera
+from .features import linear_to_srgb, srgb_to_linear
+from .geometry import Camera, pad_plane_homography
 from .phases import LK_PARAMS, Detection
 
 MIN_INLIERS = 20        # homography inliers for a location: another pad's texture gives at most ~11
@@ -28,10 +30,17 @@ RANSAC_PX = 3.0         # inlier threshold, undistorted pixels
 RATIO = 0.8             # Lowe's ratio test on Hamming distances
 FRAME_FEATURES = 1500   # ORB features per frame (bounds the work)
 TEXTURE_FEATURES = 6000
-REFINE_CORNERS = 300    # corners of the drawn texture tracked into the frame
+REFINE_CORNERS = 300    # corners of the drawn texture tracked into the frame ...
+REFINE_AGAIN_PX = 4.0   # ... then drawn again where they were found, and tracked within this (_refined) ...
+# ... each pass keeping at least this share of the corners drawn: a drawing that far off the frame is not refined
+# by the few that track (unseen83: 32 of 300 under 10 px of smear at 0.4 m, 9.6 mm off; this pad's views, 75-100 %)
+REFINE_MIN_SHARE = 1.0 / 3.0
 PYRAMID_REACH = 4.0     # the texture is found while the image's pixels per metre are within this factor of its own
 FRAME_REACH = 2.0       # ... but a frame that sees it magnified more than this is shrunk for ORB (locate)
 COLD_SHRINK = 4         # with no height known, a frame the texture is not found in is tried shrunk this much too
+LIT_WINDOW_PX = 121     # the drawing is lit as the frame over squares this wide (_lit_as)
+SMEAR_INSTANTS = 12     # a smeared drawing (refined_under) averages at most this many instants of the exposure ...
+SMEAR_INSTANT_PX = 3.0  # ... one per this many px of smear at the frame's centre
 
 
 class PadTexture:
@@ -101,38 +110,115 @@ class PadTexture:
         where = "" if shrink == 1 else f" (the frame shrunk {shrink}-fold)"
         if des is None or len(kps) < MIN_INLIERS:
             return None, f"{0 if des is None else len(kps)} features in the image{where}"
-        pairs = self.matcher.knnMatch(des, self.des, k=2)
-        good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < RATIO * p[1].distance]
+        det, why = self._matched(camera, (gray, small.shape, kps, des, shrink), [(self.pts_P, self.des)], 1)
+        return (det, why) if det is not None else (None, why + where)
+
+    def _matched(self, camera: Camera, found: tuple, sets: list, tries: int) -> tuple:
+        """The frame's features (``found``: the frame, its shrunk copy's shape, the keypoints, their
+        descriptors, the shrink) matched to each of ``sets`` (``(pts_P, descriptors)``), the
+        ``tries`` with the most matches passing Lowe's ratio test posed by RANSAC in that order:
+        :meth:`locate`'s answer, or the first one's reason."""
+        gray, small_shape, kps, des, shrink = found
+        tried = []
+        for pts_P, tex_des in sets:
+            pairs = self.matcher.knnMatch(des, tex_des, k=2)
+            tried.append(([p[0] for p in pairs if len(p) == 2 and p[0].distance < RATIO * p[1].distance], pts_P))
+        tried.sort(key=lambda g: -len(g[0]))
+        whys = []
+        for good, pts_P in tried[:tries]:
+            det, why = self._homography(gray, camera, small_shape, kps, shrink, good, pts_P)
+            if det is not None:
+                return det, why
+            whys.append(why)
+        return None, whys[0]
+
+    def _homography(self, gray, camera: Camera, small_shape, kps, shrink: int, good: list, pts_P) -> tuple:
+        """The matches ``good`` (of the frame's ``kps`` to ``pts_P``) posed by a RANSAC homography
+        and refined (:meth:`_refined`): :meth:`locate`'s answer."""
         if len(good) < MIN_INLIERS:
-            return None, f"{len(good)} texture matches (< {MIN_INLIERS}){where}"
+            return None, f"{len(good)} texture matches (< {MIN_INLIERS})"
         px = np.array([kps[m.queryIdx].pt for m in good], np.float64)
         if shrink > 1:  # back to the frame's pixels (pixel centres)
-            px = (px + 0.5) * np.array([gray.shape[1] / small.shape[1], gray.shape[0] / small.shape[0]]) - 0.5
-        P = self.pts_P[[m.trainIdx for m in good]]
+            px = (px + 0.5) * np.array([gray.shape[1] / small_shape[1], gray.shape[0] / small_shape[0]]) - 0.5
+        P = pts_P[[m.trainIdx for m in good]]
         und = camera.undistort_pixels(px) if camera.has_distortion else px
         fin = np.isfinite(und).all(axis=1)
         if fin.sum() < MIN_INLIERS:
-            return None, f"{int(fin.sum())} texture matches inside the lens's model (< {MIN_INLIERS}){where}"
+            return None, f"{int(fin.sum())} texture matches inside the lens's model (< {MIN_INLIERS})"
         H, inl = cv2.findHomography(P[fin, :2], und[fin], cv2.RANSAC, RANSAC_PX * shrink, maxIters=2000,
                                     confidence=0.999)
         n = 0 if inl is None else int(inl.sum())
         if H is None or n < max(MIN_INLIERS, MIN_SHARE * len(good)):
-            return None, (f"{n} of {len(good)} texture matches agree on a homography (< {MIN_INLIERS}, "
-                          f"{MIN_SHARE:.0%}){where}")
+            return None, f"{n} of {len(good)} texture matches agree on a homography (< {MIN_INLIERS}, {MIN_SHARE:.0%})"
         keep = np.nonzero(fin)[0][inl[:, 0] == 1]
         info = {"matches": len(good), "inliers": n}
-        refined = self._refined(gray, camera, H, 2.0 * RANSAC_PX * shrink)
+        refined = self._refined(gray, camera, [H], H, 2.0 * RANSAC_PX * shrink)
         if refined is not None:
-            return Detection(*refined, "texture", {**info, "refined": len(refined[0])}), "ok"
+            pts, seen, cc = refined
+            return Detection(pts, seen, "texture", {**info, "refined": len(pts), "cc": round(cc, 3)}), "ok"
         return Detection(P[keep], px[keep], "texture", info), "ok"
 
-    def _refined(self, gray: np.ndarray, camera: Camera, H: np.ndarray, reach_px: float):
-        """``(pts_P, px)`` to a fraction of a pixel, or ``None``: ORB's keypoints sit on a pyramid's
-        grid (a millimetre or two and half a degree at 0.25 m).  The texture is drawn where the
-        homography puts it (through the lens, from the pyramid level of the image's scale), its
-        corners are tracked from that drawing into the frame by Lucas-Kanade (forward and back, each
-        within ``reach_px`` of where the homography drew it: twice its RANSAC threshold), and each
-        keeps the pad point it was drawn from."""
+    def refined_under(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, motion, exposure_s: float,
+                      reach_px: float) -> tuple:
+        """``(Detection | None, reason)``: the texture's corners in a smeared frame, tracked from the
+        texture drawn at ``cam2pad`` (a pose of ORB's keypoints) as ``motion`` (a
+        :class:`hvloc.shutter.Twist`) smears it over ``exposure_s``, centred on the frame's time.
+
+        ORB's keypoints land anywhere along a smear, and a sharp drawing's corners do not track into
+        a smeared frame: unseen85's texture pose at 0.2 m under 28 px of smear stood on 26 keypoints
+        fitting at 2.2 px, 3.9 mm off (1 % in scale).  The frame's smear is known to a fraction
+        (the velocity filter's velocity, the gyro's rate): the drawing smeared alike (a few instants
+        of the exposure averaged in linear light, as the frame's light was) is what Lucas-Kanade
+        can follow, and a corner of it is its pad point's place at the frame's time wherever the
+        smear is symmetric about it."""
+        if not self.usable:
+            return None, "the pad's texture has too few features"
+        e = max(float(exposure_s), 0.0)
+        H0 = pad_plane_homography(camera, cam2pad)
+        centre = np.array([[[camera.cx, camera.cy]]], np.float64)
+        ends = [cv2.perspectiveTransform(cv2.perspectiveTransform(centre, np.linalg.inv(H0)),
+                                         pad_plane_homography(camera, motion.moved(cam2pad, tau)))[0, 0]
+                for tau in (-e / 2, e / 2)]
+        smear = float(np.linalg.norm(ends[1] - ends[0])) if np.isfinite(ends).all() else float("nan")
+        if not np.isfinite(smear):
+            return None, "the smear is not known at the frame's centre"
+        n = int(np.clip(np.ceil(smear / SMEAR_INSTANT_PX), 1, SMEAR_INSTANTS))
+        taus = np.linspace(-e / 2, e / 2, n) if n > 1 else [0.0]
+        refined = self._refined(gray, camera, [pad_plane_homography(camera, motion.moved(cam2pad, tau)) for tau in taus],
+                                H0, reach_px)
+        if refined is None:
+            return None, f"the drawing smeared {smear:.0f} px did not track into the frame"
+        pts, seen, cc = refined
+        return Detection(pts, seen, "texture", {"refined": len(pts), "cc": round(cc, 3), "smeared_px": round(smear, 1)}), "ok"
+
+    def _refined(self, gray: np.ndarray, camera: Camera, Hs: list, H: np.ndarray, reach_px: float):
+        """``(pts_P, px, cc)`` to a fraction of a pixel, or ``None``: ORB's keypoints sit on a pyramid's
+        grid (a millimetre or two and half a degree at 0.25 m).  The texture is drawn where each of
+        the homographies ``Hs`` puts it (the frame's ``H``; or the instants of its exposure,
+        averaged in linear light: :meth:`refined_under`) and its corners tracked into the frame
+        (:meth:`_tracked`); then drawn again where those tracks put it, and tracked again within
+        :data:`REFINE_AGAIN_PX`.  Matches of a view of 2 % of the pad at 0.15 m (20-25 agreeing)
+        put the drawing up to ~50 px off: Lucas-Kanade's pyramid carried it part of the way, and
+        the refined poses were 0.5-5 mm and up to 1.7 degrees off; tracked again, within 0.11 mm
+        and 0.04 degrees.  ``cc``: the last drawing's correlation with the frame over the pad."""
+        found = self._tracked(gray, camera, Hs, H, reach_px)
+        if found is None:
+            return None
+        und = camera.undistort_pixels(found[1]) if camera.has_distortion else found[1]
+        H1, inl = cv2.findHomography(found[0][:, :2], und, cv2.RANSAC, REFINE_AGAIN_PX, maxIters=2000,
+                                     confidence=0.999)
+        if H1 is None or inl.sum() < MIN_INLIERS:
+            return found
+        moved = H1 @ np.linalg.inv(H)  # image to image: where the tracks moved the drawing
+        again = self._tracked(gray, camera, [moved @ Hk for Hk in Hs], H1, REFINE_AGAIN_PX)
+        return found if again is None else again
+
+    def _tracked(self, gray: np.ndarray, camera: Camera, Hs: list, H: np.ndarray, reach_px: float):
+        """:meth:`_refined`'s one pass: the texture drawn through the lens, from the pyramid level of
+        the image's scale, where each of ``Hs`` puts it; its corners tracked from that drawing into
+        the frame by Lucas-Kanade (forward and back, each within ``reach_px`` of where ``H`` drew
+        it), and each keeping the pad point ``H`` drew it from; with the drawing's correlation
+        with the frame over the pad."""
         h, w = camera.height, camera.width
         Hinv = np.linalg.inv(H)  # undistorted pixels -> pad metres
         c = cv2.perspectiveTransform(np.array([[[w / 2 - 1, h / 2], [w / 2, h / 2]]], np.float64), Hinv)[0]
@@ -140,25 +226,33 @@ class PadTexture:
         if not np.isfinite(m_per_px) or m_per_px <= 0:
             return None
         level = int(np.clip(np.floor(np.log2(max(self.pad.ppm * m_per_px, 1.0))), 0, len(self.levels) - 1))
-        tex = self.levels[level]
+        tex = self.levels[level] if len(Hs) == 1 else srgb_to_linear(self.levels[level])
         # level texels -> pad metres
         A = texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level)
-        edge = np.ones_like(tex)
+        edge = np.ones(tex.shape, np.uint8)
         edge[:2], edge[-2:], edge[:, :2], edge[:, -2:] = 0, 0, 0, 0
-        if not camera.has_distortion:
-            M = H @ A  # level texels -> image pixels
-            drawn = cv2.warpPerspective(tex, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-            inside = cv2.warpPerspective(edge, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
-        else:  # through the lens: every pixel's ideal pinhole place, then the inverse homography
-            grid = self._undistorted_grid(camera)
-            uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(H @ A)).reshape(h, w, 2).astype(np.float32)
-            drawn = cv2.remap(tex, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-            inside = cv2.remap(edge, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+        acc, inside = None, None
+        for Hk in Hs:
+            if not camera.has_distortion:
+                M = Hk @ A  # level texels -> image pixels
+                drawn = cv2.warpPerspective(tex, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+                ins = cv2.warpPerspective(edge, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+            else:  # through the lens: every pixel's ideal pinhole place, then the inverse homography
+                grid = self._undistorted_grid(camera)
+                uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(Hk @ A)).reshape(h, w, 2).astype(np.float32)
+                drawn = cv2.remap(tex, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+                ins = cv2.remap(edge, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
+            acc = drawn.astype(np.float32) if acc is None else acc + drawn
+            inside = ins if inside is None else inside & ins
+        drawn = acc if len(Hs) == 1 else linear_to_srgb(acc / len(Hs))
+        drawn = np.clip(drawn, 0, 255).astype(np.uint8)
         inside = cv2.erode(inside, np.ones((23, 23), np.uint8))  # LK's window stays on the pad
         p0 = cv2.goodFeaturesToTrack(drawn, REFINE_CORNERS, 0.01, 8, mask=inside)
         if p0 is None or len(p0) < MIN_INLIERS:
             return None
         drawn = _lit_as(drawn, gray, inside)
+        cc = float(cv2.computeECC(drawn.astype(np.float32), gray.astype(np.float32), inside))  # zero-mean normalized
+        cc = cc if math.isfinite(cc) else 0.0  # (a flat drawing or frame correlates with nothing)
         params = {**LK_PARAMS, "maxLevel": 2}  # the drawing is within a few pixels of the frame
         p1, st, _ = cv2.calcOpticalFlowPyrLK(drawn, gray, p0, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **params)
         if p1 is None:
@@ -166,12 +260,12 @@ class PadTexture:
         pb, stb, _ = cv2.calcOpticalFlowPyrLK(gray, drawn, p1, p0.copy(), flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **params)
         ok = ((st[:, 0] == 1) & (stb[:, 0] == 1) & (np.linalg.norm((pb - p0)[:, 0], axis=1) < 0.5)
               & (np.linalg.norm((p1 - p0)[:, 0], axis=1) < reach_px))
-        if ok.sum() < MIN_INLIERS:
+        if ok.sum() < max(MIN_INLIERS, REFINE_MIN_SHARE * len(p0)):
             return None
         p0, p1 = p0[ok, 0].astype(np.float64), p1[ok, 0].astype(np.float64)
         und = camera.undistort_pixels(p0) if camera.has_distortion else p0
         P = cv2.perspectiveTransform(und.reshape(-1, 1, 2), Hinv).reshape(-1, 2)
-        return np.column_stack([P, np.zeros(len(P))]), p1
+        return np.column_stack([P, np.zeros(len(P))]), p1, cc
 
     def _undistorted_grid(self, camera: Camera) -> np.ndarray:
         """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (kept per camera)."""
@@ -181,16 +275,26 @@ class PadTexture:
 
 
 def _lit_as(drawn: np.ndarray, gray: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``drawn`` with the frame's brightness and contrast where ``mask`` is set (its mean and
-    spread matched): Lucas-Kanade takes a brightness difference for motion.  A drone's shadow over
-    the pad at touchdown turns its white field grey (255 -> 90): tracked from the white drawing,
-    the corners drifted 150 px in the median, and none of a landed drone's views was refined."""
-    m = mask > 0
+    """``drawn`` with the frame's brightness and contrast where ``mask`` is set, each pixel's by
+    the mean and spread of both images over the :data:`LIT_WINDOW_PX` square about it (within the
+    mask): Lucas-Kanade takes a brightness difference for motion.  A drone's shadow over the pad
+    at touchdown turns its white field grey (255 -> 90): tracked from the white drawing, the
+    corners drifted 150 px in the median, and none of a landed drone's views was refined.  The
+    shadow's edge crosses the view: matched over the whole view, unseen85's shadowed field at
+    0.2 m was drawn at twice its grey, and its corners tracked 5.7 px off."""
+    m = (mask > 0).astype(np.float32)
     if m.sum() < 2:
         return drawn
-    d, g = drawn[m].astype(np.float32), gray[m].astype(np.float32)
-    sd = float(d.std())
-    if not sd > 1e-3:
-        return drawn
-    a = float(g.std()) / sd
-    return np.clip(a * (drawn.astype(np.float32) - float(d.mean())) + float(g.mean()), 0, 255).astype(np.uint8)
+    k = (LIT_WINDOW_PX, LIT_WINDOW_PX)
+
+    def local(x):  # the mean over the window's masked pixels
+        return cv2.boxFilter(x * m, -1, k, normalize=False) / np.maximum(n, 1.0)
+
+    n = cv2.boxFilter(m, -1, k, normalize=False)
+    d, g = drawn.astype(np.float32), gray.astype(np.float32)
+    md, mg = local(d), local(g)
+    sd = np.sqrt(np.maximum(local(d * d) - md * md, 0.0))
+    sg = np.sqrt(np.maximum(local(g * g) - mg * mg, 0.0))
+    a = np.where(sd > 1.0, sg / np.maximum(sd, 1.0), 1.0)
+    return np.clip(a * (d - md) + mg, 0, 255).astype(np.uint8)
+
