@@ -35,8 +35,9 @@ TEXTURE_FEATURES = 6000
 REFINE_CORNERS = 300    # corners of the drawn texture tracked into the frame ...
 REFINE_AGAIN_PX = 4.0   # ... then drawn again where they were found, and tracked within this (_refined) ...
 # ... each pass keeping at least this share of the corners drawn: a drawing that far off the frame is not refined
-# by the few that track (unseen83: 32 of 300 under 10 px of smear at 0.4 m, 9.6 mm off; this pad's views, 75-100 %)
-REFINE_MIN_SHARE = 1.0 / 3.0
+# by the few that track (unseen83: 32 of 300 under 10 px of smear at 0.4 m, 9.6 mm off; this pad's synthetic views
+# 75-100 %, rendered frames 23-100 %: unseen85's at 0.6 m without the IMU, 69 of 300, 7.4 mm off within its sigma)
+REFINE_MIN_SHARE = 0.2
 PYRAMID_REACH = 4.0     # the texture is found while the image's pixels per metre are within this factor of its own
 FRAME_REACH = 2.0       # ... but a frame that sees it magnified more than this is shrunk for ORB (locate)
 COLD_SHRINK = 4         # with no height known, a frame the texture is not found in is tried shrunk this much too
