@@ -1725,11 +1725,12 @@ class HierarchicalLocalizer:
         if method == "texture":
             det, why = None, ""
             if self._texture_allowed(self.policy_h, orb=True):
-                h = self.policy_h
-                det, why = self.work(lambda: ("texture", id(self._texture), self._texture.shrinks(self.camera, h)),
-                                     self._texture.locate, gray, self.camera, h)
-                if det is not None:
-                    det = self._texture_under_smear(det, gray, up_C)
+                h, motion = self.policy_h, self._motion()
+                smear = self._smear_of(motion, up_C)
+                det, why = self.work(lambda: ("texture", id(self._texture), self._texture.shrinks(self.camera, h),
+                                              smear is not None and (array_key(motion.v_P), array_key(motion.w_C),
+                                                                     self.exposure_s, array_key(up_C), self.up_sigma_deg)),
+                                     self._texture.locate, gray, self.camera, h, smear)
             if det is None:
                 det, why = self._synthesized(gray, t, R_W_B, why)
             return self._posed(det, why, prior, up_C, False)
@@ -1781,26 +1782,25 @@ class HierarchicalLocalizer:
                     return res, why
         return None, why
 
-    def _texture_under_smear(self, det, gray, up_C):
-        """``det`` (the texture's ORB matches, refined against its sharp drawing or not) refined
-        again against the texture drawn smeared as the frame's motion (:meth:`_motion`) smears it
-        (:meth:`hvloc.texture.PadTexture.refined_under`), where that smear is
-        :data:`TRACK_SMEAR_MIN_PX` or more; ``det`` itself otherwise.  Under unseen85's 23-28 px
-        the sharp drawing's corners were 0.3-2.5 mm off at 0.18-0.3 m, the smeared one's 0.03-0.2."""
-        motion = self._motion()
+    def _smear_of(self, motion, up_C):
+        """:meth:`hvloc.texture.PadTexture.locate`'s ``smear``: for the texture's matches, their pose
+        (with the IMU's gravity) and ``motion`` (the frame's: :meth:`_motion`) where it smears them
+        :data:`TRACK_SMEAR_MIN_PX` or more in the median, and the reach of the smeared drawing's
+        tracks (twice RANSAC's threshold and half the longest smear); ``None`` (the drawing left
+        sharp) with no exposure or no motion known.  Under unseen85's 23-28 px the sharp drawing's
+        corners were 0.3-2.5 mm off at 0.18-0.3 m, the smeared one's 0.03-0.2."""
         if not self.exposure_s > 0 or (motion.v_P is None and motion.w_C is None):
-            return det
-        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
-        smear = None if start is None else self._image_motion(start.cam2pad, motion, det.pts_P)
-        if smear is None or not np.nanmedian(np.linalg.norm(smear, axis=1)) >= TRACK_SMEAR_MIN_PX:
-            return det
+            return None
         from .texture import RANSAC_PX
 
-        found, why = self._texture.refined_under(gray, self.camera, start.cam2pad, motion, self.exposure_s,
-                                                 2.0 * RANSAC_PX + 0.5 * float(np.nanmax(np.linalg.norm(smear, axis=1))))
-        if found is None:
-            return replace(det, info=dict(det.info, smeared_drawing=why))
-        return replace(found, info=dict(det.info, **found.info))
+        def smear(pts_P, px):
+            start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
+            d = None if start is None else self._image_motion(start.cam2pad, motion, pts_P)
+            if d is None or not np.nanmedian(np.linalg.norm(d, axis=1)) >= TRACK_SMEAR_MIN_PX:
+                return None
+            return start.cam2pad, motion, self.exposure_s, 2.0 * RANSAC_PX + 0.5 * float(np.nanmax(np.linalg.norm(d, axis=1)))
+
+        return smear
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design

@@ -88,10 +88,15 @@ class PadTexture:
         m = min(camera.fx, camera.fy) / (height * self.pad.ppm)
         return (int(2 ** np.ceil(np.log2(m / FRAME_REACH))) if m > FRAME_REACH else 1,)
 
-    def locate(self, gray: np.ndarray, camera: Camera, height: float | None = None) -> tuple:
+    def locate(self, gray: np.ndarray, camera: Camera, height: float | None = None, smear=None) -> tuple:
         """``(Detection | None, reason)``: the frame's features that are the texture's, as pad
         points and their (distorted) pixels: the inliers of a RANSAC homography, at least
-        :data:`MIN_INLIERS` of them.  ``height``: the camera's over the pad where known.
+        :data:`MIN_INLIERS` of them, refined against the texture's drawing.  ``height``: the
+        camera's over the pad where known.  ``smear``: ``(pts_P, px) -> (cam2pad, motion,
+        exposure_s, reach_px) | None``, the pose of the matches and the motion that smears the
+        frame, where it does: the drawing is then smeared alike (:meth:`refined_under`), and
+        drawn sharp only where that does not track (one refinement a frame, not both: a sharp one
+        first cost 77 ms of a 1280x960 frame that the smeared one then replaced).
 
         ORB's pyramid shrinks the frame, and the texture's pyramid the texture, but the frame's
         shrunk levels hold few features: a view that magnifies the texture 2.9 times (0.3 m over a
@@ -114,7 +119,7 @@ class PadTexture:
             return None, "the pad's texture has too few features"
         whys = []
         for s in self.shrinks(camera, height):
-            det, why = self._located(gray, camera, s, self._view_m(camera, height, s))
+            det, why = self._located(gray, camera, s, self._view_m(camera, height, s), smear)
             if det is not None:
                 return det, why
             whys.append(why)
@@ -165,7 +170,7 @@ class PadTexture:
                                des if des is not None else np.zeros((0, 32), np.uint8))
         return self._dense_set
 
-    def _located(self, gray: np.ndarray, camera: Camera, shrink: int, view_m: float | None) -> tuple:
+    def _located(self, gray: np.ndarray, camera: Camera, shrink: int, view_m: float | None, smear=None) -> tuple:
         """:meth:`locate` on the frame shrunk ``shrink``-fold for ORB: matched to the whole pad's
         features, then to the squares of the pad a view of diagonal ``view_m`` fits in."""
         small = gray
@@ -176,7 +181,7 @@ class PadTexture:
         where = "" if shrink == 1 else f" (the frame shrunk {shrink}-fold)"
         if des is None or len(kps) < MIN_INLIERS:
             return None, f"{0 if des is None else len(kps)} features in the image{where}"
-        found = (gray, small.shape, kps, des, shrink)
+        found = (gray, small.shape, kps, des, shrink, smear)
         det, why = self._matched(camera, found, [(self.pts_P, self.des)], 1)
         if det is not None:
             return det, why
@@ -190,11 +195,11 @@ class PadTexture:
 
     def _matched(self, camera: Camera, found: tuple, sets: list, tries: int, refusal=None) -> tuple:
         """The frame's features (``found``: the frame, its shrunk copy's shape, the keypoints, their
-        descriptors, the shrink) matched to each of ``sets`` (``(pts_P, descriptors)``), the
+        descriptors, the shrink, :meth:`locate`'s ``smear``) matched to each of ``sets`` (``(pts_P, descriptors)``), the
         ``tries`` with the most matches passing Lowe's ratio test posed by RANSAC in that order:
         :meth:`locate`'s answer, the first that ``refusal`` (``(det) -> why not, "" to take it``)
         does not refuse, or the first one's reason."""
-        gray, small_shape, kps, des, shrink = found
+        gray, small_shape, kps, des, shrink, smear = found
         tried = []
         for pts_P, tex_des in sets:
             pairs = self.matcher.knnMatch(des, tex_des, k=2)
@@ -202,7 +207,7 @@ class PadTexture:
         tried.sort(key=lambda g: -len(g[0]))
         whys = []
         for good, pts_P in tried[:tries]:
-            det, why = self._homography(gray, camera, small_shape, kps, shrink, good, pts_P)
+            det, why = self._homography(gray, camera, small_shape, kps, shrink, good, pts_P, smear)
             no = refusal(det) if det is not None and refusal is not None else ""
             if no:
                 det, why = None, no
@@ -211,9 +216,10 @@ class PadTexture:
             whys.append(why)
         return None, whys[0]
 
-    def _homography(self, gray, camera: Camera, small_shape, kps, shrink: int, good: list, pts_P) -> tuple:
+    def _homography(self, gray, camera: Camera, small_shape, kps, shrink: int, good: list, pts_P, smear=None) -> tuple:
         """The matches ``good`` (of the frame's ``kps`` to ``pts_P``) posed by a RANSAC homography
-        and refined (:meth:`_refined`): :meth:`locate`'s answer."""
+        and refined (:meth:`_refined`; smeared, :meth:`refined_under`, where ``smear`` says the
+        frame is: :meth:`locate`): :meth:`locate`'s answer."""
         if len(good) < MIN_INLIERS:
             return None, f"{len(good)} texture matches (< {MIN_INLIERS})"
         px = np.array([kps[m.queryIdx].pt for m in good], np.float64)
@@ -231,6 +237,12 @@ class PadTexture:
             return None, f"{n} of {len(good)} texture matches agree on a homography (< {MIN_INLIERS}, {MIN_SHARE:.0%})"
         keep = np.nonzero(fin)[0][inl[:, 0] == 1]
         info = {"matches": len(good), "inliers": n}
+        plan = smear(P[keep], px[keep]) if smear is not None else None
+        if plan is not None:
+            det, why = self.refined_under(gray, camera, *plan)
+            if det is not None:
+                return replace(det, info={**info, **det.info}), "ok"
+            info["smeared_drawing"] = why
         refined = self._refined(gray, camera, [H], H, 2.0 * RANSAC_PX * shrink)
         if refined is not None:
             pts, seen, cc = refined
