@@ -322,19 +322,16 @@ class PadTexture:
         A = texture_to_pad(self.pad.side_m, self.pad.ppm / 2**level)
         edge = np.ones(tex.shape, np.uint8)
         edge[:2], edge[-2:], edge[:, :2], edge[:, -2:] = 0, 0, 0, 0
-        acc, inside = None, None
-        for Hk in Hs:
-            if not camera.has_distortion:
+        if camera.has_distortion:
+            acc, inside = self._through_lens(camera, tex, edge, [Hk @ A for Hk in Hs], H @ A)
+        else:
+            acc, inside = None, None
+            for Hk in Hs:
                 M = Hk @ A  # level texels -> image pixels
                 drawn = cv2.warpPerspective(tex, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
                 ins = cv2.warpPerspective(edge, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
-            else:  # through the lens: every pixel's ideal pinhole place, then the inverse homography
-                grid = self._undistorted_grid(camera)
-                uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(Hk @ A)).reshape(h, w, 2).astype(np.float32)
-                drawn = cv2.remap(tex, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-                ins = cv2.remap(edge, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT)
-            acc = drawn.astype(np.float32) if acc is None else acc + drawn
-            inside = ins if inside is None else inside & ins
+                acc = drawn.astype(np.float32) if acc is None else acc + drawn
+                inside = ins if inside is None else inside & ins
         drawn = acc if len(Hs) == 1 else linear_to_srgb(acc / len(Hs))
         drawn = np.clip(drawn, 0, 255).astype(np.uint8)
         inside = cv2.erode(inside, np.ones((23, 23), np.uint8))  # LK's window stays on the pad
@@ -357,6 +354,42 @@ class PadTexture:
         und = camera.undistort_pixels(p0) if camera.has_distortion else p0
         P = cv2.perspectiveTransform(und.reshape(-1, 1, 2), Hinv).reshape(-1, 2)
         return np.column_stack([P, np.zeros(len(P))]), p1, cc
+
+    def _through_lens(self, camera: Camera, tex: np.ndarray, edge: np.ndarray, Ms: list, M: np.ndarray) -> tuple:
+        """``(sum, inside)``: the texture level ``tex`` drawn through the lens where each of ``Ms``
+        (level texels -> ideal pixels) puts it, summed (float32), and where every one of them
+        draws it within ``edge``.  Each pixel's ideal pinhole place is carried to the texels once,
+        by ``M`` (the frame's); the instants are drawn in the texture's own plane, each by the
+        texel-to-texel move from ``M`` to its own (a homography: warped, not mapped pixel by
+        pixel), over the texels the frame sees, and the sum is taken through the lens in one
+        remap.  Mapping every pixel for every instant cost 12 ms an instant at 1280x720 (a
+        smeared drawing of 8 instants, drawn twice: 190 ms)."""
+        grid = self._undistorted_grid(camera)
+        h, w = grid.shape[:2]
+        uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(M)).reshape(h, w, 2).astype(np.float32)
+        if len(Ms) == 1:
+            return (cv2.remap(tex, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT).astype(np.float32),
+                    cv2.remap(edge, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT))
+        # the texels the frame sees (and one beyond, for the bilinear reads), within the texture: the
+        # frame's edge bounds them (a homography of the plane in front of the camera)
+        n_y, n_x = tex.shape[:2]
+        rim = np.concatenate([uv[0], uv[-1], uv[:, 0], uv[:, -1]])
+        rim = rim[np.isfinite(rim).all(axis=1)]
+        if not len(rim):
+            return np.zeros((h, w), np.float32), np.zeros((h, w), np.uint8)
+        x0, y0 = (int(np.clip(np.floor(rim[:, i].min()) - 1, 0, size - 1)) for i, size in ((0, n_x), (1, n_y)))
+        x1, y1 = (int(np.clip(np.ceil(rim[:, i].max()) + 2, x + 1, size)) for i, x, size in ((0, x0, n_x), (1, y0, n_y)))
+        shift = np.array([[1.0, 0.0, x0], [0.0, 1.0, y0], [0.0, 0.0, 1.0]])
+        acc = np.zeros((y1 - y0, x1 - x0), np.float32)
+        ins = np.ones((y1 - y0, x1 - x0), np.uint8)
+        for Mk in Ms:
+            E = np.linalg.inv(Mk) @ M @ shift  # the window's texels at the frame's time -> this instant's texels
+            flags = cv2.WARP_INVERSE_MAP
+            acc += cv2.warpPerspective(tex, E, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR | flags, borderMode=cv2.BORDER_CONSTANT)
+            ins &= cv2.warpPerspective(edge, E, (x1 - x0, y1 - y0), flags=cv2.INTER_NEAREST | flags, borderMode=cv2.BORDER_CONSTANT)
+        uv -= np.array([x0, y0], np.float32)
+        return (cv2.remap(acc, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT),
+                cv2.remap(ins, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT))
 
     def _undistorted_grid(self, camera: Camera) -> np.ndarray:
         """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (kept per camera)."""
