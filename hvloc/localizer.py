@@ -38,6 +38,10 @@ METHOD_ORDER = {"approaching": ("outline", "markers", "texture"),
                 "touchdown": ("markers", "flow", "outline", "texture")}
 
 
+# a frame after one without a pose is also tried for the texture as if the camera had come down to this
+# share of the last pose's height (the frame shrunk for there, the squares of the pad a view there fits
+# in): unseen88 lost at 0.26 m and came back at 0.17-0.19 m, where the last height shrank it too little
+STALE_LOWEST_SHARE = 0.5
 TEXTURE_COLD_EVERY = 4  # with no height known, in Approaching the texture is tried on every 4th frame without a pose
 HEADING_MAX_AGE_S = 30.0  # the pad's heading learnt from a pose names outlines this long (the AHRS drifts)
 SYNTHESIS_MAX_AGE_S = 0.35  # the pad is drawn at a pose predicted from one at most this old (hvloc.synthesis) ...
@@ -1726,11 +1730,13 @@ class HierarchicalLocalizer:
             det, why = None, ""
             if self._texture_allowed(self.policy_h, orb=True):
                 h, motion = self.policy_h, self._motion()
+                # a height from before the frame just gone: the drone may have come down since
+                low = None if h is None or self.unposed < 2 else STALE_LOWEST_SHARE * h
                 smear = self._smear_of(motion, up_C)
-                det, why = self.work(lambda: ("texture", id(self._texture), self._texture.shrinks(self.camera, h),
+                det, why = self.work(lambda: ("texture", id(self._texture), self._texture.shrinks(self.camera, h, low), low,
                                               smear is not None and (array_key(motion.v_P), array_key(motion.w_C),
                                                                      self.exposure_s, array_key(up_C), self.up_sigma_deg)),
-                                     self._texture.locate, gray, self.camera, h, smear)
+                                     self._texture.locate, gray, self.camera, h, smear, low)
             if det is None:
                 det, why = self._synthesized(gray, t, R_W_B, why)
             return self._posed(det, why, prior, up_C, False)

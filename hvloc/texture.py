@@ -78,21 +78,35 @@ class PadTexture:
         the texture's over :data:`PYRAMID_REACH`: ORB's pyramids no longer meet."""
         return PYRAMID_REACH * min(camera.fx, camera.fy) / self.pad.ppm
 
-    def shrinks(self, camera: Camera, height: float | None) -> tuple:
+    def shrinks(self, camera: Camera, height: float | None, lowest: float | None = None) -> tuple:
         """How much the frame is shrunk for ORB, in the order tried (:meth:`locate`): where the camera's
         ``height`` over the pad is known and the frame sees the texture magnified past
-        :data:`FRAME_REACH`, by the power of two that brings it within; with no height known, not
-        at all and then :data:`COLD_SHRINK`-fold."""
-        if height is None or not height > 0:
-            return (1, COLD_SHRINK)
-        m = min(camera.fx, camera.fy) / (height * self.pad.ppm)
-        return (int(2 ** np.ceil(np.log2(m / FRAME_REACH))) if m > FRAME_REACH else 1,)
+        :data:`FRAME_REACH`, by the power of two that brings it within, and then that of ``lowest``
+        where it differs; with no height known, not at all and then :data:`COLD_SHRINK`-fold."""
+        return tuple(s for s, _ in self._tries(camera, height, lowest))
 
-    def locate(self, gray: np.ndarray, camera: Camera, height: float | None = None, smear=None) -> tuple:
+    def _tries(self, camera: Camera, height: float | None, lowest: float | None) -> list:
+        """``[(shrink, the view's diagonal or None), ...]`` in the order :meth:`locate` tries them."""
+        if height is None or not height > 0:
+            return [(s, self._view_m(camera, None, s)) for s in (1, COLD_SHRINK)]
+
+        def shrink(h):
+            m = min(camera.fx, camera.fy) / (h * self.pad.ppm)
+            return int(2 ** np.ceil(np.log2(m / FRAME_REACH))) if m > FRAME_REACH else 1
+
+        tries = [(shrink(height), self._view_m(camera, height, 1))]
+        if lowest is not None and 0 < lowest < height and shrink(lowest) != tries[0][0]:
+            tries.append((shrink(lowest), self._view_m(camera, lowest, 1)))
+        return tries
+
+    def locate(self, gray: np.ndarray, camera: Camera, height: float | None = None, smear=None,
+               lowest: float | None = None) -> tuple:
         """``(Detection | None, reason)``: the frame's features that are the texture's, as pad
         points and their (distorted) pixels: the inliers of a RANSAC homography, at least
         :data:`MIN_INLIERS` of them, refined against the texture's drawing.  ``height``: the
-        camera's over the pad where known.  ``smear``: ``(pts_P, px) -> (cam2pad, motion,
+        camera's over the pad where known; ``lowest``: the lowest it may be now, where that height
+        is an older pose's (the frame is also tried as shrunk and its view as small as there: a
+        drone lost at 0.26 m found at 0.17-0.19 m, unseen88).  ``smear``: ``(pts_P, px) -> (cam2pad, motion,
         exposure_s, reach_px) | None``, the pose of the matches and the motion that smears the
         frame, where it does: the drawing is then smeared alike (:meth:`refined_under`), and
         drawn sharp only where that does not track (one refinement a frame, not both: a sharp one
@@ -118,8 +132,8 @@ class PadTexture:
         if not self.usable:
             return None, "the pad's texture has too few features"
         whys = []
-        for s in self.shrinks(camera, height):
-            det, why = self._located(gray, camera, s, self._view_m(camera, height, s), smear)
+        for s, view_m in self._tries(camera, height, lowest):
+            det, why = self._located(gray, camera, s, view_m, smear)
             if det is not None:
                 return det, why
             whys.append(why)
