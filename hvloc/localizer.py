@@ -1595,6 +1595,12 @@ class HierarchicalLocalizer:
             smears[0] = smears[0] if then is None else smears[0] - then
         if motion.v_P is None:  # no velocity known: what one of UNKNOWN_SPEED_MPS along each pad axis smears
             smears += [self._image_motion(pose.cam2pad, Twist(UNKNOWN_SPEED_MPS * a, None), pts_P) for a in np.eye(3)]
+        else:  # a velocity known as well as the filter has it: what one sigma along each of its principal axes smears
+            S = None if self.last_t is None else self.vfilter.velocity_doubt(self.last_t)
+            if S is not None:
+                lam, U = np.linalg.eigh(0.5 * (S + S.T))
+                smears += [self._image_motion(pose.cam2pad, Twist(math.sqrt(lam[i]) * U[:, i], None), pts_P)
+                           for i in range(3) if lam[i] > 0.0]
         cov = pose.cov.copy()
         for d in smears:
             fin = None if d is None else np.isfinite(d).all(axis=1)

@@ -175,6 +175,14 @@ class VelocityFilter:
                 return x_t[1][:3].copy(), x_t[2][:3, :3].copy(), x_t[1][3:6].copy()
         return None
 
+    def velocity_doubt(self, t: float):
+        """``(3, 3)``: the covariance of the velocity :meth:`position` gives for ``t``; ``None`` where
+        it gives none."""
+        for x_t in (self.pred, self.coast, (self.t, self.x, self.P)):
+            if x_t is not None and x_t[0] is not None and self.n >= 2 and abs(x_t[0] - t) < 1e-9:
+                return x_t[2][3:6, 3:6].copy()
+        return None
+
     def _propagated(self, D: float, motion, q_extra: float):
         F = np.eye(9)
         F[:3, 3:6] = D * np.eye(3)
