@@ -1583,6 +1583,9 @@ class HierarchicalLocalizer:
         IMU did not carry the motion through) the smear of :data:`UNKNOWN_SPEED_MPS` along each pad
         axis is counted too (three more solves): unseen83's first texture poses at 0.3 m after 2 s
         lost in a gale stated a still camera's doubt, 1.3-3.4 mm off for 0.3-0.7 mm (NEES 18-99).
+        With one known, the smear of one sigma of the filter's velocity along each of its principal
+        axes (after a gap the IMU's rows carry it to a few tenths of a metre per second: unseen88's
+        texture pose at 0.18 m, 0.53 mm off, stated 0.15 with the velocity taken as exact).
 
         ``doubt``: the share of the smear counted (:data:`TRACK_SMEAR_DOUBT` for tracked points;
         :data:`KEYPOINT_SMEAR_DOUBT` for ORB's keypoints, which land anywhere along a smear)."""
