@@ -620,6 +620,20 @@ def test_an_edge_fitted_outline_is_not_taken_where_the_motion_smears_past_the_fi
             assert loc._edge_fit_outrun(pose, P, 2.0) == "", (exposure, slow, truth)
 
 
+def _grid_at_0_3m():
+    """``(cam2pad, pts_P, solve)``: a 7x7 grid of pad points seen by CAM from 0.3 m, and their pose
+    from pixels (with the true gravity)."""
+    G = tilted(0.05, -0.04, 0.3, 0.4, 0.02, -0.01)
+    g = np.linspace(-0.12, 0.12, 7)
+    P = np.array([[x, y, 0.0] for x in g for y in g])
+    up = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+
+    def solve(px):
+        return solve_planar_pose(CAM, P, px, up_C=up, prev_cam2pad=G)
+
+    return G, P, solve
+
+
 def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
     """Lucas-Kanade's tracks in a smeared frame shift together along their smear (features alike
     land alike in a smeared patch); the pose takes that shared shift whole, and its covariance,
@@ -633,13 +647,7 @@ def test_tracks_shifted_along_their_smear_stay_within_the_poses_covariance(pad):
     from hvloc.phases import Keyframe
     from hvloc.shutter import Twist
 
-    G = tilted(0.05, -0.04, 0.3, 0.4, 0.02, -0.01)
-    g = np.linspace(-0.12, 0.12, 7)
-    P = np.array([[x, y, 0.0] for x in g for y in g])
-    up = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-
-    def solve(px):
-        return solve_planar_pose(CAM, P, px, up_C=up, prev_cam2pad=G)
+    G, P, solve = _grid_at_0_3m()
 
     def smear(v, w, e):  # each point's image motion over the exposure
         return _image_motion(G, P, v, w, e)
@@ -678,13 +686,7 @@ def test_a_smear_from_a_velocity_known_loosely_is_doubted_as_loosely(pad):
     nothing."""
     import hvloc.localizer as L
 
-    G = tilted(0.05, -0.04, 0.3, 0.4, 0.02, -0.01)
-    g = np.linspace(-0.12, 0.12, 7)
-    P = np.array([[x, y, 0.0] for x in g for y in g])
-    up = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-
-    def solve(px):
-        return solve_planar_pose(CAM, P, px, up_C=up, prev_cam2pad=G)
+    G, P, solve = _grid_at_0_3m()
 
     v_filter, e = np.array([0.05, 0.0, -0.05]), 0.03
     v_true = v_filter + np.array([0.35, -0.35, 0.0])  # 2 sigma at 0.25 m/s per axis
