@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, heading_turn, invert, make_transform, matrix_from_quat_xyzw, rotation_angle,
-                       rotation_z, so3_exp, so3_log)
+                       pad_plane_homography, rotation_z, so3_exp, so3_log, transform_points)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
@@ -1810,12 +1810,31 @@ class HierarchicalLocalizer:
 
         def smear(pts_P, px):
             start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
-            d = None if start is None else self._image_motion(start.cam2pad, motion, pts_P)
+            if start is None:
+                return None
+            # how far the frame is smeared: over the view (a grid of its pixels on the pad's plane), not
+            # where the matches happen to lie (a turn smears the edges more than the centre)
+            seen = self._view_on_pad(start.cam2pad)
+            d = None if seen is None else self._image_motion(start.cam2pad, motion, seen)
             if d is None or not np.nanmedian(np.linalg.norm(d, axis=1)) >= TRACK_SMEAR_MIN_PX:
                 return None
+            d = self._image_motion(start.cam2pad, motion, pts_P)
             return start.cam2pad, motion, self.exposure_s, 2.0 * RANSAC_PX + 0.5 * float(np.nanmax(np.linalg.norm(d, axis=1)))
 
         return smear
+
+    def _view_on_pad(self, cam2pad: np.ndarray):
+        """``(N, 3)`` the points of the pad's plane a 5x5 grid over the frame sees from ``cam2pad``
+        (those in front of the camera), or ``None``."""
+        cam = self.camera
+        u, v = np.meshgrid(np.linspace(0, cam.width - 1, 5), np.linspace(0, cam.height - 1, 5))
+        px = np.column_stack([u.ravel(), v.ravel()])
+        und = cam.undistort_pixels(px) if cam.has_distortion else px
+        P = cv2.perspectiveTransform(und.reshape(-1, 1, 2), np.linalg.inv(pad_plane_homography(cam, cam2pad))).reshape(-1, 2)
+        P = np.column_stack([P, np.zeros(len(P))])
+        ok = np.isfinite(P).all(axis=1)
+        ok[ok] = transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0
+        return P[ok] if ok.any() else None
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
