@@ -1812,10 +1812,10 @@ class HierarchicalLocalizer:
             start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
             if start is None:
                 return None
-            # how far the frame is smeared: over the view (a grid of its pixels on the pad's plane), not
+            # how far the pad is smeared: over its part in view (a grid of the frame's pixels on it), not
             # where the matches happen to lie (a turn smears the edges more than the centre)
             seen = self._view_on_pad(start.cam2pad)
-            d = None if seen is None else self._image_motion(start.cam2pad, motion, seen)
+            d = self._image_motion(start.cam2pad, motion, pts_P if seen is None else seen)
             if d is None or not np.nanmedian(np.linalg.norm(d, axis=1)) >= TRACK_SMEAR_MIN_PX:
                 return None
             d = self._image_motion(start.cam2pad, motion, pts_P)
@@ -1824,17 +1824,17 @@ class HierarchicalLocalizer:
         return smear
 
     def _view_on_pad(self, cam2pad: np.ndarray):
-        """``(N, 3)`` the points of the pad's plane a 5x5 grid over the frame sees from ``cam2pad``
-        (those in front of the camera), or ``None``."""
+        """``(N, 3)`` the pad's points a 9x9 grid over the frame sees from ``cam2pad`` (on the pad,
+        in front of the camera), or ``None`` where fewer than 4 are."""
         cam = self.camera
-        u, v = np.meshgrid(np.linspace(0, cam.width - 1, 5), np.linspace(0, cam.height - 1, 5))
+        u, v = np.meshgrid(np.linspace(0, cam.width - 1, 9), np.linspace(0, cam.height - 1, 9))
         px = np.column_stack([u.ravel(), v.ravel()])
         und = cam.undistort_pixels(px) if cam.has_distortion else px
         P = cv2.perspectiveTransform(und.reshape(-1, 1, 2), np.linalg.inv(pad_plane_homography(cam, cam2pad))).reshape(-1, 2)
         P = np.column_stack([P, np.zeros(len(P))])
         ok = np.isfinite(P).all(axis=1)
-        ok[ok] = transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0
-        return P[ok] if ok.any() else None
+        ok[ok] = (transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0) & (np.abs(P[ok, :2]).max(axis=1) <= self.pad.side_m / 2)
+        return P[ok] if ok.sum() >= 4 else None
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
