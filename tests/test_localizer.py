@@ -718,8 +718,8 @@ def test_whether_the_texture_is_drawn_smeared_is_judged_over_the_view_not_at_the
     """A turn about the optical axis smears the view's edges and not its centre.  Matches that
     happen to lie near the centre (unseen92's 55 at 1.8 m, under 4 px in the median where the
     frame's centre was smeared 6.9 px) left the texture refined against its sharp drawing, 5.1 mm
-    off where the smeared one put it 1.7 mm off.  The smear is read over the view (a grid of the
-    frame on the pad's plane): drawn smeared wherever the frame is, and sharp where it is not."""
+    off where the smeared one put it 1.7 mm off.  The smear is read over the pad's part in view (a
+    grid of the frame's pixels on the pad): drawn smeared wherever that is, and sharp where not."""
     from hvloc.shutter import Twist
 
     G = tilted(0.02, -0.03, 0.3, 0.4, 0.01, -0.02)
