@@ -1799,11 +1799,12 @@ class HierarchicalLocalizer:
 
     def _smear_of(self, motion, up_C):
         """:meth:`hvloc.texture.PadTexture.locate`'s ``smear``: for the texture's matches, their pose
-        (with the IMU's gravity) and ``motion`` (the frame's: :meth:`_motion`) where it smears them
-        :data:`TRACK_SMEAR_MIN_PX` or more in the median, and the reach of the smeared drawing's
-        tracks (twice RANSAC's threshold and half the longest smear); ``None`` (the drawing left
-        sharp) with no exposure or no motion known.  Under unseen85's 23-28 px the sharp drawing's
-        corners were 0.3-2.5 mm off at 0.18-0.3 m, the smeared one's 0.03-0.2."""
+        (with the IMU's gravity) and ``motion`` (the frame's: :meth:`_motion`) where it smears the
+        pad's part in view (:meth:`_view_on_pad`; the matches where under 4 grid points lie on the
+        pad) :data:`TRACK_SMEAR_MIN_PX` or more in the median, and the reach of the smeared
+        drawing's tracks (twice RANSAC's threshold and half the matches' longest smear); ``None``
+        (the drawing left sharp) with no exposure or no motion known.  Under unseen85's 23-28 px
+        the sharp drawing's corners were 0.3-2.5 mm off at 0.18-0.3 m, the smeared one's 0.03-0.2."""
         if not self.exposure_s > 0 or (motion.v_P is None and motion.w_C is None):
             return None
         from .texture import RANSAC_PX
