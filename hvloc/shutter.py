@@ -170,17 +170,21 @@ class VelocityFilter:
         """``(p, P, v)``: the position for ``t`` (predicted within the gap or coasting on the IMU's
         rows, or the estimate once a pose at ``t`` updated it), its covariance and the velocity
         there; ``None`` before two poses or for another time."""
-        for x_t in (self.pred, self.coast, (self.t, self.x, self.P)):
-            if x_t is not None and x_t[0] is not None and self.n >= 2 and abs(x_t[0] - t) < 1e-9:
-                return x_t[1][:3].copy(), x_t[2][:3, :3].copy(), x_t[1][3:6].copy()
-        return None
+        x_t = self._state(t)
+        return None if x_t is None else (x_t[1][:3].copy(), x_t[2][:3, :3].copy(), x_t[1][3:6].copy())
 
     def velocity_doubt(self, t: float):
         """``(3, 3)``: the covariance of the velocity :meth:`position` gives for ``t``; ``None`` where
         it gives none."""
+        x_t = self._state(t)
+        return None if x_t is None else x_t[2][3:6, 3:6].copy()
+
+    def _state(self, t: float):
+        """``(t, x, P)`` for ``t``: the prediction, the coast, or the last pose's estimate, whichever
+        is for that time; ``None`` before two poses or for another time."""
         for x_t in (self.pred, self.coast, (self.t, self.x, self.P)):
             if x_t is not None and x_t[0] is not None and self.n >= 2 and abs(x_t[0] - t) < 1e-9:
-                return x_t[2][3:6, 3:6].copy()
+                return x_t
         return None
 
     def _propagated(self, D: float, motion, q_extra: float):
