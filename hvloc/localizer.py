@@ -699,6 +699,24 @@ def _rms_share(rms_px: float, info: dict) -> float:
     return float(rms_px / side / math.sqrt(float(np.mean(scale**2))))
 
 
+FORESEEN_CHI2 = 11.34  # 3 degrees of freedom, 99 %
+
+
+def foreseen(pose, predicted) -> bool:
+    """Whether ``pose`` (a :class:`hvloc.pose.PoseResult`) lies where ``predicted`` (the velocity
+    filter's ``(p, P, v)`` for its frame: :meth:`hvloc.shutter.VelocityFilter.position`) foresaw it:
+    the positions within the chi-square bound of both doubts as stated (:data:`FORESEEN_CHI2`; a
+    pose whose corners are off beyond their noise is then held the stricter); ``False`` with no
+    prediction or covariance."""
+    if predicted is None or pose.cov is None:
+        return False
+    d = pose.cam2pad[:3, 3] - predicted[0]
+    try:
+        return float(d @ np.linalg.solve(predicted[1] + pose.cov[:3, :3], d)) <= FORESEEN_CHI2
+    except np.linalg.LinAlgError:
+        return False
+
+
 def corner_sigma_px(info: dict) -> np.ndarray:
     """The pixel noise of a detection's correspondences as its ``info`` states it: the found corner's
     floor (:data:`PIXEL_SIGMA`), with the noise of a corner placed under motion smear
@@ -1793,6 +1811,13 @@ class HierarchicalLocalizer:
                 det = self._design_fitted(det, rgb, up_C)
             if det is not None:
                 res, why = self._posed(det, why, prior, up_C, r is not None)
+                if res is not None and det.kind == "outline" and _rms_share(res[0].rms_px, det.info) > cfg.max_outline_rms_share \
+                        and foreseen(res[0], self.vfilter.position(t)):
+                    # corners that are no square's, which the gates refuse: where the velocity filter
+                    # foresaw the pad, placed by its design instead (the gates then judge that pose)
+                    fitted = self._design_fitted(det, rgb, up_C, rescue=True)
+                    if fitted is not det and "rescued" in fitted.info:
+                        res, why = self._posed(fitted, why, prior, up_C, r is not None)
                 if res is not None:
                     return res, why
         return None, why
@@ -1837,10 +1862,12 @@ class HierarchicalLocalizer:
         ok[ok] = (transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0) & (np.abs(P[ok, :2]).max(axis=1) <= self.pad.side_m / 2)
         return P[ok] if ok.sum() >= 4 else None
 
-    def _design_fitted(self, det, rgb: np.ndarray, up_C):
+    def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
         (:func:`hvloc.texfit.fit_pose_to_design`), started from the outline's pose with the IMU's
-        gravity; ``det`` as it is without gravity, without the design, or when the fit fails."""
+        gravity; ``det`` as it is without gravity, without the design, or when the fit fails.
+        ``rescue``: corners that are no square's are fitted too (``info["rescued"]``), with
+        :attr:`LocalizerConfig.design_fit` on or off (the caller asks only where the pad was foreseen)."""
         if up_C is None or self.pad is None:
             return det
         from .texfit import fit_pose_to_design
@@ -1850,8 +1877,9 @@ class HierarchicalLocalizer:
         if start is None:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
-        # there would hide what the corners showed
-        if _rms_share(start.rms_px, det.info) > self.config.max_outline_rms_share:
+        # there would hide what the corners showed (unless the pad was foreseen there: ``rescue``)
+        square = _rms_share(start.rms_px, det.info) <= self.config.max_outline_rms_share
+        if not (square or rescue):
             return det
         fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g),
                                  fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad)
@@ -1863,7 +1891,7 @@ class HierarchicalLocalizer:
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
-        return replace(det, px=px, info=dict(det.info, design_fit=info))
+        return replace(det, px=px, info=dict(det.info, design_fit=info, **({} if square else {"rescued": "design fit"})))
 
     def _posed(self, det, why: str, prior, up_C, roi: bool):
         """``((pose, n, extras) | None, reason)``: the pose of a detection's correspondences."""
