@@ -74,13 +74,16 @@ class SequencePlan:
             self.frame_index = np.arange(len(self.frame_times))
 
 
-def _scene_draw(spec: DatasetSpec, rng: np.random.Generator):
-    """The sequence's scene (ground, sun, distractors), drawn from its generator after the trajectory's seed."""
+def _scene_draw(spec: DatasetSpec, rng: np.random.Generator, duration_s: float = 0.0):
+    """The sequence's scene (ground, sun, distractors), drawn from its generator after the trajectory's
+    seed; the distractors clear of where a moving platform takes the pad within ``duration_s``."""
     from .scene import draw_scene
 
     view_radius = spec.trajectory.start_height_m * math.tan(math.radians(spec.camera.hfov_deg) / 2) * 1.5 + \
         spec.trajectory.lateral_offset_m[1]
-    return draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius)
+    path = np.asarray(spec.platform.velocity_mps, np.float64) * duration_s
+    return draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius,
+                      path if np.any(path) else None)
 
 
 def drawn_ground_kinds(spec: DatasetSpec) -> set:
@@ -148,7 +151,7 @@ def plan_sequence(spec: DatasetSpec, index: int) -> SequencePlan:
     seed = sequence_seed(spec.seed, index)
     rng, family, traj = _sequence_trajectory(spec, index)
     cam = spec.camera
-    draw = _scene_draw(spec, rng)
+    draw = _scene_draw(spec, rng, traj.duration)
     d = spec.degradations
     r2 = np.random.default_rng(rng.integers(2**63))
     u = lambda r: float(r2.uniform(r[0], r[1])) if r[1] > r[0] else float(r[0])  # noqa: E731

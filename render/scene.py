@@ -69,7 +69,25 @@ class SceneDraw:
         return np.array([math.cos(e) * math.sin(a), math.cos(e) * math.cos(a), math.sin(e)])
 
 
-def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw:
+PATH_STEP_M = 0.05  # a moving pad's path is checked at points this far apart, and a distractor moved off it in such steps
+
+
+def _footprint_distance(pts: np.ndarray, x: float, y: float, yaw: float, sx: float, sy: float) -> float:
+    """The least distance from the ``(N, 2)`` points to the ``sx`` by ``sy`` footprint centred at
+    ``(x, y)`` and turned by ``yaw`` (0 for a point inside it)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    d = pts - [x, y]
+    local = np.abs(np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1))
+    out = np.maximum(local - [sx / 2, sy / 2], 0.0)
+    return float(np.hypot(out[:, 0], out[:, 1]).min())
+
+
+def draw_scene(env, rng: np.random.Generator, view_radius_m: float, pad_path_m=None) -> SceneDraw:
+    """The sequence's ground, sun and distractors.  ``pad_path_m``: where a moving platform takes the
+    pad's centre over the sequence (east, north: the end of its straight path from the origin), so
+    that no distractor drawn at random lies within ``keep_clear_m`` of it at any time (a box the
+    deck drove through, and the pad under it, in the conditions suite's moving_deck); ``boxes_at``
+    stay where the spec puts them."""
     u = lambda r: rng.uniform(r[0], r[1]) if r[1] > r[0] else r[0]  # noqa: E731
     ri = lambda r: int(rng.integers(r[0], r[1] + 1))  # noqa: E731
     d = env.distractors
@@ -93,7 +111,28 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float) -> SceneDraw
         reach = abs(sx / 2 * (ux * math.cos(yaw) + uy * math.sin(yaw))) + \
             abs(sy / 2 * (-ux * math.sin(yaw) + uy * math.cos(yaw)))
         r2 = max(r, lo + reach)
-        return ux * r2, uy * r2
+        return off_path(ux * r2, uy * r2, yaw, sx, sy)
+
+    path = None
+    if pad_path_m is not None and np.hypot(*pad_path_m) > 0:
+        n = int(math.ceil(float(np.hypot(*pad_path_m)) / PATH_STEP_M)) + 1
+        path = np.linspace(0.0, 1.0, n)[:, None] * np.asarray(pad_path_m, np.float64)
+
+    def off_path(x, y, yaw, sx, sy):
+        """``(x, y)`` moved straight away from the nearest point of the pad's path until the
+        footprint keeps ``keep_clear_m`` from all of it (as it does from the pad's start)."""
+        if path is None:
+            return x, y
+        for _ in range(100000):
+            if _footprint_distance(path, x, y, yaw, sx, sy) >= lo:
+                return float(x), float(y)
+            near = path[int(np.argmin(np.hypot(path[:, 0] - x, path[:, 1] - y)))]
+            away = np.array([x, y]) - near
+            if np.hypot(*away) < 1e-9:  # on the path itself: off it sideways
+                away = np.array([-pad_path_m[1], pad_path_m[0]], np.float64)
+            away = away / np.hypot(*away)
+            x, y = x + PATH_STEP_M * away[0], y + PATH_STEP_M * away[1]
+        return x, y
 
     boxes = []
     for b in d.boxes_at:

@@ -48,7 +48,11 @@ from pad_design.spec import PadSpec
 #      gave field1080's camera 332 strong corners per 256 px patch from 15 m where real asphalt
 #      shows 3; its finest octave weighs 1.6 (benchmarks/realism.py, eight draws).  Only specs one
 #      of whose sequences draws asphalt move, with or without ground detail.
-RENDER_REVISION = 9
+#   9: the drone's shadow past a platform's edge; a turning deck's platform shadow.
+#  10: distractors drawn at random keep keep_clear_m from a moving platform's whole path, not only
+#      from where the pad starts (the deck drove through a box, the pad under it).  Only specs with a
+#      platform velocity and distractors drawn at random move.
+RENDER_REVISION = 10
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
 ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
@@ -56,6 +60,9 @@ ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
+    d = spec.environment.distractors
+    if any(spec.platform.velocity_mps) and max(d.boxes[1], d.decoy_patches[1], d.decoy_markers[1]) > 0:
+        return 10
     if spec.environment.shadows and spec.platform.height_m > 0:
         return 9  # the drone's shadow past a platform's edge; a turning deck's platform shadow
     drawn = set()

@@ -493,6 +493,12 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"]}})) == 9
     assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"], "shadows": False,
                                                                                    "ground_detail": False}})) == 2
+    # revision 10: distractors clear of a moving platform's whole path (a platform velocity and
+    # distractors drawn at random; none drawn: nothing moved)
+    moving = {"platform": {"height_m": 0.5, "velocity_mps": [0.5, 0.0]}}
+    assert render_revision(DatasetSpec.model_validate(moving)) == 10
+    assert render_revision(DatasetSpec.model_validate({**moving, "environment": {"distractors": {
+        "boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}})) == 9
 
 
 @pytest.mark.parametrize("kind", ["asphalt", "concrete"])

@@ -614,6 +614,52 @@ def test_no_distractor_lies_within_keep_clear_of_the_pad():
     assert checked > 250
 
 
+def test_no_distractor_lies_within_keep_clear_of_a_moving_pads_path():
+    """A platform moving at constant velocity takes the pad along a straight path; distractors were
+    kept clear of its start only, so the deck drove through boxes (the conditions suite's
+    moving_deck: a box over the pad for 25 frames at 7-9 m).  Every footprint drawn at random now
+    keeps ``keep_clear_m`` from every point of the path (as the spec's sequences plan it), while a
+    box the spec places (``boxes_at``) stays where it is put; a pad that does not move draws its
+    scene as before."""
+    from render.plan import plan_sequence
+    from render.scene import draw_scene
+
+    def nearest(path, x, y, yaw, sx, sy):
+        u, v = np.meshgrid(np.linspace(-sx / 2, sx / 2, 40), np.linspace(-sy / 2, sy / 2, 40))
+        c, s = np.cos(yaw), np.sin(yaw)
+        fx, fy = (x + c * u - s * v).ravel(), (y + s * u + c * v).ravel()
+        return float(np.hypot(fx[:, None] - path[None, :, 0], fy[:, None] - path[None, :, 1]).min())
+
+    keep, end = 1.0, np.array([9.0, -4.0])
+    path = np.linspace(0.0, 1.0, 400)[:, None] * end
+    env = _spec({"environment": {"distractors": {"keep_clear_m": keep, "boxes": [5, 6], "decoy_patches": [3, 3],
+                                                 "decoy_markers": [3, 3]}}}).environment
+    moved = 0
+    for seed in range(30):
+        still = draw_scene(env, np.random.default_rng(seed), 25.0)
+        d = draw_scene(env, np.random.default_rng(seed), 25.0, pad_path_m=end)
+        assert d.ground == still.ground and d.sun_elevation_rad == still.sun_elevation_rad
+        for (x, y, yaw, sx, sy, *_), b in zip(d.boxes, still.boxes):
+            assert nearest(path, x, y, yaw, sx, sy) >= keep - 0.01, (seed, x, y, sx, sy)
+            moved += (x, y) != b[:2]
+        for x, y, yaw, sx, sy in d.decoy_patches:
+            assert nearest(path, x, y, yaw, sx, sy) >= keep - 0.01
+        for x, y, yaw, size, *_ in d.decoy_markers:
+            assert nearest(path, x, y, yaw, size, size) >= keep - 0.01
+    assert moved >= 5, moved  # (the path does cross where boxes were drawn)
+    # as the generator plans a sequence: the path is the platform's velocity over the descent
+    spec = _spec({"platform": {"height_m": 0.4, "velocity_mps": [0.9, -0.4]},
+                  "environment": {"distractors": {"keep_clear_m": keep, "boxes": [6, 6],
+                                                  "boxes_at": [{"xy_m": [2.0, -0.9], "size_m": [0.5, 0.5, 1.0]}]}}})
+    plan = plan_sequence(spec, 0)
+    end = np.asarray(spec.platform.velocity_mps) * plan.trajectory.duration
+    path = np.linspace(0.0, 1.0, 400)[:, None] * end
+    placed, *drawn = plan.scene_draw.boxes
+    assert placed[:2] == (2.0, -0.9)  # on the path, as the spec asks
+    for x, y, yaw, sx, sy, *_ in drawn:
+        assert nearest(path, x, y, yaw, sx, sy) >= keep - 0.01
+
+
 def test_the_drones_shadow_does_not_darken_a_box_shadow_twice():
     """Two translucent shadow layers multiply: where the drone's shadow fell inside a box's, the
     ground came out darker than either shadow (sun taken twice).  Now the drone's shadow takes
