@@ -4260,6 +4260,42 @@ def test_an_outline_no_square_is_placed_by_its_design_where_the_pad_was_foreseen
             assert e.status == "rejected" and "no square's" in e.reason, (on, len(before), e.status, e.reason)
 
 
+def test_a_small_pad_whose_outline_is_lost_is_placed_by_its_design_at_the_predicted_pose(monkeypatch):
+    """A 30 px pad at 20 m whose outline is not found (its border band missing beside a corner:
+    JPEG's chroma, a shadow) is too small for its smeared drawing to be aligned (under 45 px), and
+    was lost.  Where the velocity filter carries a recent pose to the frame, the pad's printed
+    design is fitted from that predicted pose (position and yaw, the tilt the IMU's) and, landing
+    where it was foreseen, poses the frame within 1 % of the height, its covariance from the blur
+    the fit found.  With no pose before, or one of a view 45 px away (the design fitted there finds
+    no pad), the frame stays lost."""
+    import hvloc.phases as ph_mod
+
+    pad, crop, cam, fr = _far_pad_clean()[0]
+    m = 40  # the 80 px crop widened (its edges repeated), so that the view can move
+    view = np.pad(crop, ((m, m), (m, m), (0, 0)), mode="edge")
+    cam = dataclasses.replace(cam.shifted(-m, -m), width=view.shape[1], height=view.shape[0])
+    G = np.array(fr["cam2pad"])
+    true_find = ph_mod.find_outline
+
+    def run(before):
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(), T_B_C=np.eye(4))
+        monkeypatch.setattr(ph_mod, "find_outline", true_find)
+        for k, image in enumerate(before):
+            e = loc.process(image, 0.1 * k, imu=G[:3, :3])
+            assert e.status == "ok", e.reason
+        monkeypatch.setattr(ph_mod, "find_outline", lambda *a, **kw: (None, "its border band is missing beside a corner"))
+        return loc.process(view, 0.1 * len(before), imu=G[:3, :3])
+
+    e = run([view, view])
+    assert e.status == "ok" and e.extras.get("by") == "design at the predicted pose", (e.reason, e.extras)
+    err = e.cam2pad[:3, 3] - G[:3, 3]
+    assert np.linalg.norm(err) < 0.01 * fr["height_m"], err
+    assert float(err @ np.linalg.solve(e.cov[:3, :3], err)) < 11.34, (err, np.sqrt(np.diag(e.cov[:3, :3])))
+    for before in ([np.roll(view, 45, axis=1)] * 2, []):
+        e = run(before)
+        assert e.status != "ok", (len(before), e.extras.get("by"))
+
+
 # ----------------------------------------------------------------------------- a tilting deck
 
 def _rendered_descent(tmp_path, spec: dict) -> tuple:
