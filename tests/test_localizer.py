@@ -4219,44 +4219,54 @@ def test_the_localizer_fits_a_far_pads_design_when_asked():
     assert np.mean(errs[True]) < 0.5 * np.mean(errs[False]), errs
 
 
+def _far_view_after(monkeypatch):
+    """The first of :func:`_far_pad_clean`'s views (a 30 px pad at 20 m) widened 40 px each way (its
+    edges repeated, so that the view can move): ``(view, camera, frame, find, run)``.  ``find``: the
+    outline finder; ``run(before, config, then)`` localizes the images ``before`` (10 Hz, the pad's
+    outline found as it is), then the view with the finder answering ``then``."""
+    import hvloc.phases as ph_mod
+
+    pad, crop, cam, fr = _far_pad_clean()[0]
+    m = 40
+    view = np.pad(crop, ((m, m), (m, m), (0, 0)), mode="edge")
+    cam = dataclasses.replace(cam.shifted(-m, -m), width=view.shape[1], height=view.shape[0])
+    G = np.array(fr["cam2pad"])
+    find = ph_mod.find_outline
+
+    def run(before, config, then):
+        loc = HierarchicalLocalizer(pad, cam, config, T_B_C=np.eye(4))
+        monkeypatch.setattr(ph_mod, "find_outline", find)
+        for k, image in enumerate(before):
+            e = loc.process(image, 0.1 * k, imu=G[:3, :3])
+            assert e.status == "ok", e.reason
+        monkeypatch.setattr(ph_mod, "find_outline", lambda *a, **kw: then)
+        return loc.process(view, 0.1 * len(before), imu=G[:3, :3])
+
+    return view, cam, fr, lambda: find(view, pad.geometry, cam), run
+
+
 def test_an_outline_no_square_is_placed_by_its_design_where_the_pad_was_foreseen(monkeypatch):
     """Corners that are no square's (one a tenth of the side out: a shadow or JPEG swelling it) are
     refused by the gates, design_fit on or off; where the velocity filter foresaw the pad (two poses
     just before, of the same view), the pad's drawn design places it instead, within 1 % of its
     height.  Foreseen elsewhere (the two poses before of the view moved 45 px: a pad seen 1.3 m
     away at 20 m), or with nothing foreseen (no pose before), the bent corners stay refused."""
-    import hvloc.phases as ph_mod
-
-    pad, crop, cam, fr = _far_pad_clean()[0]
-    m = 40  # the 80 px crop widened (its edges repeated), so that the view can move
-    view = np.pad(crop, ((m, m), (m, m), (0, 0)), mode="edge")
-    cam = dataclasses.replace(cam.shifted(-m, -m), width=view.shape[1], height=view.shape[0])
+    view, cam, fr, find, run = _far_view_after(monkeypatch)
     G = np.array(fr["cam2pad"])
-    true_find = ph_mod.find_outline
-    found, why = true_find(view, pad.geometry, cam)
+    found, why = find()
     assert found is not None, why
     out = found.quad_px[0] - found.quad_px.mean(axis=0)
     bent_quad = found.quad_px.copy()
     bent_quad[0] += 0.1 * found.side_px * out / np.linalg.norm(out)
-    bent = dataclasses.replace(found, quad_px=bent_quad, field_px=None)
-
-    def run(before, on):
-        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(design_fit=on), T_B_C=np.eye(4))
-        monkeypatch.setattr(ph_mod, "find_outline", true_find)
-        for k, image in enumerate(before):
-            e = loc.process(image, 0.1 * k, imu=G[:3, :3])
-            assert e.status == "ok", e.reason
-        monkeypatch.setattr(ph_mod, "find_outline", lambda *a, **kw: (bent, "ok"))
-        return loc.process(view, 0.1 * len(before), imu=G[:3, :3])
-
+    bent = (dataclasses.replace(found, quad_px=bent_quad, field_px=None), "ok")
     moved = np.roll(view, 45, axis=1)
     for on in (False, True):
-        e = run([view, view], on)
+        e = run([view, view], LocalizerConfig(design_fit=on), bent)
         assert e.status == "ok" and e.extras.get("rescued") == "design fit", (on, e.reason, e.extras.get("design_fit"))
         assert abs(e.cam2pad[2, 3] - G[2, 3]) < 0.01 * fr["height_m"], (e.cam2pad[2, 3], G[2, 3])
         assert np.linalg.norm(e.cam2pad[:2, 3] - G[:2, 3]) < 0.01 * fr["height_m"]
         for before in ([moved, moved], []):
-            e = run(before, on)
+            e = run(before, LocalizerConfig(design_fit=on), bent)
             assert e.status == "rejected" and "no square's" in e.reason, (on, len(before), e.status, e.reason)
 
 
@@ -4268,31 +4278,16 @@ def test_a_small_pad_whose_outline_is_lost_is_placed_by_its_design_at_the_predic
     where it was foreseen, poses the frame within 1 % of the height, its covariance from the blur
     the fit found.  With no pose before, or one of a view 45 px away (the design fitted there finds
     no pad), the frame stays lost."""
-    import hvloc.phases as ph_mod
-
-    pad, crop, cam, fr = _far_pad_clean()[0]
-    m = 40  # the 80 px crop widened (its edges repeated), so that the view can move
-    view = np.pad(crop, ((m, m), (m, m), (0, 0)), mode="edge")
-    cam = dataclasses.replace(cam.shifted(-m, -m), width=view.shape[1], height=view.shape[0])
+    view, cam, fr, _, run = _far_view_after(monkeypatch)
     G = np.array(fr["cam2pad"])
-    true_find = ph_mod.find_outline
-
-    def run(before):
-        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(), T_B_C=np.eye(4))
-        monkeypatch.setattr(ph_mod, "find_outline", true_find)
-        for k, image in enumerate(before):
-            e = loc.process(image, 0.1 * k, imu=G[:3, :3])
-            assert e.status == "ok", e.reason
-        monkeypatch.setattr(ph_mod, "find_outline", lambda *a, **kw: (None, "its border band is missing beside a corner"))
-        return loc.process(view, 0.1 * len(before), imu=G[:3, :3])
-
-    e = run([view, view])
+    lost = (None, "its border band is missing beside a corner")
+    e = run([view, view], LocalizerConfig(), lost)
     assert e.status == "ok" and e.extras.get("by") == "design at the predicted pose", (e.reason, e.extras)
     err = e.cam2pad[:3, 3] - G[:3, 3]
     assert np.linalg.norm(err) < 0.01 * fr["height_m"], err
     assert float(err @ np.linalg.solve(e.cov[:3, :3], err)) < 11.34, (err, np.sqrt(np.diag(e.cov[:3, :3])))
     for before in ([np.roll(view, 45, axis=1)] * 2, []):
-        e = run(before)
+        e = run(before, LocalizerConfig(), lost)
         assert e.status != "ok", (len(before), e.extras.get("by"))
 
 
