@@ -1768,10 +1768,12 @@ class HierarchicalLocalizer:
                                               smear is not None and (array_key(motion.v_P), array_key(motion.w_C),
                                                                      self.exposure_s, array_key(up_C), self.up_sigma_deg)),
                                      self._texture.locate, gray, self.camera, h, smear, low)
-            if det is None:
-                det, why = self._synthesized(gray, t, R_W_B, why)
-            if det is None and rgb is not None:
-                return self._design_posed(rgb, t, R_W_B, why, prior, up_C)
+            pred = None
+            if det is None:  # the pad where the last pose predicts it: drawn smeared, or its design fitted when small
+                pred, why0 = self._predicted_pose(t, R_W_B)
+                det, why = self._synthesized(gray, pred, why or why0)
+            if det is None and pred is not None and rgb is not None:
+                return self._design_posed(rgb, t, pred[0], why, prior, up_C)
             return self._posed(det, why, prior, up_C, False)
         roi = ph.project_roi(self.camera, prior, self.outer_P, cfg.roi_margin) if prior is not None else None
         attempts = [roi, None] if roi is not None else [None]
@@ -2146,11 +2148,11 @@ class HierarchicalLocalizer:
             T[:3, :3] = self.gates.pad_orientation(t).T @ R_W_B @ self.T_B_C[:3, :3]
         return (T, velocity), ""
 
-    def _design_posed(self, rgb, t: float, R_W_B, why: str, prior, up_C):
+    def _design_posed(self, rgb, t: float, T: np.ndarray, why: str, prior, up_C):
         """``((pose, n, extras) | None, reason)``: a pad predicted too small for its smeared drawing to
         be aligned (:data:`hvloc.synthesis.MIN_PAD_PX`), yet large enough for its printed design to
         be fitted (:data:`hvloc.texfit.MIN_SIDE_PX`), posed by that design fitted from the predicted
-        pose (:meth:`_predicted_pose`; its position and yaw, the tilt the AHRS's:
+        pose ``T`` (:meth:`_predicted_pose`; its position and yaw, the tilt the AHRS's:
         :func:`hvloc.texfit.fit_pose_to_design`), where the pose lands where the velocity filter
         foresaw it (:func:`foreseen`).  Its outer corners stand in for the outline's, each as noisy
         as the blur the fit found (:data:`DESIGN_SIGMA_PER_BLUR`).  ``(None, why)`` otherwise.
@@ -2162,15 +2164,10 @@ class HierarchicalLocalizer:
         from .synthesis import MIN_PAD_PX
         from .texfit import MIN_SIDE_PX, fit_pose_to_design
 
-        pred, _ = self._predicted_pose(t, R_W_B)
-        if pred is None or self.pad is None:
+        if self.pad is None:
             return None, why
-        T = pred[0]
         quad = self.camera.project_from(T, self.outer_P)
-        if quad is None or not np.isfinite(quad).all():
-            return None, why
-        side = float(np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1)))
-        if not MIN_SIDE_PX <= side < MIN_PAD_PX:
+        if quad is None or not np.isfinite(quad).all() or not MIN_SIDE_PX <= ph._mean_side(quad) < MIN_PAD_PX:
             return None, why
         fitted, info = self.work(lambda: ("design at the prediction", array_key(T)), fit_pose_to_design, rgb,
                                  self.camera, self._drawing(), T)
@@ -2178,7 +2175,7 @@ class HierarchicalLocalizer:
         if px is None or not np.isfinite(px).all():
             return None, f"{why}; its design fitted from the predicted pose: {info.get('why', 'out of view')}"
         det = ph.Detection(self.outer_P, px, "outline", {
-            "side_px": float(np.mean(np.linalg.norm(px - np.roll(px, 1, axis=0), axis=1))),
+            "side_px": ph._mean_side(px),
             "by": "design at the predicted pose", "design_fit": info,
             "px_sigma_blur": DESIGN_SIGMA_PER_BLUR * float(info["blur_px"])})
         res, why2 = self._posed(det, why, prior, up_C, False)
@@ -2188,16 +2185,15 @@ class HierarchicalLocalizer:
             return None, f"{why}; its design fitted from the predicted pose: not where the pad was foreseen"
         return res, "ok"
 
-    def _synthesized(self, gray, t: float, R_W_B, why: str):
-        """``(Detection | None, reason)``: the pad drawn where the last pose, moved on
-        (:meth:`_drawn_position`) and turned as the AHRS has turned since, puts it, smeared by that
+    def _synthesized(self, gray, pred, why: str):
+        """``(Detection | None, reason)``: the pad drawn where ``pred`` (:meth:`_predicted_pose`: the
+        last pose, moved on and turned as the AHRS has turned since) puts it, smeared by that
         velocity and the gyro's rate over the exposure, and aligned to the frame
         (:mod:`hvloc.synthesis`); only with an attitude: without one the drawing's tilt is the last
         pose's, which alone (no gravity to choose between a pose and its mirror) can be degrees off
         (bench_v1's no_imu ablation: 1.4 m at 19.8 m, accepted)."""
-        pred, why0 = self._predicted_pose(t, R_W_B)
         if pred is None:
-            return None, why or why0
+            return None, why
         T, velocity = pred
         rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
         sh = self.shutter

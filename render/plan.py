@@ -81,9 +81,8 @@ def _scene_draw(spec: DatasetSpec, rng: np.random.Generator, duration_s: float =
 
     view_radius = spec.trajectory.start_height_m * math.tan(math.radians(spec.camera.hfov_deg) / 2) * 1.5 + \
         spec.trajectory.lateral_offset_m[1]
-    path = np.asarray(spec.platform.velocity_mps, np.float64) * duration_s
     return draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius,
-                      path if np.any(path) else None)
+                      np.asarray(spec.platform.velocity_mps, np.float64) * duration_s)
 
 
 def drawn_ground_kinds(spec: DatasetSpec) -> set:
