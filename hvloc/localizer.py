@@ -812,6 +812,56 @@ def heading_var(est: "Estimate") -> float | None:
     return float(n_C @ est.cov[3:, 3:] @ n_C)
 
 
+# A cold start's naming by the pad's whole design (hvloc.phases.name_by_design).  One frame's naming
+# was taken wherever it correlated 0.6 and led the next by 0.04; on unseen47 a quad swollen to 25 px
+# around an 18 px pad was named a quarter turn wrong so (0.64, leading by 0.067), and only the
+# square's gate kept its pose out.  Over the 41 datasets of scratch/s58 the namings whose best was
+# wrong correlated 0.64-0.85 leading by 0.006-0.031, or 0.64 leading by 0.067; the right namings taken
+# alone 0.76-0.97 leading by 0.06-0.14.  A naming short of sure is taken where the namings of other
+# frames within DESIGN_VOTE_WINDOW_S give the pad the same heading in the world (the AHRS carries the
+# camera's turn between frames), the leads of those that agree less those of like-sized outlines
+# that disagree adding up to the single frame's bar (DesignVotes)
+DESIGN_SURE_NCC = 0.75  # a naming taken alone correlates at least this ...
+DESIGN_SURE_LEAD = 0.06  # ... and leads the next naming by this
+DESIGN_VOTE_LEAD = 0.01  # a naming leading by less is no vote
+DESIGN_VOTE_WINDOW_S = 2.0  # votes this old at most are weighed together
+DESIGN_VOTE_AGREE_DEG = 20.0  # votes whose pad headings lie this close agree (a quarter turn apart: they disagree)
+DESIGN_VOTE_SIDE_SHARE = 0.2  # votes weighed together are of outlines this alike in size (another quad is another object)
+
+
+class DesignVotes:
+    """A cold start's namings by the pad's design, frame by frame, each as the heading of the pad in
+    the world it gives (:data:`DESIGN_SURE_NCC` ... :data:`DESIGN_VOTE_SIDE_SHARE`)."""
+
+    def __init__(self):
+        self.votes: list = []  # (t, heading rad, side px, lead)
+
+    def cast(self, t: float, heading: float | None, side_px: float, best: float, lead: float) -> str | None:
+        """This frame's naming, its correlation ``best`` leading the next naming's by ``lead``, giving
+        the pad's world heading ``heading`` (``None`` without an attitude): ``"pad design"`` where it is
+        taken alone, ``"pad design over frames"`` where an earlier vote of a like-sized outline agrees
+        with it and the leads of those that agree, this one's included, less those that disagree add
+        up to :data:`hvloc.phases.DESIGN_MIN_LEAD`, else ``None``; it is kept as a vote either way."""
+        if not (math.isfinite(t) and math.isfinite(side_px) and side_px > 0 and best >= ph.DESIGN_MIN_NCC
+                and lead >= DESIGN_VOTE_LEAD):
+            return None
+        if best >= DESIGN_SURE_NCC and lead >= DESIGN_SURE_LEAD:
+            taken = "pad design"
+        elif heading is None or not math.isfinite(heading):
+            return None
+        else:
+            self.votes = [v for v in self.votes if 0.0 <= t - v[0] <= DESIGN_VOTE_WINDOW_S]
+            like = [v for v in self.votes if abs(v[2] / side_px - 1.0) <= DESIGN_VOTE_SIDE_SHARE]
+            turn = [abs(math.atan2(math.sin(v[1] - heading), math.cos(v[1] - heading))) for v in like]
+            agree = [v[3] for v, d in zip(like, turn) if d <= math.radians(DESIGN_VOTE_AGREE_DEG)]
+            against = [v[3] for v, d in zip(like, turn) if d > math.radians(DESIGN_VOTE_AGREE_DEG)]
+            taken = ("pad design over frames" if agree and lead + sum(agree) - sum(against) >= ph.DESIGN_MIN_LEAD
+                     else None)
+        if heading is not None and math.isfinite(heading):
+            self.votes.append((t, heading, side_px, lead))
+        return taken
+
+
 class FalsePoseGates:
     """hvloc's false-pose detection, for any localizer's poses: reprojection RMS, physically
     possible motion since the last accepted pose, the pad's tilt against the IMU's gravity, and
@@ -1017,6 +1067,7 @@ class HierarchicalLocalizer:
         self.gyro_t: float | None = None         # the IMU time of the last gyro row taken into it
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
+        self.design_votes = DesignVotes()        # a cold start's namings by the pad's design
         self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s, self.config.ahrs_tilt_sigma_deg)
         cfg = self.config
@@ -1734,6 +1785,27 @@ class HierarchicalLocalizer:
             return None
         return found.quad_px[k]
 
+    def _named_by_design(self, found, gray, t: float, R_W_B, up_C, why: str) -> tuple:
+        """``(Detection | None, reason)``: a cold start's outline named by the pad's whole design
+        (:func:`hvloc.phases.name_by_design`), where this frame's naming is sure or agrees with
+        those of the frames before (:class:`DesignVotes`: the pad's heading in the world each naming
+        gives, from its pose with the IMU's gravity and the AHRS)."""
+        _, scores = ph.name_by_design(gray, found.quad_px, self.geometry, self.camera, self._design())
+        k = int(np.argmax(scores))
+        o = np.sort(scores)
+        heading = None
+        if R_W_B is not None and up_C is not None:
+            pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
+                                     gravity_sigma_deg=self.up_sigma_deg)
+            if pose is not None:
+                R_W_P = R_W_B @ self.T_B_C[:3, :3] @ pose.cam2pad[:3, :3].T
+                heading = math.atan2(R_W_P[1, 0], R_W_P[0, 0])
+        side_px = float(np.mean(np.linalg.norm(found.quad_px - np.roll(found.quad_px, 1, axis=0), axis=1)))
+        taken = self.design_votes.cast(t, heading, side_px, float(o[-1]), float(o[-1] - o[-2]))
+        if taken is None:
+            return None, why + f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
+        return ph.name_outline(found, self.geometry, found.quad_px[k], hint_from=taken)
+
     def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None, by_prior: bool = False):
         """``by_prior``: markers only, two of them may be named by the last pose (the last resort)."""
         prior = self._prior()
@@ -1803,11 +1875,7 @@ class HierarchicalLocalizer:
                         if hint is not None:
                             det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading")
                     if det is None and hint is None and self.pad is not None:  # a cold start: the whole design
-                        k, scores = ph.name_by_design(gray, found.quad_px, self.geometry, self.camera, self._design())
-                        if k is not None:
-                            det, why = ph.name_outline(found, self.geometry, found.quad_px[k], hint_from="pad design")
-                        else:
-                            why += f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
+                        det, why = self._named_by_design(found, gray, t, R_W_B, up_C, why)
             else:
                 use_rgb = rgb if cfg.use_outline else None
                 named_by = prior if by_prior else None

@@ -2200,6 +2200,64 @@ def test_a_far_pad_whose_cue_cannot_be_read_is_named_by_its_whole_design(pad):
     assert named >= 0.8 * len(views), (named, len(views))
 
 
+def test_a_weak_design_naming_is_taken_only_where_frames_agree_on_the_pads_heading(pad, monkeypatch):
+    """A cold start's naming by the pad's design, frame by frame.  One frame's naming was taken
+    wherever it correlated 0.6 and led the next by 0.04; on unseen47 a quad swollen around an 18 px
+    pad was named a quarter turn wrong so (0.64, leading by 0.067), and only the square's gate kept
+    its pose out.  Now a naming is taken alone only where it is sure (0.75, leading by 0.06); a
+    weaker one where the namings of other frames' like-sized outlines give the pad the same heading
+    in the world (the AHRS carries the camera's turn between them), outweighing those that give it
+    another.  Here the
+    design's correlations are squeezed to weak ones (the right naming leading by ~0.02), or turned a
+    quarter (a wrong naming leading)."""
+    import hvloc.localizer as L
+
+    geo = pad.geometry
+    cfg = LocalizerConfig(use_markers=False)
+    h = CAM.fx * geo.side_m / 30.0
+    real = L.ph.name_by_design
+    mode = {"turn": 0, "best": 0.72, "gain": 0.15}
+
+    def squeezed(gray, quad_px, geo_, camera, design):
+        _, s = real(gray, quad_px, geo_, camera, design)
+        w = np.roll(mode["best"] + mode["gain"] * (s - s.max()), mode["turn"])
+        return None, w
+
+    monkeypatch.setattr(L.ph, "name_by_design", squeezed)
+
+    def view(t, yaw_deg):  # the same pad from a drone drifting and turning (its AHRS turns with it)
+        G = tilted(0.3 + 0.2 * t, -0.2, h, math.radians(yaw_deg), 0.02, -0.01)
+        return G, _no_cue(pad, G, warp_pad_view(pad, CAM, G, GROUND))
+
+    def run(loc, t, yaw_deg, **m):
+        mode.update({"turn": 0, "best": 0.72, "gain": 0.15}, **m)
+        G, img = view(t, yaw_deg)
+        return G, loc.process(img, t, _imu_from(G))
+
+    # weak and alone: lost; the next frame's weak naming agrees: named, and right
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    _, e = run(loc, 0.0, 40.0)
+    assert not e.ok and "nor does its design name it" in e.reason, (e.status, e.reason)
+    G, e = run(loc, 0.1, 47.0)
+    assert e.ok and e.extras.get("yaw_from") == "pad design over frames", (e.status, e.reason, e.extras)
+    assert pose_error(e.cam2pad, G)[0] < 0.02 * h and pose_error(e.cam2pad, G)[1] < 3.0, pose_error(e.cam2pad, G)
+    # a wrong naming that the single-frame bar took (0.64, leading by 0.067) is not taken alone ...
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    _, e = run(loc, 0.0, 40.0, turn=1, best=0.644, gain=0.6)
+    assert not e.ok and "nor does its design name it" in e.reason, (e.status, e.reason, e.extras)
+    # ... and its heading, a quarter turn off, outweighs right weak namings while it is recent
+    for t, yaw in ((1.0, 44.0), (1.5, 46.0)):
+        _, e = run(loc, t, yaw)
+        assert not e.ok and "nor does its design name it" in e.reason, (t, e.status, e.reason, e.extras)
+    G, e = run(loc, 2.5, 50.0)  # the wrong vote 2.5 s old, the right ones 1.5 and 1 s: they agree
+    assert e.ok and e.extras.get("yaw_from") == "pad design over frames", (e.status, e.reason, e.extras)
+    assert pose_error(e.cam2pad, G)[1] < 3.0, pose_error(e.cam2pad, G)
+    # a sure naming is taken alone, on its first frame
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    G, e = run(loc, 0.0, 40.0, best=0.92, gain=1.0)
+    assert e.ok and e.extras.get("yaw_from") == "pad design", (e.status, e.reason, e.extras)
+
+
 def test_the_design_naming_never_raises_on_a_degenerate_quad(pad):
     """The localizer never raises on an image: a quad with a corner at NaN or infinity, all corners
     at one pixel, or far outside the image names nothing (it raised on NaN: round(nan))."""
