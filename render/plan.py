@@ -76,13 +76,19 @@ class SequencePlan:
 
 def _scene_draw(spec: DatasetSpec, rng: np.random.Generator, duration_s: float = 0.0):
     """The sequence's scene (ground, sun, distractors), drawn from its generator after the trajectory's
-    seed; the distractors clear of where a moving platform takes the pad within ``duration_s``."""
+    seed; the distractors clear of the platform and of where a moving platform takes the pad within
+    ``duration_s``."""
     from .scene import draw_scene
 
     view_radius = spec.trajectory.start_height_m * math.tan(math.radians(spec.camera.hfov_deg) / 2) * 1.5 + \
         spec.trajectory.lateral_offset_m[1]
     return draw_scene(spec.environment, np.random.default_rng(rng.integers(2**63)), view_radius,
-                      np.asarray(spec.platform.velocity_mps, np.float64) * duration_s)
+                      np.asarray(spec.platform.velocity_mps, np.float64) * duration_s, platform_side(spec))
+
+
+def platform_side(spec: DatasetSpec) -> float:
+    """The side (m) of the platform's solid the pad stands on, 0 where the pad lies on the ground."""
+    return float(spec.platform.size_m) if spec.platform.height_m > 0 else 0.0
 
 
 def drawn_ground_kinds(spec: DatasetSpec) -> set:

@@ -82,16 +82,19 @@ def _footprint_distance(pts: np.ndarray, x: float, y: float, yaw: float, sx: flo
     return float(np.hypot(out[:, 0], out[:, 1]).min())
 
 
-def draw_scene(env, rng: np.random.Generator, view_radius_m: float, pad_path_m=None) -> SceneDraw:
+def draw_scene(env, rng: np.random.Generator, view_radius_m: float, pad_path_m=None,
+               platform_side_m: float = 0.0) -> SceneDraw:
     """The sequence's ground, sun and distractors.  ``pad_path_m``: where a moving platform takes the
     pad's centre over the sequence (east, north: the end of its straight path from the origin), so
     that no distractor drawn at random lies within ``keep_clear_m`` of it at any time (a box the
-    deck drove through, and the pad under it, in the conditions suite's moving_deck); ``boxes_at``
-    stay where the spec puts them."""
+    deck drove through, and the pad under it, in the conditions suite's moving_deck); nor within
+    the platform's half-diagonal (``platform_side_m``: its side, 0 without a platform), however
+    small ``keep_clear_m``: a box drawn into the platform's solid would stand through it, a patch
+    or a marker under it.  ``boxes_at`` stay where the spec puts them."""
     u = lambda r: rng.uniform(r[0], r[1]) if r[1] > r[0] else r[0]  # noqa: E731
     ri = lambda r: int(rng.integers(r[0], r[1] + 1))  # noqa: E731
     d = env.distractors
-    lo = d.keep_clear_m
+    lo = max(d.keep_clear_m, platform_side_m / math.sqrt(2.0))
     hi = max(lo + 1.0, view_radius_m)
 
     def place():
@@ -101,8 +104,8 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float, pad_path_m=N
 
     def clear(x, y, yaw, sx, sy):
         """``(x, y)`` moved out along its bearing until no point of the ``sx`` by ``sy`` footprint
-        (turned by ``yaw``) lies within ``keep_clear_m`` of the pad centre: the spec's promise is
-        about the distractor, not its centre (a 5 m box drawn 2.5 m away used to cover the pad)."""
+        (turned by ``yaw``) lies within ``lo`` of the pad centre: the spec's promise is about the
+        distractor, not its centre (a 5 m box drawn 2.5 m away used to cover the pad)."""
         r = math.hypot(x, y)
         if r < 1e-9:
             return x, y
@@ -120,7 +123,7 @@ def draw_scene(env, rng: np.random.Generator, view_radius_m: float, pad_path_m=N
 
     def off_path(x, y, yaw, sx, sy):
         """``(x, y)`` moved straight away from the nearest point of the pad's path until the
-        footprint keeps ``keep_clear_m`` from all of it (as it does from the pad's start)."""
+        footprint keeps ``lo`` from all of it (as it does from the pad's start)."""
         if path is None:
             return x, y
         for _ in range(100000):

@@ -52,7 +52,11 @@ from pad_design.spec import PadSpec
 #  10: distractors drawn at random keep keep_clear_m from a moving platform's whole path, not only
 #      from where the pad starts (the deck drove through a box, the pad under it).  Only specs with a
 #      platform velocity and distractors drawn at random move.
-RENDER_REVISION = 10
+#  11: distractors drawn at random keep clear of the platform's solid too (its half-diagonal from the
+#      pad centre), where keep_clear_m was less: a box stood through the platform, a patch or a
+#      marker under it.  Only specs with a platform, distractors drawn at random and keep_clear_m under
+#      the platform's half-diagonal move (none of the shipped specs).
+RENDER_REVISION = 11
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
 ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
@@ -61,7 +65,10 @@ ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
     d = spec.environment.distractors
-    if any(spec.platform.velocity_mps) and max(d.boxes[1], d.decoy_patches[1], d.decoy_markers[1]) > 0:
+    drawn_at_random = max(d.boxes[1], d.decoy_patches[1], d.decoy_markers[1]) > 0
+    if drawn_at_random and spec.platform.height_m > 0 and d.keep_clear_m < spec.platform.size_m / math.sqrt(2.0):
+        return 11
+    if any(spec.platform.velocity_mps) and drawn_at_random:
         return 10
     if spec.environment.shadows and spec.platform.height_m > 0:
         return 9  # the drone's shadow past a platform's edge; a turning deck's platform shadow
@@ -363,7 +370,8 @@ class DistractorSpec(_Model):
                                       "random ones (scenes built to occlude)")
     decoy_patches: IntRange = Field((0, 2), description="flat patches of the pad's border colour")
     decoy_markers: IntRange = Field((0, 2), description="lone finder-like squares and ArUco markers")
-    keep_clear_m: float = Field(2.5, ge=0.0, description="no distractor within this distance of the pad centre")
+    keep_clear_m: float = Field(2.5, ge=0.0, description="no distractor within this distance of the pad centre "
+                                "(nor on the platform, whatever this is)")
 
 
 class EnvironmentSpec(_Model):

@@ -660,6 +660,46 @@ def test_no_distractor_lies_within_keep_clear_of_a_moving_pads_path():
         assert nearest(path, x, y, yaw, sx, sy) >= keep - 0.01
 
 
+def test_no_distractor_drawn_at_random_stands_in_the_platform():
+    """``keep_clear_m`` is measured from the pad centre; under the platform's half-diagonal a box
+    was drawn through the platform's solid (a patch or a marker under it).  With a 1.6 m platform
+    and ``keep_clear_m`` 0.3, no point of any footprint drawn at random lies on the platform, in
+    the scene the generator plans for each descent; a box the spec places (``boxes_at``) stays
+    where it is put.  The specs that can draw so take render revision 11; the others keep theirs."""
+    from render.plan import plan_sequence
+    from render.spec import render_revision
+
+    side = 1.6
+    d = {"platform": {"height_m": 0.5, "size_m": side},
+         "environment": {"distractors": {"keep_clear_m": 0.3, "boxes": [4, 6], "decoy_patches": [3, 4],
+                                         "decoy_markers": [3, 4],
+                                         "boxes_at": [{"xy_m": [0.9, 0.0], "size_m": [0.3, 0.3, 1.0]}]}}}
+
+    def on_platform(x, y, yaw, sx, sy):
+        u, v = np.meshgrid(np.linspace(-sx / 2, sx / 2, 30), np.linspace(-sy / 2, sy / 2, 30))
+        c, s = np.cos(yaw), np.sin(yaw)
+        fx, fy = (x + c * u - s * v).ravel(), (y + s * u + c * v).ravel()
+        return bool(((np.abs(fx) < side / 2) & (np.abs(fy) < side / 2)).any())
+
+    drawn = 0
+    for seed in range(12):
+        sc = plan_sequence(_spec({**d, "seed": seed}), 0).scene_draw
+        placed, *boxes = sc.boxes
+        assert placed[:2] == (0.9, 0.0)
+        for x, y, yaw, sx, sy, *_ in boxes:
+            assert not on_platform(x, y, yaw, sx, sy), (seed, x, y, sx, sy)
+        for x, y, yaw, sx, sy in sc.decoy_patches:
+            assert not on_platform(x, y, yaw, sx, sy), (seed, x, y, sx, sy)
+        for x, y, yaw, size, *_ in sc.decoy_markers:
+            assert not on_platform(x, y, yaw, size, size), (seed, x, y, size)
+        drawn += len(boxes) + len(sc.decoy_patches) + len(sc.decoy_markers)
+    assert drawn >= 12 * 10
+    assert render_revision(_spec(d)) == 11
+    assert render_revision(_spec({**d, "environment": {"distractors": {"keep_clear_m": 1.2}}})) == 9  # clear anyway
+    assert render_revision(_spec({**d, "environment": {"distractors": {
+        "keep_clear_m": 0.3, "boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}})) == 9  # none drawn
+
+
 def test_the_drones_shadow_does_not_darken_a_box_shadow_twice():
     """Two translucent shadow layers multiply: where the drone's shadow fell inside a box's, the
     ground came out darker than either shadow (sun taken twice).  Now the drone's shadow takes
