@@ -842,13 +842,14 @@ class DesignVotes:
         taken alone, ``"pad design over frames"`` where an earlier vote of a like-sized outline agrees
         with it and the leads of those that agree, this one's included, less those that disagree add
         up to :data:`hvloc.phases.DESIGN_MIN_LEAD`, else ``None``; it is kept as a vote either way."""
-        if not (math.isfinite(t) and math.isfinite(side_px) and side_px > 0 and best >= ph.DESIGN_MIN_NCC
-                and lead >= DESIGN_VOTE_LEAD):
+        if not (best >= ph.DESIGN_MIN_NCC and lead >= DESIGN_VOTE_LEAD):
             return None
-        if best >= DESIGN_SURE_NCC and lead >= DESIGN_SURE_LEAD:
+        sure = best >= DESIGN_SURE_NCC and lead >= DESIGN_SURE_LEAD
+        if not (math.isfinite(t) and math.isfinite(side_px) and side_px > 0 and heading is not None
+                and math.isfinite(heading)):  # no vote to weigh (no attitude, or no time to weigh it at)
+            return "pad design" if sure else None
+        if sure:
             taken = "pad design"
-        elif heading is None or not math.isfinite(heading):
-            return None
         else:
             self.votes = [v for v in self.votes if 0.0 <= t - v[0] <= DESIGN_VOTE_WINDOW_S]
             like = [v for v in self.votes if abs(v[2] / side_px - 1.0) <= DESIGN_VOTE_SIDE_SHARE]
@@ -857,8 +858,7 @@ class DesignVotes:
             against = [v[3] for v, d in zip(like, turn) if d > math.radians(DESIGN_VOTE_AGREE_DEG)]
             taken = ("pad design over frames" if agree and lead + sum(agree) - sum(against) >= ph.DESIGN_MIN_LEAD
                      else None)
-        if heading is not None and math.isfinite(heading):
-            self.votes.append((t, heading, side_px, lead))
+        self.votes.append((t, heading, side_px, lead))
         return taken
 
 

@@ -2258,6 +2258,28 @@ def test_a_weak_design_naming_is_taken_only_where_frames_agree_on_the_pads_headi
     assert e.ok and e.extras.get("yaw_from") == "pad design", (e.status, e.reason, e.extras)
 
 
+def test_design_votes_weigh_only_like_sized_recent_outlines_and_never_need_a_clock_to_take_a_sure_one():
+    """:class:`hvloc.localizer.DesignVotes` on its own: a sure naming is taken with no attitude or
+    an odd timestamp (NaN, inf), a weak one is not; a weak vote agrees only with votes of outlines
+    within a fifth of its size and at most 2 s old; a vote for a heading a quarter turn off,
+    outweighing the agreeing ones, keeps it out."""
+    from hvloc.localizer import DesignVotes
+
+    for t, heading in ((float("nan"), 0.1), (float("inf"), 0.1), (1.0, None)):
+        assert DesignVotes().cast(t, heading, 25.0, 0.8, 0.07) == "pad design"
+        assert DesignVotes().cast(t, heading, 25.0, 0.7, 0.03) is None
+    v = DesignVotes()
+    assert v.cast(0.0, 0.10, 25.0, 0.7, 0.03) is None  # alone
+    assert v.cast(0.1, 0.12, 16.0, 0.7, 0.03) is None  # another object's size: not weighed with it
+    assert v.cast(2.5, 0.11, 25.0, 0.7, 0.03) is None  # the first 2.5 s old
+    assert v.cast(2.6, 0.09, 24.0, 0.7, 0.02) == "pad design over frames"  # 0.02 + 0.03 >= 0.04
+    v = DesignVotes()
+    v.cast(0.0, 0.10 + math.pi / 2, 25.0, 0.7, 0.05)  # a quarter turn off, leading by 0.05
+    v.cast(0.2, 0.10, 25.0, 0.7, 0.03)
+    assert v.cast(0.4, 0.12, 26.0, 0.7, 0.03) is None  # 0.03 + 0.03 - 0.05 < 0.04
+    assert v.cast(0.6, 0.11, 25.0, 0.7, 0.04) == "pad design over frames"  # 0.04 + 0.06 - 0.05
+
+
 def test_the_design_naming_never_raises_on_a_degenerate_quad(pad):
     """The localizer never raises on an image: a quad with a corner at NaN or infinity, all corners
     at one pixel, or far outside the image names nothing (it raised on NaN: round(nan))."""
