@@ -1206,11 +1206,13 @@ class HierarchicalLocalizer:
         # the methods in the phase's order: the first whose pose passes the gates wins; a pose the
         # gates reject does not stop the next method (a pad cut by the image edge must not keep
         # the flow tracker from its turn)
-        # last of all, two markers named by the recent pose (:func:`phases._pair_by_prior`): only
-        # where nothing else posed the frame (the flow tracker and a cut outline, where they hold,
-        # are the better pose near the ground)
+        # last of all, two markers named by the recent pose (:func:`phases._pair_by_prior`), or on a
+        # cold start by the pad's design around them (:func:`phases._pair_by_design`): only where
+        # nothing else posed the frame (the flow tracker and a cut outline, where they hold, are the
+        # better pose near the ground)
         twist = self.twist  # the frame's (a flow pose may solve its own velocity: not kept if it is rejected)
-        tries = [(m, False) for m in order] + ([("markers", True)] if "markers" in order and self.last is not None else [])
+        pairs = "markers" in order and (self.last is not None or (self.pad is not None and up_C is not None))
+        tries = [(m, False) for m in order] + ([("markers", True)] if pairs else [])
         for method, by_prior in tries:
             if not enabled[method]:
                 continue
@@ -1224,7 +1226,8 @@ class HierarchicalLocalizer:
             res, why = self._try(method, rgb, gray, up_C, t, R_W_B, by_prior)
             if res is None:
                 if by_prior:
-                    why = why.replace("no marker layout", "none named by the recent pose either")
+                    why = why.replace("no marker layout", "none named by the recent pose either" if self.last is not None
+                                      else "none named by the pad's design either")
                 reasons.append(f"{method}: {why}")
                 continue
             pose, n, extras = res
@@ -1807,7 +1810,8 @@ class HierarchicalLocalizer:
         return ph.name_outline(found, self.geometry, found.quad_px[k], hint_from=taken)
 
     def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None, by_prior: bool = False):
-        """``by_prior``: markers only, two of them may be named by the last pose (the last resort)."""
+        """``by_prior``: markers only, two of them may be named by the last pose, or on a cold start by the
+        pad's design around them (the last resort)."""
         prior = self._prior()
         cfg = self.config
         if method == "flow":
@@ -1879,10 +1883,12 @@ class HierarchicalLocalizer:
             else:
                 use_rgb = rgb if cfg.use_outline else None
                 named_by = prior if by_prior else None
+                # a cold start's two markers: named by the pad's design around them (no pose names them)
+                design = self._design() if by_prior and prior is None and self.pad is not None else None
                 det, why = self.work(lambda: ("markers", r, cfg.binarization, use_rgb is not None, array_key(up_C),
-                                              array_key(named_by)),
+                                              array_key(named_by), design is not None),
                                      ph.detect_markers, gray, self.geometry, self.camera, roi=r,
-                                     method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by)
+                                     method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by, design=design)
             if det is not None and det.kind == "outline" and cfg.design_fit:
                 det = self._design_fitted(det, rgb, up_C)
             if det is not None:

@@ -1435,6 +1435,20 @@ class PadDesign:
         return d
 
 
+def _design_cells(side_m: float, n: int) -> np.ndarray:
+    """``(n * n, 2)`` pad-plane centres of the design's cells drawn ``n`` across (:meth:`PadDesign.at`),
+    row by row: row i is y = s/2 - (i + 0.5) s/n, column j x = (j + 0.5) s/n - s/2."""
+    c = (np.arange(n) + 0.5) / n * side_m - side_m / 2
+    X, Y = np.meshgrid(c, -c)
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def _ncc(a: np.ndarray, b: np.ndarray) -> float:
+    """The normalized cross-correlation of two equally long samples."""
+    a, b = a - a.mean(), b - b.mean()
+    return float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
+
+
 DESIGN_MIN_NCC = 0.6    # the naming's correlation with the design (over ground, quads reach 0.58 at most)
 DESIGN_MIN_LEAD = 0.04  # ... and its lead over the next naming's
 _DESIGN_TURN = -1       # np.rot90's direction that takes naming 0's samples to naming k's
@@ -1462,10 +1476,7 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
         return None, scores
     side_px = float(np.mean(np.linalg.norm(quad_px - np.roll(quad_px, 1, axis=0), axis=1)))
     n = int(np.clip(round(side_px), 12, 64)) if math.isfinite(side_px) else 64
-    s = geo.side_m
-    c = (np.arange(n) + 0.5) / n * s - s / 2  # cell centres; row i of the design is y = s/2 - (i + 0.5) s/n
-    X, Y = np.meshgrid(c, -c)
-    pts = np.column_stack([X.ravel(), Y.ravel()])
+    pts = _design_cells(geo.side_m, n)
     # the image sampled once, at the design's cells as the quad's own order names them; the grid is
     # the same under a quarter turn, so naming k compares it with the design turned k quarters
     px = _through_quad(quad_px, geo, camera, pts)
@@ -1476,11 +1487,8 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
         return None, scores
     v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)[seen]
-    a = v - v.mean()
     for k in range(4):
-        d = np.rot90(design.at(n), _DESIGN_TURN * k).ravel()[seen]
-        b = d - d.mean()
-        scores[k] = float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
+        scores[k] = _ncc(v, np.rot90(design.at(n), _DESIGN_TURN * k).ravel()[seen])
     o = np.sort(scores)
     if o[-1] < DESIGN_MIN_NCC or o[-1] - o[-2] < DESIGN_MIN_LEAD:
         return None, scores
@@ -1582,11 +1590,12 @@ MIN_SQUARES_PER_MARKER = 2
 
 def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None,
-                   prior: np.ndarray | None = None) -> tuple:
+                   prior: np.ndarray | None = None, design: PadDesign | None = None) -> tuple:
     """Finder markers -> all nested-square corners, plus the pad's outer corners when the whole
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
     With ``prior`` (a recent ``T_P_C``), two markers of a set, the third out of view or unreadable,
-    are named by where the prior puts the set's markers (:func:`_pair_by_prior`).
+    are named by where the prior puts the set's markers (:func:`_pair_by_prior`); without one, with
+    ``design`` and the IMU's ``up_C``, by the pad's printed design around them (:func:`_pair_by_design`).
     Returns ``(Detection | None, reason)``."""
     img, x0, y0 = _crop(gray, roi)
     if img.shape[0] < 16 or img.shape[1] < 16:
@@ -1605,15 +1614,20 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
         sets.setdefault(m.set, {})[m.name] = m
     g = img.astype(np.float32)
     if not triples:
-        for cand in all_nests if prior is not None and camera is not None else []:
-            named = _pair_by_prior(cand, sets, camera, prior, x0, y0)
+        by = "prior" if prior is not None else "design" if design is not None and up_C is not None else None
+        for cand in all_nests if by is not None and camera is not None else []:
+            if by == "prior":
+                named, extra = _pair_by_prior(cand, sets, camera, prior, x0, y0), {}
+            else:
+                named = _pair_by_design(g, cand, sets, pad_geometry, camera, up_C, design, x0, y0)
+                named, extra = (named[:3], named[3]) if named is not None else (None, {})
             if named is not None:
                 set_name, quads, module_px = named
                 got = _marker_corners(g, sets[set_name], quads, module_px, camera, x0, y0)
                 if got is not None and len(got[0]) >= MIN_SQUARES_PER_MARKER * len(quads):
                     pts_P, px, _ = got
                     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers",
-                                     {"sets": [set_name], "named_by": "prior", "markers_seen": sorted(quads)}), "ok"
+                                     {"sets": [set_name], "named_by": by, "markers_seen": sorted(quads), **extra}), "ok"
         return None, f"{len(nests)} finder nests, no marker layout"
     expect = {s: ms["Top"].size_m / (2 * abs(ms["Top"].center[0])) for s, ms in sets.items() if "Top" in ms}
     pts_P, px = [], []
@@ -1732,14 +1746,119 @@ def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x
                     quad = _contour_quad(nest.outline)
                     if quad is None:
                         break
-                    want = (corners[names[k]] - centres[a]) @ S.T + na.center_px
-                    orders = [np.roll(q, r, axis=0) for q in (quad, quad[::-1]) for r in range(4)]
-                    quads[names[k]] = min(orders, key=lambda q: float(np.sum(np.linalg.norm(q - want, axis=1))))
+                    quads[names[k]] = _nearest_order(quad, (corners[names[k]] - centres[a]) @ S.T + na.center_px)
                 if len(quads) == 2:
                     found.append((set_name, quads, math.sqrt(np.mean([n.area_px for n in (na, nb)])) / 7.0))
     if len(found) != 1:
         return None
     return found[0]
+
+
+def _nearest_order(quad: np.ndarray, want: np.ndarray, seen_as: np.ndarray | None = None) -> np.ndarray:
+    """``quad``'s corners in the order (a roll, either way round) that puts them nearest ``want``'s;
+    ``seen_as``: the same corners in the coordinates ``want`` is in (default: ``quad``'s own)."""
+    seen = quad if seen_as is None else seen_as
+    r, rev = min(((r, rev) for rev in (False, True) for r in range(4)),
+                 key=lambda o: float(np.sum(np.linalg.norm(np.roll(seen[::-1] if o[1] else seen, o[0], axis=0) - want,
+                                                           axis=1))))
+    return np.roll(quad[::-1] if rev else quad, r, axis=0)
+
+
+PAIR_DESIGN_MIN_NCC = 0.7    # the right naming's correlation with the design beyond the two markers
+PAIR_DESIGN_MIN_LEAD = 0.15  # ... and its lead over every other naming's
+PAIR_DESIGN_MIN_SEEN = 0.2   # the share of the pad's cells, beyond the two markers, in view
+
+
+def _pair_by_design(g: np.ndarray, nests: list, sets: dict, geo: PadGeometry, camera: Camera | None, up_C,
+                    design: "PadDesign", x0: int, y0: int):
+    """``(set name, {marker name: outer corners in the crop, ordered as the marker's}, module px,
+    info)`` of two markers of one set that two of ``nests`` are, named by the pad's printed design
+    where no recent pose names them (:func:`_pair_by_prior`); or ``None``.
+
+    A cold start low over the pad (the outline cut by the image's edge, the third marker out of view
+    or hidden) sees two nests.  Each reading of them (a set, two of its markers, either way round)
+    puts the pad somewhere else around them: turned a quarter or a half, or on the nests' other
+    side.  The IMU's gravity makes the view head-on, where a reading is a similarity: the nests'
+    sizes must agree with their spacing as the reading's markers' do (a diagonal pair is 1.41x an
+    adjacent one).  Each reading left is then placed by the homography of the two nests' corners,
+    and the image, sampled where it puts the rest of the pad (the two markers' own squares left
+    out: every reading puts a marker there), is correlated with the design drawn at that scale.
+    The best reading is taken where it correlates at least :data:`PAIR_DESIGN_MIN_NCC`, leads every
+    other by :data:`PAIR_DESIGN_MIN_LEAD`, and sees :data:`PAIR_DESIGN_MIN_SEEN` of the pad beyond
+    the markers; a pair of lone finder squares on the ground correlates with nothing."""
+    rectify = _head_on(camera, up_C, x0, y0)
+    if rectify is None or design is None:
+        return None
+    cands = sorted(nests, key=lambda n: -n.area_px)[:4]
+    readings = []
+    for i, j in itertools.combinations(range(len(cands)), 2):
+        na, nb = cands[i], cands[j]
+        qa, qb = _contour_quad(na.outline), _contour_quad(nb.outline)
+        ha, hb = rectify(qa), rectify(qb)
+        if not (np.isfinite(ha).all() and np.isfinite(hb).all()):
+            continue
+        ca, cb = ha.mean(axis=0), hb.mean(axis=0)
+        vo = cb - ca
+        side_o = math.sqrt(0.5 * (abs(_signed_area(ha)) + abs(_signed_area(hb))))
+        for set_name, ms in sets.items():
+            names = [n for n in ("Top", "Right", "Bottom") if n in ms]
+            for a, b in itertools.permutations(names, 2):
+                flip = np.array([1.0, -1.0])  # pad (x, y) -> image-like (x, -y): seen from above, y is up
+                vp = (ms[b].center[:2] - ms[a].center[:2]) * flip
+                scale = np.linalg.norm(vo) / max(np.linalg.norm(vp), 1e-12)
+                # the nests' size against their spacing, as the reading's markers' (a diagonal pair's
+                # spacing is 1.41x an adjacent pair's)
+                if not 0.75 < side_o / (scale * 0.5 * (ms[a].size_m + ms[b].size_m)) < 1.33:
+                    continue
+                turn = math.atan2(vp[0] * vo[1] - vp[1] * vo[0], vp @ vo)
+                c, sn = scale * math.cos(turn), scale * math.sin(turn)
+                S = np.array([[c, -sn], [sn, c]])
+                quads = {}
+                for name, q, hq, cq in ((a, qa, ha, ca), (b, qb, hb, cb)):
+                    want = (ms[name].outer_corners[:, :2] - ms[name].center[:2]) * flip @ S.T + cq
+                    quads[name] = _nearest_order(q, want, seen_as=hq)
+                readings.append((set_name, quads, math.sqrt(0.5 * (na.area_px + nb.area_px)) / 7.0))
+    if not readings:
+        return None
+    cam = _shifted(camera, x0, y0)
+    lens = cam is not None and cam.has_distortion
+    s = geo.side_m
+    scores = []
+    for set_name, quads, _ in readings:
+        ms = sets[set_name]
+        dst = np.concatenate(list(quads.values()))
+        ideal = cam.undistort_pixels(dst) if lens else dst
+        H = cv2.findHomography(np.concatenate([ms[n].outer_corners[:, :2] for n in quads]), ideal, 0)[0] \
+            if np.isfinite(ideal).all() else None
+        if H is None:
+            scores.append(-1.0)
+            continue
+        side_px = float(np.mean(np.linalg.norm(ideal[1:4] - ideal[0:3], axis=1))) * s / ms[next(iter(quads))].size_m
+        n = int(np.clip(round(side_px), 12, 64))
+        pts = _design_cells(s, n)
+        px = cv2.perspectiveTransform(pts.reshape(1, -1, 2), H)[0]
+        if lens:
+            from .features import _distort_px
+
+            px = _distort_px(cam, px)
+        beyond = np.ones(len(pts), bool)
+        for name in quads:  # every reading puts a marker where the nests are: they tell nothing
+            half = 0.5 * ms[name].size_m + s / n
+            beyond &= np.abs(pts - ms[name].center[:2]).max(axis=1) > half
+        seen = np.isfinite(px).all(axis=1) & _seen(px, g.shape) & beyond
+        if seen.sum() < PAIR_DESIGN_MIN_SEEN * beyond.sum() or seen.sum() < 16:
+            scores.append(-1.0)
+            continue
+        v = cv2.remap(g, px[seen, 0].astype(np.float32)[None], px[seen, 1].astype(np.float32)[None],
+                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+        scores.append(_ncc(v, design.at(n).ravel()[seen]))
+    ncc = np.array(scores)
+    best = int(np.argmax(ncc))
+    lead = float(ncc[best] - np.max(np.delete(ncc, best), initial=-1.0))
+    if ncc[best] < PAIR_DESIGN_MIN_NCC or lead < PAIR_DESIGN_MIN_LEAD:
+        return None
+    set_name, quads, module_px = readings[best]
+    return set_name, quads, module_px, {"design_ncc": round(float(ncc[best]), 3), "design_lead": round(lead, 3)}
 
 
 def _refine_outline_from(rgb, pad_geometry, predict, x0, y0, camera):
