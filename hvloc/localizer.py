@@ -1213,8 +1213,13 @@ class HierarchicalLocalizer:
         twist = self.twist  # the frame's (a flow pose may solve its own velocity: not kept if it is rejected)
         pairs = "markers" in order and (self.last is not None or (self.pad is not None and up_C is not None))
         tries = [(m, False) for m in order] + ([("markers", True)] if pairs else [])
+        markers_why = ""
         for method, by_prior in tries:
             if not enabled[method]:
+                continue
+            if by_prior and self.last is None and markers_why and (ph.nests_found(markers_why) or 0) < 2:
+                # a cold start whose markers' try (the whole image) found under two nests, or a layout:
+                # no pair to name, and their search is not made again
                 continue
             if not method_allowed(method, h, cfg, self.markers_seen_below_m):
                 continue
@@ -1224,9 +1229,11 @@ class HierarchicalLocalizer:
             if method == "texture" and not self._texture_allowed(h):
                 continue
             res, why = self._try(method, rgb, gray, up_C, t, R_W_B, by_prior)
+            if method == "markers" and not by_prior:
+                markers_why = why
             if res is None:
                 if by_prior:
-                    why = why.replace("no marker layout", "none named by the recent pose either" if self.last is not None
+                    why = why.replace(ph.NO_LAYOUT, "none named by the recent pose either" if self.last is not None
                                       else "none named by the pad's design either")
                 reasons.append(f"{method}: {why}")
                 continue

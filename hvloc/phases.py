@@ -3,6 +3,7 @@ markers (Adjustment) and the flow tracker (Touchdown).  Each detector returns co
 (pad points in metres, image pixels) or ``None`` with a reason; pose comes from :mod:`.pose`."""
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass, field, replace
@@ -1435,12 +1436,15 @@ class PadDesign:
         return d
 
 
+@functools.lru_cache(maxsize=64)
 def _design_cells(side_m: float, n: int) -> np.ndarray:
     """``(n * n, 2)`` pad-plane centres of the design's cells drawn ``n`` across (:meth:`PadDesign.at`),
-    row by row: row i is y = s/2 - (i + 0.5) s/n, column j x = (j + 0.5) s/n - s/2."""
+    row by row: row i is y = s/2 - (i + 0.5) s/n, column j x = (j + 0.5) s/n - s/2 (read-only)."""
     c = (np.arange(n) + 0.5) / n * side_m - side_m / 2
     X, Y = np.meshgrid(c, -c)
-    return np.column_stack([X.ravel(), Y.ravel()])
+    cells = np.column_stack([X.ravel(), Y.ravel()])
+    cells.setflags(write=False)
+    return cells
 
 
 def _ncc(a: np.ndarray, b: np.ndarray) -> float:
@@ -1588,6 +1592,16 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 MIN_SQUARES_PER_MARKER = 2
 
 
+NO_LAYOUT = "no marker layout"
+
+
+def nests_found(reason: str) -> int | None:
+    """How many finder nests :func:`detect_markers` found (the most of its binarizations) where it
+    says they form no marker layout; ``None`` for any other reason."""
+    head, _, tail = reason.partition(" finder nests, ")
+    return int(head) if tail.startswith(NO_LAYOUT) and head.isdigit() else None
+
+
 def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
                    method: str = "otsu", rgb: np.ndarray | None = None, up_C: np.ndarray | None = None,
                    prior: np.ndarray | None = None, design: PadDesign | None = None) -> tuple:
@@ -1615,7 +1629,12 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
     g = img.astype(np.float32)
     if not triples:
         by = "prior" if prior is not None else "design" if design is not None and up_C is not None else None
+        tried = []
         for cand in all_nests if by is not None and camera is not None else []:
+            centres = sorted((round(float(n.center_px[0]), 1), round(float(n.center_px[1]), 1)) for n in cand)
+            if centres in tried:  # both binarizations found the same nests: the same answer
+                continue
+            tried.append(centres)
             if by == "prior":
                 named, extra = _pair_by_prior(cand, sets, camera, prior, x0, y0), {}
             else:
@@ -1628,7 +1647,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
                     pts_P, px, _ = got
                     return Detection(np.concatenate(pts_P), np.concatenate(px), "markers",
                                      {"sets": [set_name], "named_by": by, "markers_seen": sorted(quads), **extra}), "ok"
-        return None, f"{len(nests)} finder nests, no marker layout"
+        return None, f"{max(len(n) for n in all_nests)} finder nests, {NO_LAYOUT}"
     expect = {s: ms["Top"].size_m / (2 * abs(ms["Top"].center[0])) for s, ms in sets.items() if "Top" in ms}
     pts_P, px = [], []
     used, few = [], ""
@@ -1757,11 +1776,14 @@ def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x
 def _nearest_order(quad: np.ndarray, want: np.ndarray, seen_as: np.ndarray | None = None) -> np.ndarray:
     """``quad``'s corners in the order (a roll, either way round) that puts them nearest ``want``'s;
     ``seen_as``: the same corners in the coordinates ``want`` is in (default: ``quad``'s own)."""
-    seen = quad if seen_as is None else seen_as
-    r, rev = min(((r, rev) for rev in (False, True) for r in range(4)),
-                 key=lambda o: float(np.sum(np.linalg.norm(np.roll(seen[::-1] if o[1] else seen, o[0], axis=0) - want,
-                                                           axis=1))))
-    return np.roll(quad[::-1] if rev else quad, r, axis=0)
+    seen = np.asarray(quad if seen_as is None else seen_as, np.float64)
+    idx = _ORDERS  # (8, 4): each order's corner indices, the first nearest one wins
+    k = int(np.argmin(np.linalg.norm(seen[idx] - np.asarray(want, np.float64), axis=2).sum(axis=1)))
+    return np.asarray(quad)[idx[k]]
+
+
+# the eight orders of a quad's corners: rolled by 0-3 (np.roll's direction), then reversed and rolled
+_ORDERS = np.array([np.roll(np.arange(4), r) for r in range(4)] + [np.roll(np.arange(4)[::-1], r) for r in range(4)])
 
 
 PAIR_DESIGN_MIN_NCC = 0.7    # the right naming's correlation with the design beyond the two markers

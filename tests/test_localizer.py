@@ -3453,8 +3453,8 @@ def test_a_cold_starts_two_markers_are_named_by_the_pads_design(pad):
         pose = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up)
         e, r = pose_error(pose.cam2pad, G)
         assert e < (0.01 if i % 2 else 0.005) * h and r < 0.5, (i, h, e, r)
-        decoy = cv2.cvtColor(warp_pad_view(lone, CAM, G, GROUND), cv2.COLOR_RGB2GRAY)
-        det, why = detect_markers(decoy, geo, CAM, up_C=up, design=design)
+        decoy = warp_pad_view(lone, CAM, G, GROUND)
+        det, why = detect_markers(cv2.cvtColor(decoy, cv2.COLOR_RGB2GRAY), geo, CAM, up_C=up, design=design)
         assert det is None, (i, det.info)
         # the localizer, started cold on the frame with the IMU (before: 8 of 40 such views posed, by
         # the cut outline or the texture; now 40, 32 of them by the markers, none 1 % of the height off)
@@ -3462,6 +3462,12 @@ def test_a_cold_starts_two_markers_are_named_by_the_pads_design(pad):
         assert e.ok, (i, e.reason)
         assert pose_error(e.cam2pad, G)[0] < (0.01 if i % 2 else 0.005) * h
         by_markers += e.method == "markers"
+        if i == 0:  # the lone squares are tried and refused; plain ground (no nests) is not searched twice
+            e = HierarchicalLocalizer(pad, CAM, LocalizerConfig()).process(decoy, 0.0, _imu_from(G))
+            assert not e.ok and "none named by the pad's design either" in e.reason, e.reason
+            plain = np.ascontiguousarray(np.broadcast_to(np.array(GROUND, np.uint8), img.shape))
+            e = HierarchicalLocalizer(pad, CAM, LocalizerConfig()).process(plain, 0.0, _imu_from(G))
+            assert not e.ok and e.reason.count("markers:") == 1, e.reason
     assert by_markers >= 6, by_markers
 
 
