@@ -1211,7 +1211,7 @@ class HierarchicalLocalizer:
         # nothing else posed the frame (the flow tracker and a cut outline, where they hold, are the
         # better pose near the ground)
         twist = self.twist  # the frame's (a flow pose may solve its own velocity: not kept if it is rejected)
-        pairs = "markers" in order and (self.last is not None or (self.pad is not None and up_C is not None))
+        pairs = "markers" in order and (self.last is not None or self.pad is not None)
         tries = [(m, False) for m in order] + ([("markers", True)] if pairs else [])
         markers_why = ""
         for method, by_prior in tries:

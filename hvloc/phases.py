@@ -1628,7 +1628,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
         sets.setdefault(m.set, {})[m.name] = m
     g = img.astype(np.float32)
     if not triples:
-        by = "prior" if prior is not None else "design" if design is not None and up_C is not None else None
+        by = "prior" if prior is not None else "design" if design is not None else None
         tried = []
         for cand in all_nests if by is not None and camera is not None else []:
             centres = sorted((round(float(n.center_px[0]), 1), round(float(n.center_px[1]), 1)) for n in cand)
@@ -1773,6 +1773,9 @@ def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x
     return found[0]
 
 
+_NADIR_UP = np.array([0.0, 0.0, -1.0])  # the up a camera looking straight down sees
+
+
 def _nearest_order(quad: np.ndarray, want: np.ndarray, seen_as: np.ndarray | None = None) -> np.ndarray:
     """``quad``'s corners in the order (a roll, either way round) that puts them nearest ``want``'s;
     ``seen_as``: the same corners in the coordinates ``want`` is in (default: ``quad``'s own)."""
@@ -1808,9 +1811,11 @@ def _pair_by_design(g: np.ndarray, nests: list, sets: dict, geo: PadGeometry, ca
     The best reading is taken where it correlates at least :data:`PAIR_DESIGN_MIN_NCC`, leads every
     other by :data:`PAIR_DESIGN_MIN_LEAD`, and sees :data:`PAIR_DESIGN_MIN_SEEN` of the pad beyond
     the markers; a pair of lone finder squares on the ground correlates with nothing."""
-    rectify = _head_on(camera, up_C, x0, y0)
-    if rectify is None or design is None:
+    if camera is None or design is None:
         return None
+    # without the IMU, the view taken for head-on (a nadir camera's, nearly): readings a tilt skews
+    # are dropped by their sizes, or their design does not correlate
+    rectify = _head_on(camera, up_C if up_C is not None else _NADIR_UP, x0, y0)
     cands = sorted(nests, key=lambda n: -n.area_px)[:4]
     readings = []
     for i, j in itertools.combinations(range(len(cands)), 2):
