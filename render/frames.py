@@ -101,7 +101,7 @@ class SequenceRenderer:
                                                             self.material["dirt_seed"]),
                                   legs=self.legs, pad_relief=self.material.get("relief"),
                                   deck_drop_m=self.deck_drop_m,
-                                  deck_turns=spec.platform.deck_turns())
+                                  deck_turns=spec.platform.deck_turns(), light=spec.camera.mix_in_light)
         self.samples = PadSamples.of(pad.geometry)
         self.relief_px: list = []  # per frame: how far the features' images on the relief lie from the labels'
         self.stage_seconds: dict = {}  # time spent per stage of render(), summed over frames

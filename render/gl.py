@@ -93,29 +93,119 @@ def _patch_transparent_order(pyrender) -> None:
     R._sorted_mesh_nodes = _sorted_mesh_nodes
 
 
-def render_color_depth(offscreen, scene, flags, znear: float, zfar: float) -> tuple:
-    """``(rgb (H, W, 3) uint8, z (H, W) float32)`` in OpenCV's row order: colour, and depth along
-    the optical axis in metres (``inf`` where nothing was drawn).  One read of each buffer."""
-    from OpenGL.GL import (GL_DEPTH_COMPONENT, GL_FLOAT, GL_FRONT, GL_READ_FRAMEBUFFER, GL_RGB, GL_UNSIGNED_BYTE,
-                           glBindFramebuffer, glReadBuffer, glReadPixels)
-
-    plat = offscreen._platform
-    if plat.supports_framebuffers():  # EGL: pyrender reads and converts both (0 where nothing)
-        color, z = offscreen.render(scene, flags=flags)
-        z = np.where(z > 0, z, np.float32(np.inf)).astype(np.float32)
-        return color, z
-    plat.make_current()
+def _draw(offscreen, scene, flags) -> tuple:
+    """Render ``scene`` with ``offscreen``'s renderer, its context made current (the caller reads the
+    buffers, then makes it uncurrent); ``(renderer, width, height)``."""
+    offscreen._platform.make_current()
     r = offscreen._renderer
     r.viewport_width, r.viewport_height = offscreen.viewport_width, offscreen.viewport_height
     r.point_size = offscreen.point_size
     r.render(scene, flags)
-    w, h = r.viewport_width, r.viewport_height
+    return r, r.viewport_width, r.viewport_height
+
+
+def render_color_depth(offscreen, scene, flags, znear: float, zfar: float) -> tuple:
+    """``(rgb (H, W, 3) uint8, z (H, W) float32)`` in OpenCV's row order: colour, and depth along
+    the optical axis in metres (``inf`` where nothing was drawn).  One read of each buffer.  With a
+    float framebuffer (:func:`float_framebuffer`) the colour is light, float32."""
+    from OpenGL.GL import (GL_DEPTH_COMPONENT, GL_FLOAT, GL_FRONT, GL_READ_FRAMEBUFFER, GL_RGB, GL_UNSIGNED_BYTE,
+                           glBindFramebuffer, glReadBuffer, glReadPixels)
+
+    plat = offscreen._platform
+    if getattr(offscreen._renderer, "_hv_float_fb", None) is not None:  # light, float32 (float_framebuffer)
+        color, depth = _read_float(offscreen, scene, flags, depth=True)
+        return color, linear_depth(depth, znear, zfar)
+    if plat.supports_framebuffers():  # EGL: pyrender reads and converts both (0 where nothing)
+        color, z = offscreen.render(scene, flags=flags)
+        z = np.where(z > 0, z, np.float32(np.inf)).astype(np.float32)
+        return color, z
+    r, w, h = _draw(offscreen, scene, flags)
     glBindFramebuffer(GL_READ_FRAMEBUFFER, 0)
     glReadBuffer(GL_FRONT)
     color = np.frombuffer(glReadPixels(0, 0, w, h, GL_RGB, GL_UNSIGNED_BYTE), np.uint8).reshape(h, w, 3)
     depth = np.frombuffer(glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT), np.float32).reshape(h, w)
     plat.make_uncurrent()
     return cv2.flip(color, 0), linear_depth(cv2.flip(depth, 0), znear, zfar)
+
+
+def linear_texture(pr, linear_rgba: np.ndarray, sampler):
+    """A pyrender texture whose texels are light: ``linear_rgba`` (H, W, 4) float32 in 0..1, held
+    as half floats, so that its mipmaps and its filtering average light.  (pyrender's own textures
+    are 8 bits of whatever they are given: a float source is truncated to bytes.)"""
+    from OpenGL.GL import (GL_FLOAT, GL_RGBA, GL_RGBA16F, GL_TEXTURE_MAG_FILTER, GL_TEXTURE_MIN_FILTER,
+                           GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, glBindTexture, glGenTextures, glGenerateMipmap,
+                           glTexImage2D, glTexParameteri)
+
+    class LinearTexture(pr.Texture):
+        def _add_to_context(self):
+            self._texid = glGenTextures(1)
+            glBindTexture(self.tex_type, self._texid)
+            src = self.light
+            glTexImage2D(self.tex_type, 0, GL_RGBA16F, src.shape[1], src.shape[0], 0, GL_RGBA, GL_FLOAT,
+                         np.ascontiguousarray(src[::-1]))  # (OpenGL's first row is the image's last)
+            glGenerateMipmap(self.tex_type)
+            for name, value in ((GL_TEXTURE_MAG_FILTER, self.sampler.magFilter),
+                                (GL_TEXTURE_MIN_FILTER, self.sampler.minFilter),
+                                (GL_TEXTURE_WRAP_S, self.sampler.wrapS), (GL_TEXTURE_WRAP_T, self.sampler.wrapT)):
+                glTexParameteri(self.tex_type, name, value)
+            glBindTexture(self.tex_type, 0)
+
+    tex = LinearTexture(source=np.zeros((2, 2, 4), np.uint8), source_channels="RGBA", sampler=sampler)
+    tex.light = np.asarray(linear_rgba, np.float32)
+    return tex
+
+
+def float_framebuffer(offscreen) -> None:
+    """Have pyrender draw ``offscreen``'s renders into a float colour buffer (RGBA32F, and a depth
+    buffer): blending (the pad's soft edge, shadows) then mixes light, and nothing is rounded to 8
+    bits before the camera's own tone curve.  :func:`render_color` and :func:`render_color_depth`
+    read it back as float32 light."""
+    from OpenGL.GL import (GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT, GL_DEPTH_COMPONENT24, GL_DRAW_FRAMEBUFFER,
+                           GL_FRAMEBUFFER, GL_RENDERBUFFER, GL_RGBA32F, glBindFramebuffer, glBindRenderbuffer,
+                           glFramebufferRenderbuffer, glGenFramebuffers, glGenRenderbuffers, glRenderbufferStorage)
+
+    offscreen._platform.make_current()
+    colour, depth = glGenRenderbuffers(2)
+    for rb, fmt in ((colour, GL_RGBA32F), (depth, GL_DEPTH_COMPONENT24)):
+        glBindRenderbuffer(GL_RENDERBUFFER, rb)
+        glRenderbufferStorage(GL_RENDERBUFFER, fmt, offscreen.viewport_width, offscreen.viewport_height)
+    fb = glGenFramebuffers(1)
+    glBindFramebuffer(GL_FRAMEBUFFER, fb)
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour)
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth)
+    glBindFramebuffer(GL_FRAMEBUFFER, 0)
+    offscreen._platform.make_uncurrent()
+    offscreen._renderer._hv_float_fb = int(fb)
+    R = type(offscreen._renderer)
+    if getattr(R, "_hv_float_patched", False):
+        return
+    forward = R._configure_forward_pass_viewport
+
+    def configure(self, flags):
+        forward(self, flags)  # (its depth state), then our buffer in place of the one it bound
+        fb = getattr(self, "_hv_float_fb", None)
+        if fb is not None:
+            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
+
+    R._configure_forward_pass_viewport = configure
+    R._hv_float_patched = True
+
+
+def _read_float(offscreen, scene, flags, depth: bool) -> tuple:
+    """``(light (H, W, 3) float32, depth-buffer values (H, W) or None)`` of a render into the float
+    framebuffer (:func:`float_framebuffer`), in OpenCV's row order."""
+    from OpenGL.GL import (GL_COLOR_ATTACHMENT0, GL_DEPTH_COMPONENT, GL_FLOAT, GL_READ_FRAMEBUFFER, GL_RGB,
+                           glBindFramebuffer, glReadBuffer, glReadPixels)
+
+    plat = offscreen._platform
+    r, w, h = _draw(offscreen, scene, flags)
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, r._hv_float_fb)
+    glReadBuffer(GL_COLOR_ATTACHMENT0)
+    color = np.frombuffer(glReadPixels(0, 0, w, h, GL_RGB, GL_FLOAT), np.float32).reshape(h, w, 3)
+    z = np.frombuffer(glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT), np.float32).reshape(h, w) if depth else None
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0)
+    plat.make_uncurrent()
+    return np.ascontiguousarray(color[::-1]), (None if z is None else np.ascontiguousarray(z[::-1]))
 
 
 def linear_depth(depth, znear: float, zfar: float) -> np.ndarray:
@@ -133,14 +223,12 @@ def render_color(offscreen, scene, flags):
     """Colour only.  Under OSMesa pyrender reads back the depth buffer as well, and converts it
     to metres, on every render; that was a third of the render time for an image nobody reads."""
     plat = offscreen._platform
+    if getattr(offscreen._renderer, "_hv_float_fb", None) is not None:  # light, float32 (float_framebuffer)
+        return _read_float(offscreen, scene, flags, depth=False)[0]
     if plat.supports_framebuffers():
         color, _ = offscreen.render(scene, flags=flags)
         return color
-    plat.make_current()
-    r = offscreen._renderer
-    r.viewport_width, r.viewport_height = offscreen.viewport_width, offscreen.viewport_height
-    r.point_size = offscreen.point_size
-    r.render(scene, flags)
+    r, _, _ = _draw(offscreen, scene, flags)
     color = np.ascontiguousarray(r.read_color_buf())
     plat.make_uncurrent()
     return color

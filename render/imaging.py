@@ -70,7 +70,7 @@ def render_camera_for(camera: Camera, supersample: int) -> tuple:
 class ImageFormation:
     """Turns renders into the camera's final 8-bit images.
 
-    ``to_pixels``: one render (OpenCV, uint8, display space) -> the camera's pixel grid: lens
+    ``to_pixels``: one render (OpenCV, uint8 display values or float32 light) -> the camera's pixel grid: lens
     remap at the supersampled resolution, then the exact box average of the supersampling.
     ``depth_to_pixels``: the render's depth at each final pixel centre.  ``finish``: linear
     light -> exposure gain, defocus, shot and read noise (seeded per frame), tone curve, 8 bits,
@@ -110,11 +110,13 @@ class ImageFormation:
         self.ca_scale = params.chromatic_aberration_px / corner if params.chromatic_aberration_px > 0 else 0.0
 
     def to_pixels(self, render: np.ndarray) -> np.ndarray:
-        """One render (uint8 sRGB, render camera) -> uint8 sRGB at the camera's pixel grid.
+        """One render (uint8 sRGB, render camera) -> uint8 sRGB at the camera's pixel grid; a float32
+        render (light: ``camera.mix_in_light``) -> float32 light.
 
-        Resampling happens in display space, like OpenGL's own texture filtering and edge
-        blending: every filter a sharp frame sees treats an edge alike, and a 50 % crossing stays
-        where the label says (the projection test).  Optical blur is applied in linear light."""
+        Resampling happens in the render's own values, like OpenGL's texture filtering and edge
+        blending before it: every filter a sharp frame sees treats an edge alike, and a 50 % crossing
+        (of display values, or of light) stays where the label says (the projection test).  Optical
+        blur is applied in linear light."""
         img = render
         if self.maps is not None:
             img = cv2.remap(img, self.maps[0], self.maps[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -128,6 +130,8 @@ class ImageFormation:
 
     def linear(self, render: np.ndarray) -> np.ndarray:
         """One render -> linear light ``(H, W, 3)`` float32 at the camera's pixel grid."""
+        if render.dtype == np.float32:  # light already (camera.mix_in_light): resampled as light
+            return np.ascontiguousarray(self.to_pixels(render))
         return cv2.LUT(self.to_pixels(render), SRGB_TO_LINEAR)
 
     def linear_average(self, subframes: list) -> np.ndarray:

@@ -22,7 +22,8 @@ import numpy as np
 
 from hvloc.geometry import Camera, make_transform, rotation_z
 
-from .gl import import_pyrender, render_color, render_color_depth, translucent_texture
+from .gl import float_framebuffer, import_pyrender, linear_texture, render_color, render_color_depth, translucent_texture
+from .imaging import SRGB_GAMMA
 from .textures import GROUND_TILE_M, aruco_image, finder_marker_image, ground_texture
 
 # OpenCV camera axes (x right, y down, z forward) -> OpenGL camera axes (x right, y up, z backward)
@@ -188,14 +189,15 @@ class LandingScene:
                  camera: Camera, border_rgb, rng: np.random.Generator, shadows: bool = True,
                  znear: float = 0.05, ground_extent_m: float = 120.0, drone_size_m: float = 0.45,
                  pad_texture: np.ndarray | None = None, legs: list | None = None, pad_relief=None,
-                 deck_drop_m: float = 0.0, deck_turns: bool = False):
+                 deck_drop_m: float = 0.0, deck_turns: bool = False, light: bool = False):
         """``pad_texture``: what the pad looks like here (default: its design); ``legs``: the
         airframe's legs as ``(bottom xyz, top xyz, diameter, sRGB)`` in the body frame;
         ``pad_relief``: the printed pad's departure from flat (:class:`render.relief.PadRelief`);
         ``deck_drop_m``: how far a heaving, rolling deck may take its platform's top below its mean
         height (its box reaches as far below the ground, so that it never lifts off); ``deck_turns``:
         whether the deck rolls, pitches or yaws (the pad's light and the drone's shadow on it are
-        then worked out in the pad's frame)."""
+        then worked out in the pad's frame); ``light``: everything mixed in linear light (float
+        textures and framebuffer: ``camera.mix_in_light``), ``render`` then gives float32 light."""
         pr = import_pyrender()
         self.pr = pr
         self.camera = camera
@@ -208,7 +210,10 @@ class LandingScene:
         # shadows are drawn as layers just above what they fall on: above the relief's highest point
         self.relief_top_m = float(pad_relief.amplitude_m) if pad_relief is not None else 0.0
         amb = draw.ambient
-        scene = pr.Scene(bg_color=[0.6, 0.7, 0.85, 1.0], ambient_light=[1.0, 1.0, 1.0])
+        self.light = bool(light)
+        # colours as the scene holds them: display values, or light (the same colour, decoded)
+        held = (lambda c: np.asarray(c, np.float64) ** SRGB_GAMMA) if self.light else (lambda c: np.asarray(c, np.float64))
+        scene = pr.Scene(bg_color=[*held([0.6, 0.7, 0.85]), 1.0], ambient_light=[1.0, 1.0, 1.0])
         self.scene = scene
         self._count = 0
         from OpenGL.GL import GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_REPEAT, GL_CLAMP_TO_EDGE
@@ -232,7 +237,12 @@ class LandingScene:
                 rgba = cv2.copyMakeBorder(rgba, m, m, m, m, cv2.BORDER_REPLICATE)
                 rgba[:m, :, 3] = rgba[-m:, :, 3] = 0
                 rgba[:, :m, 3] = rgba[:, -m:, 3] = 0
-            tex = pr.Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA", sampler=sampler)
+            if self.light:
+                lin = rgba.astype(np.float32) * np.float32(1 / 255)
+                lin[..., :3] = held(lin[..., :3])
+                tex = linear_texture(pr, lin, sampler)
+            else:
+                tex = pr.Texture(source=np.ascontiguousarray(rgba), source_channels="RGBA", sampler=sampler)
             if soft_edge_px:
                 translucent_texture(tex)
             mat = pr.MetallicRoughnessMaterial(baseColorTexture=tex, metallicFactor=0.0, roughnessFactor=1.0,
@@ -253,7 +263,7 @@ class LandingScene:
             return pr.Mesh([prim])
 
         def flat_quad(rgb, sx, sy, alpha=1.0):
-            mat = pr.MetallicRoughnessMaterial(baseColorFactor=[*(c / 255.0 for c in rgb), alpha], metallicFactor=0.0,
+            mat = pr.MetallicRoughnessMaterial(baseColorFactor=[*held(np.asarray(rgb) / 255.0), alpha], metallicFactor=0.0,
                                                roughnessFactor=1.0, alphaMode="BLEND" if alpha < 1 else "OPAQUE")
             hx, hy = sx / 2, sy / 2
             pos = np.array([[-hx, -hy, 0], [hx, -hy, 0], [hx, hy, 0], [-hx, hy, 0]], np.float32)
@@ -271,9 +281,9 @@ class LandingScene:
             m = trimesh.creation.box(size)
             n_W = m.face_normals @ rotation_z(yaw).T
             rel = (amb + direct * np.clip(n_W @ sun, 0.0, None)) / horizontal
-            lin = (np.asarray(rgb, float)[None, :] / 255.0) ** 2.2 * rel[:, None]
-            srgb = np.clip(lin, 0, 1) ** (1 / 2.2) * 255
-            m.visual.face_colors = np.column_stack([srgb, np.full(len(srgb), 255)]).astype(np.uint8)
+            lin = (np.asarray(rgb, float)[None, :] / 255.0) ** SRGB_GAMMA * rel[:, None]
+            held_c = np.clip(lin, 0, 1) ** (1.0 if self.light else 1 / SRGB_GAMMA) * 255
+            m.visual.face_colors = np.column_stack([held_c, np.full(len(held_c), 255)]).astype(np.uint8)
             return pr.Mesh.from_trimesh(m, smooth=False)
 
         def pose_xy(x, y, z, yaw=0.0):
@@ -309,7 +319,9 @@ class LandingScene:
         self._amb, self._direct = amb, direct
         # planar shadows: what the sun does not reach gets only ambient light (alpha in sRGB)
         k = amb / horizontal
-        self.shadow_alpha = float(np.clip(1 - k ** (1 / 2.2), 0.0, 0.95)) if shadows else 0.0
+        # (a shadow layer blends black over what it covers: in light by 1 - k, in display values so that
+        # the display value falls as light by k would)
+        self.shadow_alpha = float(np.clip(1 - k ** (1.0 if self.light else 1 / SRGB_GAMMA), 0.0, 0.95)) if shadows else 0.0
         self._shade = lambda sx, sy: flat_quad((0, 0, 0), sx, sy, self.shadow_alpha)
         # the layer that shadows on the ground lie in: above the pad when the pad lies on the ground
         # (a shadow in the pad's own plane z-fights with it: the depth test then draws it in stripes)
@@ -338,7 +350,8 @@ class LandingScene:
 
             seg = np.array([bottom, top], float)
             m = trimesh.creation.cylinder(radius=diameter / 2, segment=seg, sections=16)
-            m.visual.face_colors = np.array([*rgb, 255], np.uint8)
+            m.visual.face_colors = np.array([*(np.round(held(np.asarray(rgb) / 255.0) * 255) if self.light else rgb), 255],
+                                            np.uint8)
             self.airframe_nodes.append(self._add(pr.Mesh.from_trimesh(m, smooth=False), np.eye(4), "airframe",
                                                  parent=self.body_node))
         self.drone_size = drone_size_m
@@ -354,6 +367,8 @@ class LandingScene:
         self.cam_node = scene.add(pr.IntrinsicsCamera(fx=fx, fy=fy, cx=cx, cy=cy, znear=self.znear, zfar=self.zfar),
                                   pose=np.eye(4))
         self.renderer = pr.OffscreenRenderer(camera.width, camera.height)
+        if self.light:
+            float_framebuffer(self.renderer)
 
     def _add(self, mesh, pose=None, name: str = "mesh", parent=None):
         """Add a mesh node with a unique, ordered name (draw order is deterministic)."""

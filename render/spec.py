@@ -156,6 +156,10 @@ class CameraSpec(_Model):
     fps: float = Field(30.0, gt=0.0, le=1000.0)
     exposure_s: float = Field(0.004, ge=0.0, description="shutter open time, centred on the frame time")
     supersample: int = Field(1, ge=1, le=4, description="render at this many times the resolution, then average")
+    mix_in_light: bool = Field(False, description="mix texels, edges and the supersampled pixels in linear light, "
+                               "as a camera's pixel sums light (float textures and framebuffer); the default mixes "
+                               "8-bit display values, which darkens a far pad's fine pattern and moves its edges "
+                               "where the localizer's fits expect them (see README: not yet the default)")
     rolling_shutter_line_s: float = Field(0.0, ge=0.0, description="time between the exposures of consecutive rows "
                                           "(0: global shutter); the frame's time and labels are those of its middle row")
     vignetting: NonNegRange = Field((0.0, 0.0), description="light lost at the image corners (0.3: 30 %, falling "

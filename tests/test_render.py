@@ -44,16 +44,25 @@ def sharp_datasets(tmp_path_factory):
     fish = spec_from(SPECS / "sharp.yaml", **{"camera.model": "fisheye", "camera.hfov_deg": 90.0,
                                               "camera.dist": [0.03, -0.012, 0.002, -0.0002], "name": "sharpfish",
                                               "camera.supersample": 2})
+    # the whole chain mixed in light (camera.mix_in_light), through the barrel lens, supersampled
+    light = spec_from(SPECS / "sharp.yaml", **{"camera.dist": [-0.22, 0.06, 0.001, -0.0007, -0.005],
+                                               "name": "sharplight", "camera.supersample": 2,
+                                               "camera.mix_in_light": True})
     out = {}
-    for s in (plain, dist, fish):
+    for s in (plain, dist, fish, light):
         generate(s, root / s.name, show_progress=False)
         out[s.name] = Dataset(root / s.name)
     return out
 
 
-def _corner_errors(seq):
+def _corner_errors(seq, light: bool = False):
     """Errors (px) of refined corners against projected labels: marker squares where their
-    modules are >= 4 px, the pad outline where it is fully in view."""
+    modules are >= 4 px, the pad outline where it is fully in view.  ``light``: edges found in
+    linear light (a frame whose pixels summed light has its 50 % crossings there, not in the
+    display values)."""
+    from hvloc.features import srgb_to_linear
+
+    as_fitted = srgb_to_linear if light else (lambda v: v)
     cam = seq.camera
     pad = seq.pad
     errs = {"markers": [], "outline": []}
@@ -64,7 +73,7 @@ def _corner_errors(seq):
         rng = np.random.default_rng(k)
         jobs = []
         if f.markers_visible == 3:
-            gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(np.float32)
+            gray = as_fitted(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)).astype(np.float32)
             sq = [s.corners for m in pad.markers("corner") for s in m.squares]
             module = min(np.linalg.norm(np.diff(cam.project(transform_points(pad2cam, q)), axis=0), axis=1).min()
                          for q in sq[::3]) / 7
@@ -72,7 +81,7 @@ def _corner_errors(seq):
                 jobs += [("markers", q, gray, min(3.0, 0.45 * module)) for q in sq]
         if f.pad_fully_visible:
             # magenta against the grey platform: the green channel has the contrast
-            jobs.append(("outline", pad.outer_corners_P, rgb[..., 1].astype(np.float32), 2.0))
+            jobs.append(("outline", pad.outer_corners_P, as_fitted(rgb[..., 1]).astype(np.float32), 2.0))
         for kind, P, img, hw in jobs:
             truth = cam.project(transform_points(pad2cam, P))
             found, _ = refine_quad(img, truth + rng.uniform(-0.7, 0.7, truth.shape), half_width=hw, camera=cam)
@@ -81,17 +90,25 @@ def _corner_errors(seq):
     return {k: np.array(v) for k, v in errs.items()}
 
 
-@pytest.mark.parametrize("name", ["sharp", "sharpdist", "sharpfish"])
+@pytest.mark.parametrize("name", ["sharp", "sharpdist", "sharpfish", "sharplight"])
 def test_projection_consistency(sharp_datasets, name):
-    """Corners found in rendered images agree with pad.json projected by the labels."""
+    """Corners found in rendered images agree with pad.json projected by the labels.  A frame mixed
+    in light (``camera.mix_in_light``) has its edges where the labels say in light: its display
+    values put them 0.34-0.55 px off (the dark side's share of a mixed pixel reads darker than its
+    share of light), as they do a real camera's frame; and a frame mixed in display values has
+    them 0.34-0.45 px off in light."""
     seq = sharp_datasets[name][0]
-    errs = _corner_errors(seq)
+    light = name == "sharplight"
+    errs = _corner_errors(seq, light=light)
     for kind, e in errs.items():
         assert len(e) >= 40, f"{name}: only {len(e)} {kind} corners checked"
     e = np.concatenate(list(errs.values()))
     med, worst = float(np.median(e)), float(e.max())
     detail = ", ".join(f"{k}: median {np.median(v):.3f} max {v.max():.3f}" for k, v in errs.items())
     assert med <= 0.1 and worst <= 0.25, f"{name}: {detail} px"
+    if name in ("sharp", "sharplight"):  # measured in the other space, the same frames' corners are off
+        other = np.concatenate(list(_corner_errors(seq, light=not light).values()))
+        assert np.median(other) > 0.2, (name, np.median(other))
 
 
 @pytest.mark.parametrize("name", ["sharpdist", "sharpfish"])
@@ -590,3 +607,39 @@ def test_every_shipped_flight_is_one_a_multirotor_can_fly():
                                                           "trajectory.duration_s": [3.0, 3.0]})
     tilt, t = steepest_tilt(_sequence_trajectory(steep, 0)[2])
     assert tilt > MAX_TILT_DEG, (tilt, t)
+
+
+@pytest.mark.parametrize("light", [False, True])
+def test_a_fine_pattern_seen_from_afar_is_as_bright_as_its_light(light):
+    """A pad printed with a one-texel black-and-white checker, seen from 3 and 8 m (about 9 and 25
+    texels to a pixel).  A camera's pixel sums light: half white is half the light (a display value
+    of 186 through the 2.2 tone curve).  Mixed in display values (the default) the mipmaps make it
+    128, a fifth of the light; mixed in light (``camera.mix_in_light``, the render then float32
+    light) it is half.  (The shipped pad's white field from 4-20 m: 0.73-0.78 of full light where
+    its texture averages 0.84; in light 0.84-0.85.)"""
+    from hvloc.geometry import Camera, look_at_cam2world
+    from pad_design import make_pad
+    from render.scene import PAD_THICKNESS_M, LandingScene, SceneDraw
+
+    pad = make_pad(ppm=500)
+    # 480 texels and the soft edge's 2 x 16: a power of two, whose mipmaps halve exactly (Mesa's
+    # mipmaps of other sizes alias a one-texel checker into bright and dark blotches)
+    n = 480
+    checker = np.where((np.add.outer(np.arange(n), np.arange(n)) % 2)[..., None] == 0, 255, 0).astype(np.uint8)
+    checker = np.ascontiguousarray(np.repeat(checker, 3, axis=2))
+    draw = SceneDraw("concrete", math.radians(60.0), 0.0, 3.0, 0.35, [], [], [])
+    cam = Camera.from_hfov(200, 200, math.radians(60))
+    scene = LandingScene(pad, draw, 0.0, 0.0, cam, (255, 48, 224), np.random.default_rng(0), shadows=False,
+                         pad_texture=checker, light=light)
+    try:
+        for h in (3.0, 8.0):
+            T_W_C = look_at_cam2world((0.0, 0.0, h), (0.0, 0.0, 0.0))
+            img = scene.render(T_W_C)
+            assert img.dtype == (np.float32 if light else np.uint8)
+            lin = img.astype(np.float64) if light else (img / 255.0) ** 2.2
+            u, v = np.round(cam.project_from(T_W_C, [[0.0, 0.0, PAD_THICKNESS_M]])[0]).astype(int)
+            centre = lin[v - 4:v + 5, u - 4:u + 5]
+            want = 0.5 if light else 0.5 ** 2.2  # half the light, or half the display value: a fifth of it
+            assert np.abs(centre - want).max() < 0.01, (h, float(centre.min()), float(centre.max()))
+    finally:
+        scene.close()
