@@ -939,14 +939,19 @@ def _too_smeared(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera:
 def _through_quad(quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None, pts_xy: np.ndarray,
                   square: np.ndarray | None = None):
     """``(N, 2)`` pixels of pad-plane points ``pts_xy`` (metres, pad frame) where the homography that
-    takes the pad's outer corners (or the corners ``square``, (4, 2) pad frame), in order, onto
-    ``quad_px`` puts them, the lens included; ``None`` when the quad has a corner the lens cannot
-    undistort."""
+    takes the pad's outer corners (or the points ``square``, (4+, 2) pad frame: with more than four,
+    their least-squares homography), in order, onto ``quad_px`` puts them, the lens included;
+    ``None`` when the quad has a corner the lens cannot undistort."""
     und = camera.undistort_pixels(quad_px) if camera is not None and camera.has_distortion else quad_px
     if not np.isfinite(und).all():
         return None
     src = geo.outer_corners[:, :2] if square is None else np.asarray(square)[:, :2]
-    H = cv2.getPerspectiveTransform(src.astype(np.float32), np.asarray(und, np.float32))
+    if len(src) > 4:
+        H = cv2.findHomography(np.asarray(src, np.float64), np.asarray(und, np.float64), 0)[0]
+        if H is None:
+            return None
+    else:
+        H = cv2.getPerspectiveTransform(src.astype(np.float32), np.asarray(und, np.float32))
     px = cv2.perspectiveTransform(np.asarray(pts_xy, np.float64).reshape(1, -1, 2), H)[0]
     if camera is not None and camera.has_distortion:
         from .features import _distort_px
@@ -1609,7 +1614,8 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
     outline is in view and ``rgb`` is given (they double the baseline, which pins the tilt).
     With ``prior`` (a recent ``T_P_C``), two markers of a set, the third out of view or unreadable,
     are named by where the prior puts the set's markers (:func:`_pair_by_prior`); without one, with
-    ``design`` and the IMU's ``up_C``, by the pad's printed design around them (:func:`_pair_by_design`).
+    ``design``, by the pad's printed design around them (:func:`_pair_by_design`; the IMU's ``up_C``
+    makes the view head-on, else it is taken for a nadir camera's).
     Returns ``(Detection | None, reason)``."""
     img, x0, y0 = _crop(gray, roi)
     if img.shape[0] < 16 or img.shape[1] < 16:
@@ -1848,26 +1854,17 @@ def _pair_by_design(g: np.ndarray, nests: list, sets: dict, geo: PadGeometry, ca
     if not readings:
         return None
     cam = _shifted(camera, x0, y0)
-    lens = cam is not None and cam.has_distortion
     s = geo.side_m
     scores = []
-    for set_name, quads, _ in readings:
+    for set_name, quads, module_px in readings:
         ms = sets[set_name]
-        dst = np.concatenate(list(quads.values()))
-        ideal = cam.undistort_pixels(dst) if lens else dst
-        H = cv2.findHomography(np.concatenate([ms[n].outer_corners[:, :2] for n in quads]), ideal, 0)[0] \
-            if np.isfinite(ideal).all() else None
-        if H is None:
+        n = int(np.clip(round(7.0 * module_px * s / ms[next(iter(quads))].size_m), 12, 64))  # the pad's side, px
+        pts = _design_cells(s, n)
+        px = _through_quad(np.concatenate(list(quads.values())), geo, cam, pts,
+                           square=np.concatenate([ms[k].outer_corners for k in quads]))
+        if px is None:
             scores.append(-1.0)
             continue
-        side_px = float(np.mean(np.linalg.norm(ideal[1:4] - ideal[0:3], axis=1))) * s / ms[next(iter(quads))].size_m
-        n = int(np.clip(round(side_px), 12, 64))
-        pts = _design_cells(s, n)
-        px = cv2.perspectiveTransform(pts.reshape(1, -1, 2), H)[0]
-        if lens:
-            from .features import _distort_px
-
-            px = _distort_px(cam, px)
         beyond = np.ones(len(pts), bool)
         for name in quads:  # every reading puts a marker where the nests are: they tell nothing
             half = 0.5 * ms[name].size_m + s / n

@@ -8,6 +8,7 @@ speed benchmark.
 from __future__ import annotations
 
 import ctypes
+import functools
 import ctypes.util
 import glob
 import os
@@ -132,6 +133,14 @@ def linear_texture(pr, linear_rgba: np.ndarray, sampler):
     """A pyrender texture whose texels are light: ``linear_rgba`` (H, W, 4) float32 in 0..1, held
     as half floats, so that its mipmaps and its filtering average light.  (pyrender's own textures
     are 8 bits of whatever they are given: a float source is truncated to bytes.)"""
+    tex = _linear_texture_class(pr)(source=np.zeros((2, 2, 4), np.uint8), source_channels="RGBA", sampler=sampler)
+    tex.light = np.asarray(linear_rgba, np.float32)
+    return tex
+
+
+@functools.lru_cache(maxsize=None)
+def _linear_texture_class(pr):
+    """:func:`linear_texture`'s class (made once: it subclasses the imported pyrender's Texture)."""
     from OpenGL.GL import (GL_FLOAT, GL_RGBA, GL_RGBA16F, GL_TEXTURE_MAG_FILTER, GL_TEXTURE_MIN_FILTER,
                            GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, glBindTexture, glGenTextures, glGenerateMipmap,
                            glTexImage2D, glTexParameteri)
@@ -150,9 +159,7 @@ def linear_texture(pr, linear_rgba: np.ndarray, sampler):
                 glTexParameteri(self.tex_type, name, value)
             glBindTexture(self.tex_type, 0)
 
-    tex = LinearTexture(source=np.zeros((2, 2, 4), np.uint8), source_channels="RGBA", sampler=sampler)
-    tex.light = np.asarray(linear_rgba, np.float32)
-    return tex
+    return LinearTexture
 
 
 def float_framebuffer(offscreen) -> None:
