@@ -69,7 +69,7 @@ def render_speed(spec_path, blur: bool, n: int, blur_method: str = "velocity", s
     cam2pad = r.cam2pad(int(frames[0]))
     levels = [r.pad.texture_rgb]
     pinhole = r.camera.without_distortion()  # the floor: one plain warpPerspective at the output size
-    t_warp = _timeit(lambda: warp_pad_view(r.pad, pinhole, cam2pad, supersample=1, levels=levels), n)
+    t_warp = _timeit(lambda: warp_pad_view(r.pad, pinhole, cam2pad, supersample=1, levels=levels, in_light=False), n)
     r.close()
     raster = stages.get("raster+readback", 0.0)
     del cv2, invert

@@ -42,6 +42,14 @@ class ImagingParams:
         return dict(self.__dict__)
 
 
+def display_bytes(render: np.ndarray) -> np.ndarray:
+    """A scene render as 8-bit display values: a uint8 render as it is, a float32 one (light:
+    ``camera.mix_in_light``) through the renderer's tone convention (``light ** (1 / 2.2)``)."""
+    if render.dtype == np.uint8:
+        return render
+    return cv2.convertScaleAbs(cv2.pow(np.clip(render, 0.0, 1.0).astype(np.float32), 1.0 / SRGB_GAMMA), alpha=255.0)
+
+
 def render_camera_for(camera: Camera, supersample: int) -> tuple:
     """The pinhole camera to rasterise with, and the remap grid (or None) to the final camera.
 

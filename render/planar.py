@@ -14,15 +14,48 @@ from hvloc.geometry import Camera, invert, pad_plane_homography  # noqa: F401  (
 from pad_design.texture import texture_to_pad
 
 
+_LIGHT_LEVELS: dict = {}  # id(texture) -> (texture, its light pyramid): the views of one pad share it
+
+
 def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110, 70),
-                  levels: list | None = None, supersample: int = 3) -> np.ndarray:
+                  levels: list | None = None, supersample: int = 3, in_light: bool = False,
+                  blur_sigma_px: float = 0.0) -> np.ndarray:
     """RGB ``(H, W, 3)`` uint8 view of the pad (on a flat background colour) from pose ``cam2pad``.
 
     Pixels integrate over their area like a camera's: the view is warped at ``supersample``
     times the resolution (from a texture pyramid level with >= 4 texels per sample, so nothing
-    aliases) and box-averaged down.  Lens distortion is applied exactly by remapping the ideal
-    pinhole view.
+    aliases) and box-averaged down.  By default texels and samples are averaged in their 8-bit
+    display values, as the renderer's revisions up to 11 did (``levels``, a pyramid of the texture
+    as it is, may be passed to share it); ``in_light``: in light, as a camera's pixel sums it and
+    the renderer now mixes it (``camera.mix_in_light``), then blurred by a Gaussian of
+    ``blur_sigma_px`` (a lens's) and written through the renderer's tone curve.  Lens distortion is
+    applied exactly by remapping the ideal pinhole view.  (The tests' views are still mixed in
+    display values, where the localizer's fits were tuned: README, "Mixing in light".)
     """
+    if in_light:
+        from .imaging import SRGB_GAMMA, SRGB_TO_LINEAR
+
+        if levels is None:
+            tex = pad.texture_rgb
+            cached = _LIGHT_LEVELS.get(id(tex))
+            if cached is None or cached[0] is not tex:
+                if len(_LIGHT_LEVELS) >= 8:
+                    _LIGHT_LEVELS.clear()
+                cached = _LIGHT_LEVELS[id(tex)] = (tex, [cv2.LUT(tex, SRGB_TO_LINEAR)])
+            levels = cached[1]
+        bg = tuple(float(SRGB_TO_LINEAR[int(c)]) for c in background)
+        lin = _warp_levels(pad, camera, cam2pad, bg, levels, supersample)
+        if blur_sigma_px > 0:
+            lin = cv2.GaussianBlur(lin, (0, 0), blur_sigma_px, borderType=cv2.BORDER_REPLICATE)
+        return cv2.convertScaleAbs(cv2.pow(np.clip(lin, 0.0, 1.0), 1.0 / SRGB_GAMMA), alpha=255.0)
+    if blur_sigma_px > 0:
+        raise ValueError("warp_pad_view: blur_sigma_px blurs light: it needs in_light=True")
+    return _warp_levels(pad, camera, cam2pad, tuple(int(c) for c in background), levels, supersample)
+
+
+def _warp_levels(pad, camera: Camera, cam2pad: np.ndarray, background, levels: list | None, supersample: int):
+    """:func:`warp_pad_view`'s warp of ``levels`` (the texture's pyramid, made as needed: uint8
+    display values or float32 light), whatever their values are."""
     ss = max(1, int(supersample))
     cam = camera.without_distortion()
     cam_ss = cam.scaled(ss) if ss > 1 else cam
@@ -47,7 +80,8 @@ def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110,
     ppm = pad.ppm / (2 ** level)  # level texel i is centred on level-0 texels [i 2^l, (i+1) 2^l)
     Htot = H @ texture_to_pad(pad.side_m, ppm)
     img = cv2.warpPerspective(src, Htot, (cam_ss.width, cam_ss.height), flags=cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=tuple(int(c) for c in background))
+                              borderMode=cv2.BORDER_CONSTANT,
+                              borderValue=background)
     if ss > 1:
         img = cv2.resize(img, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
     if camera.has_distortion:

@@ -643,7 +643,8 @@ class LandingScene:
         return "part"
 
     def render(self, cam2world: np.ndarray) -> np.ndarray:
-        """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``)."""
+        """``(H, W, 3)`` uint8 RGB of the render camera at ``cam2world`` (OpenCV camera, ``T_W_C``), or
+        float32 light where the scene mixes light (:func:`render.imaging.display_bytes` writes it)."""
         self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
         return render_color(self.renderer, self.scene, self.pr.RenderFlags.FLAT)
 
@@ -653,8 +654,9 @@ class LandingScene:
             node.mesh.is_visible = (not only) or node in self.airframe_nodes
 
     def render_with_depth(self, cam2world: np.ndarray) -> tuple:
-        """``(rgb (H, W, 3) uint8, z (H, W) float32)``: colour and depth along the optical axis in
-        metres (``inf`` where nothing), at the render camera's pixels."""
+        """``(rgb (H, W, 3) uint8, or float32 light where the scene mixes light, z (H, W) float32)``:
+        colour and depth along the optical axis in metres (``inf`` where nothing), at the render
+        camera's pixels."""
         self.scene.set_pose(self.cam_node, pyrender_camera_pose(cam2world))
         return render_color_depth(self.renderer, self.scene, self.pr.RenderFlags.FLAT, self.znear, self.zfar)
 

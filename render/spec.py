@@ -56,7 +56,12 @@ from pad_design.spec import PadSpec
 #      pad centre), where keep_clear_m was less: a box stood through the platform, a patch or a
 #      marker under it.  Only specs with a platform, distractors drawn at random and keep_clear_m under
 #      the platform's half-diagonal move (none of the shipped specs).
-RENDER_REVISION = 11
+#  12: the whole chain mixes light by default (camera.mix_in_light, now true): textures, their mipmaps
+#      and filtering, the pad's soft edge, shadows and the supersampled pixels average light, as a
+#      camera's pixel sums it, where they averaged 8-bit display values (a far pad's fine pattern came
+#      out darker than its light, its edges where the localizer's fits expected them).  Every spec
+#      that does not ask for mix_in_light: false moves; one that does renders as its old revision did.
+RENDER_REVISION = 12
 HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
 GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
 ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
@@ -64,6 +69,8 @@ ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
 
 def render_revision(spec: "DatasetSpec") -> int:
     """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
+    if spec.camera.mix_in_light:
+        return 12
     d = spec.environment.distractors
     drawn_at_random = max(d.boxes[1], d.decoy_patches[1], d.decoy_markers[1]) > 0
     if drawn_at_random and spec.platform.height_m > 0 and d.keep_clear_m < spec.platform.size_m / math.sqrt(2.0):
@@ -156,10 +163,10 @@ class CameraSpec(_Model):
     fps: float = Field(30.0, gt=0.0, le=1000.0)
     exposure_s: float = Field(0.004, ge=0.0, description="shutter open time, centred on the frame time")
     supersample: int = Field(1, ge=1, le=4, description="render at this many times the resolution, then average")
-    mix_in_light: bool = Field(False, description="mix texels, edges and the supersampled pixels in linear light, "
-                               "as a camera's pixel sums light (float textures and framebuffer); the default mixes "
-                               "8-bit display values, which darkens a far pad's fine pattern and moves its edges "
-                               "where the localizer's fits expect them (see README: not yet the default)")
+    mix_in_light: bool = Field(True, description="mix texels, edges and the supersampled pixels in linear light, "
+                               "as a camera's pixel sums light (float textures and framebuffer); false: in 8-bit "
+                               "display values, as revisions up to 11 did (a far pad's fine pattern darker than its "
+                               "light, its edges moved): to reproduce an old dataset")
     rolling_shutter_line_s: float = Field(0.0, ge=0.0, description="time between the exposures of consecutive rows "
                                           "(0: global shutter); the frame's time and labels are those of its middle row")
     vignetting: NonNegRange = Field((0.0, 0.0), description="light lost at the image corners (0.3: 30 %, falling "

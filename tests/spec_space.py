@@ -85,7 +85,7 @@ FIELDS = {
     "camera.fps": (_uniform(2.0, 4.0), 3.0, {}),
     "camera.exposure_s": (_choice([0.0, 0.004, 0.01]), 0.002, {}),
     "camera.supersample": (_int(1, 2), 2, {}),
-    "camera.mix_in_light": (_choice([False, False, True]), True, {}),
+    "camera.mix_in_light": (_choice([True, True, False]), False, {}),
     "camera.rolling_shutter_line_s": (_choice([0.0, 0.0, 3e-5]), 4e-5, {"trajectory.yaw_change_deg": [300.0, 300.0]}),
     "camera.vignetting": (_rng_range(0.0, 0.4), [0.4, 0.4], {}),
     "camera.chromatic_aberration_px": (_rng_range(0.0, 1.0), [1.5, 1.5], {"camera.width": 160, "camera.height": 160}),

@@ -44,12 +44,13 @@ def sharp_datasets(tmp_path_factory):
     fish = spec_from(SPECS / "sharp.yaml", **{"camera.model": "fisheye", "camera.hfov_deg": 90.0,
                                               "camera.dist": [0.03, -0.012, 0.002, -0.0002], "name": "sharpfish",
                                               "camera.supersample": 2})
-    # the whole chain mixed in light (camera.mix_in_light), through the barrel lens, supersampled
-    light = spec_from(SPECS / "sharp.yaml", **{"camera.dist": [-0.22, 0.06, 0.001, -0.0007, -0.005],
-                                               "name": "sharplight", "camera.supersample": 2,
-                                               "camera.mix_in_light": True})
+    # the whole chain mixed in 8-bit display values (camera.mix_in_light: false, as revisions up to
+    # 11 rendered), through the barrel lens, supersampled
+    display = spec_from(SPECS / "sharp.yaml", **{"camera.dist": [-0.22, 0.06, 0.001, -0.0007, -0.005],
+                                                 "name": "sharpdisplay", "camera.supersample": 2,
+                                                 "camera.mix_in_light": False})
     out = {}
-    for s in (plain, dist, fish, light):
+    for s in (plain, dist, fish, display):
         generate(s, root / s.name, show_progress=False)
         out[s.name] = Dataset(root / s.name)
     return out
@@ -90,15 +91,15 @@ def _corner_errors(seq, light: bool = False):
     return {k: np.array(v) for k, v in errs.items()}
 
 
-@pytest.mark.parametrize("name", ["sharp", "sharpdist", "sharpfish", "sharplight"])
+@pytest.mark.parametrize("name", ["sharp", "sharpdist", "sharpfish", "sharpdisplay"])
 def test_projection_consistency(sharp_datasets, name):
     """Corners found in rendered images agree with pad.json projected by the labels.  A frame mixed
-    in light (``camera.mix_in_light``) has its edges where the labels say in light: its display
-    values put them 0.34-0.55 px off (the dark side's share of a mixed pixel reads darker than its
-    share of light), as they do a real camera's frame; and a frame mixed in display values has
-    them 0.34-0.45 px off in light."""
+    in light (``camera.mix_in_light``, the default) has its edges where the labels say in light: its
+    display values put them 0.34-0.55 px off (the dark side's share of a mixed pixel reads darker
+    than its share of light), as they do a real camera's frame; and a frame mixed in display values
+    (``mix_in_light: false``) has them there, 0.34-0.45 px off in light."""
     seq = sharp_datasets[name][0]
-    light = name == "sharplight"
+    light = name != "sharpdisplay"
     errs = _corner_errors(seq, light=light)
     for kind, e in errs.items():
         assert len(e) >= 40, f"{name}: only {len(e)} {kind} corners checked"
@@ -106,7 +107,7 @@ def test_projection_consistency(sharp_datasets, name):
     med, worst = float(np.median(e)), float(e.max())
     detail = ", ".join(f"{k}: median {np.median(v):.3f} max {v.max():.3f}" for k, v in errs.items())
     assert med <= 0.1 and worst <= 0.25, f"{name}: {detail} px"
-    if name in ("sharp", "sharplight"):  # measured in the other space, the same frames' corners are off
+    if name in ("sharp", "sharpdisplay"):  # measured in the other space, the same frames' corners are off
         other = np.concatenate(list(_corner_errors(seq, light=not light).values()))
         assert np.median(other) > 0.2, (name, np.median(other))
 
@@ -371,14 +372,19 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
         validate_model(DatasetSpec, {"camera": {"model": "fisheye", "dist": [0, 0, 0, 0, 0]}})
     # the lens model is part of a spec's identity; a pinhole without distortion is the default spec,
     # whose identity is the renderer's revision alone (RENDER_REVISION: what an old cache was made by;
-    # revision 7 changed the ground detail every default spec draws)
+    # revision 12 mixes light, which every default spec does)
     plain = validate_model(DatasetSpec, {}).sha256()
     assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
-    assert plain == hashlib.sha256(json.dumps({"render_revision": 7}, separators=(",", ":")).encode()).hexdigest()
+    assert plain == hashlib.sha256(json.dumps({"render_revision": 12}, separators=(",", ":")).encode()).hexdigest()
+    # a spec that mixes display values, as revisions up to 11 did, keeps the revision that last
+    # changed what it draws (revision 7 the ground detail every such default spec draws)
+    display = {"camera": {"mix_in_light": False}}
+    assert validate_model(DatasetSpec, display).sha256() == hashlib.sha256(json.dumps(
+        {"camera": {"mix_in_light": False}, "render_revision": 7}, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     # revisions 3 (glare on a wrinkled pad's facets) and 4 (a glossy or wrinkled pad's light at
     # its edge's pixels by their share) moved only the specs that can draw such a pad (seen on
     # sand without ground detail, which revisions 6 and 7 left alone)
-    bare = {"environment": {"ground_detail": False, "ground": ["sand"]}}
+    bare = {**display, "environment": {"ground_detail": False, "ground": ["sand"]}}
     wrinkled = {**bare, "pad_material": {"relief_m": [0.01, 0.01]}}
     glossy = {**bare, "pad_material": {"gloss": [0.3, 0.3]}}
     both = {**bare, "pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
@@ -386,6 +392,7 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
     from render.spec import render_revision
 
     assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [5, 5, 5, 2]
+    assert {render_revision(validate_model(DatasetSpec, {**v, "camera": {}})) for v in (wrinkled, dirty)} == {12}
     assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 
@@ -482,13 +489,15 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     """Render revision 6 changed asphalt and concrete, revision 7 the ground detail and the grasses'
     rasterised texture, revision 8 asphalt (detail or not): a spec's identity takes a revision only
     when one of its sequences draws what it changed (as plan_sequence draws its scene), so every
-    other cached dataset stays valid."""
+    other cached dataset stays valid.  (Specs that mix display values, as those revisions drew: revision
+    12, light, moved every other.)"""
+    DISPLAY = {"camera": {"mix_in_light": False}}
     from render.plan import drawn_ground_kinds, plan_sequence
     from render.spec import render_revision
 
     seen = {}
     for seed in range(16):
-        spec = DatasetSpec.model_validate({"seed": seed, "sequences": 2,
+        spec = DatasetSpec.model_validate({**DISPLAY, "seed": seed, "sequences": 2,
                                            "environment": {"ground": ["asphalt", "grass", "sand"], "ground_detail": False}})
         kinds = drawn_ground_kinds(spec)
         assert kinds == {plan_sequence(spec, i).scene_draw.ground for i in range(2)}
@@ -497,7 +506,7 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     assert seen[frozenset({"grass"})] == 7 and seen[frozenset({"asphalt", "sand"})] == 8, seen
     assert seen[frozenset({"asphalt", "grass"})] == 8, seen
     def revision(**env):
-        return render_revision(DatasetSpec.model_validate({"environment": env}))
+        return render_revision(DatasetSpec.model_validate({**DISPLAY, "environment": env}))
 
     assert revision(ground=["sand"], ground_detail=False) == 2
     assert revision(ground=["concrete"], ground_detail=False) == 6
@@ -506,13 +515,13 @@ def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
     assert revision(ground=["concrete"]) == 7 and revision(ground=["asphalt"]) == 8
     # revision 9: the drone's shadow past a platform's edge, a turning deck's platform's shadow
     # (a spec with a platform and shadows, whatever its ground)
-    platform = {"platform": {"height_m": 0.5}}
+    platform = {**DISPLAY, "platform": {"height_m": 0.5}}
     assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"]}})) == 9
     assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"], "shadows": False,
                                                                                    "ground_detail": False}})) == 2
     # revision 10: distractors clear of a moving platform's whole path (a platform velocity and
     # distractors drawn at random; none drawn: nothing moved)
-    moving = {"platform": {"height_m": 0.5, "velocity_mps": [0.5, 0.0]}}
+    moving = {**DISPLAY, "platform": {"height_m": 0.5, "velocity_mps": [0.5, 0.0]}}
     assert render_revision(DatasetSpec.model_validate(moving)) == 10
     assert render_revision(DatasetSpec.model_validate({**moving, "environment": {"distractors": {
         "boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}})) == 9

@@ -17,6 +17,7 @@ from render.checks import check_image
 from render.dataset import Dataset, sha256_file, verify_dataset
 from render.frames import SequenceRenderer
 from render.generate import generate
+from render.imaging import display_bytes
 from render.phase import PadSamples
 from render.spec import DatasetSpec
 from tests.conftest import run_cli
@@ -694,9 +695,11 @@ def test_no_distractor_drawn_at_random_stands_in_the_platform():
             assert not on_platform(x, y, yaw, size, size), (seed, x, y, size)
         drawn += len(boxes) + len(sc.decoy_patches) + len(sc.decoy_markers)
     assert drawn >= 12 * 10
-    assert render_revision(_spec(d)) == 11
-    assert render_revision(_spec({**d, "environment": {"distractors": {"keep_clear_m": 1.2}}})) == 9  # clear anyway
-    assert render_revision(_spec({**d, "environment": {"distractors": {
+    assert render_revision(_spec(d)) == 12  # (revision 12 mixes light: every spec that does moved again)
+    old = {**d, "camera": {"mix_in_light": False}}  # (mixed in display values: what revisions up to 11 drew)
+    assert render_revision(_spec(old)) == 11
+    assert render_revision(_spec({**old, "environment": {"distractors": {"keep_clear_m": 1.2}}})) == 9  # clear anyway
+    assert render_revision(_spec({**old, "environment": {"distractors": {
         "keep_clear_m": 0.3, "boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}})) == 9  # none drawn
 
 
@@ -1206,10 +1209,11 @@ def test_the_drones_shadow_falls_past_a_platforms_edge_to_the_ground(deck):
             look = make_transform(np.diag([1.0, -1.0, -1.0]), (*(T_W_P[:2, 3] - sun[:2] / np.linalg.norm(sun[:2]) * (edge + 0.6)),
                                                                T_W_P[2, 3] + 2.5))
             sc.set_drone(away)
-            ref, _ = sc.render_with_depth(look)
-            unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
+            ref = display_bytes(sc.render_with_depth(look)[0])  # (thresholds in display values)
+            unshaded = display_bytes(r_lit.scene.render(look)).astype(float).sum(axis=2).reshape(-1)
             sc.set_drone(body)
             img, z = sc.render_with_depth(look)
+            img = display_bytes(img)
             q = _surface_points_W(cam, look, z)
             q_P = (T_W_P[:3, :3].T @ (q - T_W_P[:3, 3]).T).T
             up = (np.abs(q[:, 2]) < 0.02) | ((np.abs(q_P[:, 2]) < 0.03) & (np.abs(q_P[:, :2]).max(axis=1) < edge))
@@ -1256,7 +1260,8 @@ def test_a_turning_decks_platform_casts_its_shadow_as_it_stands():
             look = make_transform(np.diag([1.0, -1.0, -1.0]), (*(T_W_P[:2, 3] - sun[:2] / np.linalg.norm(sun[:2])),
                                                                T_W_P[2, 3] + 3.5))
             img, z = sc.render_with_depth(look)
-            unshaded = r_lit.scene.render(look).astype(float).sum(axis=2).reshape(-1)
+            img = display_bytes(img)  # (thresholds in display values)
+            unshaded = display_bytes(r_lit.scene.render(look)).astype(float).sum(axis=2).reshape(-1)
             q = _surface_points_W(cam, look, z)
             ground = (np.abs(q[:, 2]) < 0.02) & np.isfinite(z).reshape(-1) & (unshaded > 60)
             k = np.flatnonzero(ground)
