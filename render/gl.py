@@ -167,21 +167,24 @@ def float_framebuffer(offscreen) -> None:
     buffer): blending (the pad's soft edge, shadows) then mixes light, and nothing is rounded to 8
     bits before the camera's own tone curve.  :func:`render_color` and :func:`render_color_depth`
     read it back as float32 light."""
-    from OpenGL.GL import (GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT, GL_DEPTH_COMPONENT24, GL_DRAW_FRAMEBUFFER,
-                           GL_FRAMEBUFFER, GL_RENDERBUFFER, GL_RGBA32F, glBindFramebuffer, glBindRenderbuffer,
-                           glFramebufferRenderbuffer, glGenFramebuffers, glGenRenderbuffers, glRenderbufferStorage)
+    from OpenGL import GL
 
     offscreen._platform.make_current()
-    colour, depth = glGenRenderbuffers(2)
-    for rb, fmt in ((colour, GL_RGBA32F), (depth, GL_DEPTH_COMPONENT24)):
-        glBindRenderbuffer(GL_RENDERBUFFER, rb)
-        glRenderbufferStorage(GL_RENDERBUFFER, fmt, offscreen.viewport_width, offscreen.viewport_height)
-    fb = glGenFramebuffers(1)
-    glBindFramebuffer(GL_FRAMEBUFFER, fb)
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour)
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth)
-    glBindFramebuffer(GL_FRAMEBUFFER, 0)
+    colour, depth = GL.glGenRenderbuffers(2)
+    for rb, fmt in ((colour, GL.GL_RGBA32F), (depth, GL.GL_DEPTH_COMPONENT24)):
+        GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+        GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, offscreen.viewport_width, offscreen.viewport_height)
+    fb = GL.glGenFramebuffers(1)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fb)
+    GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, colour)
+    GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, depth)
+    status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
     offscreen._platform.make_uncurrent()
+    if status != GL.GL_FRAMEBUFFER_COMPLETE:  # (an OpenGL that cannot draw float colour: say so, not draw black)
+        raise RuntimeError(f"this OpenGL ({offscreen._platform.__class__.__name__}) cannot draw into a float "
+                           f"framebuffer (status 0x{int(status):x}): camera.mix_in_light needs one; set "
+                           "camera.mix_in_light: false to render in 8-bit display values as revision 11 did")
     offscreen._renderer._hv_float_fb = int(fb)
     R = type(offscreen._renderer)
     if getattr(R, "_hv_float_patched", False):
@@ -192,7 +195,7 @@ def float_framebuffer(offscreen) -> None:
         forward(self, flags)  # (its depth state), then our buffer in place of the one it bound
         fb = getattr(self, "_hv_float_fb", None)
         if fb is not None:
-            glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fb)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb)
 
     R._configure_forward_pass_viewport = configure
     R._hv_float_patched = True

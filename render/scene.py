@@ -368,7 +368,11 @@ class LandingScene:
                                   pose=np.eye(4))
         self.renderer = pr.OffscreenRenderer(camera.width, camera.height)
         if self.light:
-            float_framebuffer(self.renderer)
+            try:
+                float_framebuffer(self.renderer)
+            except Exception:
+                self.close()
+                raise
 
     def _add(self, mesh, pose=None, name: str = "mesh", parent=None):
         """Add a mesh node with a unique, ordered name (draw order is deterministic)."""

@@ -622,9 +622,9 @@ def test_every_shipped_flight_is_one_a_multirotor_can_fly():
 def test_a_fine_pattern_seen_from_afar_is_as_bright_as_its_light(light):
     """A pad printed with a one-texel black-and-white checker, seen from 3 and 8 m (about 9 and 25
     texels to a pixel).  A camera's pixel sums light: half white is half the light (a display value
-    of 186 through the 2.2 tone curve).  Mixed in display values (the default) the mipmaps make it
-    128, a fifth of the light; mixed in light (``camera.mix_in_light``, the render then float32
-    light) it is half.  (The shipped pad's white field from 4-20 m: 0.73-0.78 of full light where
+    of 186 through the 2.2 tone curve).  Mixed in display values (``camera.mix_in_light: false``, as
+    revisions up to 11 rendered) the mipmaps make it 128, a fifth of the light; mixed in light (the
+    default since revision 12, the render then float32 light) it is half.  (The shipped pad's white field from 4-20 m: 0.73-0.78 of full light where
     its texture averages 0.84; in light 0.84-0.85.)"""
     from hvloc.geometry import Camera, look_at_cam2world
     from pad_design import make_pad
@@ -650,5 +650,29 @@ def test_a_fine_pattern_seen_from_afar_is_as_bright_as_its_light(light):
             centre = lin[v - 4:v + 5, u - 4:u + 5]
             want = 0.5 if light else 0.5 ** 2.2  # half the light, or half the display value: a fifth of it
             assert np.abs(centre - want).max() < 0.01, (h, float(centre.min()), float(centre.max()))
+    finally:
+        scene.close()
+
+
+def test_an_opengl_without_a_float_framebuffer_is_named_not_drawn_black(monkeypatch):
+    """Mixing in light (the default since render revision 12) draws into a float framebuffer.  An
+    OpenGL that cannot (an incomplete framebuffer) gets an error that says so and how to render
+    without one (``camera.mix_in_light: false``), not frames of black; the display-value scene
+    still renders there."""
+    from OpenGL import GL
+
+    from hvloc.geometry import Camera
+    from pad_design import make_pad
+    from render.scene import LandingScene, SceneDraw
+
+    draw = SceneDraw("concrete", math.radians(60.0), 0.0, 3.0, 0.35, [], [], [])
+    cam = Camera.from_hfov(64, 64, math.radians(60))
+    pad = make_pad(ppm=200)
+    monkeypatch.setattr(GL, "glCheckFramebufferStatus", lambda target: 0)
+    with pytest.raises(RuntimeError, match="cannot draw into a float framebuffer.*mix_in_light: false"):
+        LandingScene(pad, draw, 0.0, 0.0, cam, (255, 48, 224), np.random.default_rng(0), shadows=False, light=True)
+    scene = LandingScene(pad, draw, 0.0, 0.0, cam, (255, 48, 224), np.random.default_rng(0), shadows=False, light=False)
+    try:
+        assert scene.render(np.eye(4)).dtype == np.uint8
     finally:
         scene.close()
