@@ -27,8 +27,9 @@ def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110,
     aliases) and box-averaged down.  By default texels and samples are averaged in their 8-bit
     display values, as the renderer's revisions up to 11 did (``levels``, a pyramid of the texture
     as it is, may be passed to share it); ``in_light``: in light, as a camera's pixel sums it and
-    the renderer now mixes it (``camera.mix_in_light``), then blurred by a Gaussian of
-    ``blur_sigma_px`` (a lens's) and written through the renderer's tone curve.  Lens distortion is
+    the renderer now mixes it (``camera.mix_in_light``; ``levels``, if passed, are then light), then
+    blurred by a Gaussian of ``blur_sigma_px`` (a lens's) and written through the renderer's tone
+    curve.  Lens distortion is
     applied exactly by remapping the ideal pinhole view.  (The tests' views are still mixed in
     display values, where the localizer's fits were tuned: README, "Mixing in light".)
     """
