@@ -29,12 +29,12 @@ def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110,
     as it is, may be passed to share it); ``in_light``: in light, as a camera's pixel sums it and
     the renderer now mixes it (``camera.mix_in_light``; ``levels``, if passed, are then light), then
     blurred by a Gaussian of ``blur_sigma_px`` (a lens's) and written through the renderer's tone
-    curve.  Lens distortion is
-    applied exactly by remapping the ideal pinhole view.  (The tests' views are still mixed in
-    display values, where the localizer's fits were tuned: README, "Mixing in light".)
+    curve (:func:`render.imaging.display_bytes`).  Lens distortion is applied exactly by remapping
+    the ideal pinhole view.  (The tests' views are still mixed in display values, where the
+    localizer's fits were tuned: README, "Mixing in light".)
     """
     if in_light:
-        from .imaging import SRGB_GAMMA, SRGB_TO_LINEAR
+        from .imaging import SRGB_TO_LINEAR, display_bytes
 
         if levels is None:
             tex = pad.texture_rgb
@@ -48,7 +48,7 @@ def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110,
         lin = _warp_levels(pad, camera, cam2pad, bg, levels, supersample)
         if blur_sigma_px > 0:
             lin = cv2.GaussianBlur(lin, (0, 0), blur_sigma_px, borderType=cv2.BORDER_REPLICATE)
-        return cv2.convertScaleAbs(cv2.pow(np.clip(lin, 0.0, 1.0), 1.0 / SRGB_GAMMA), alpha=255.0)
+        return display_bytes(lin)
     if blur_sigma_px > 0:
         raise ValueError("warp_pad_view: blur_sigma_px blurs light: it needs in_light=True")
     return _warp_levels(pad, camera, cam2pad, tuple(int(c) for c in background), levels, supersample)
