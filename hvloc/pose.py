@@ -404,13 +404,15 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
                       gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
                       sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None,
                       level_up_C: np.ndarray | None = None, tilt_chi2: float | None = None,
-                      up_tolerance_deg: float = 0.0) -> PoseResult | None:
+                      up_tolerance_deg: float = 0.0, stated_shared: SharedNoise | None = None) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
     ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
     scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
     at least ``floor``, so that the gravity prior is weighed against the noise the image shows (in
     the same solve: the image-only fit is made anyway).  ``shared``: errors groups of the points
-    share (:class:`SharedNoise`).
+    share (:class:`SharedNoise`).  ``stated_shared``: errors groups share that the covariance counts
+    and the solve does not weigh by, its shift and dilation in units of the pixel noise (the one the
+    fit shows, with ``sigma_from_fit``).
 
     ``up_C``: the world's up direction in the camera frame (from the IMU), used to choose between
     the two IPPE solutions (the pad lies flat: its normal is up).  Else ``prev_cam2pad``.  Else
@@ -506,6 +508,9 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
             sigma_up = np.radians(gravity_sigma_deg)
             T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
     rms_best = reprojection_rms(camera, T, obj, px)
+    if stated_shared is not None and shared is None:
+        v = float(np.mean(sigma_px))
+        shared = SharedNoise(stated_shared.groups, stated_shared.shift * v, stated_shared.dilation * v)
     cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T,
                       mirror_normal, mirror_gap, noise_scale)

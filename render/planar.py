@@ -18,20 +18,20 @@ _LIGHT_LEVELS: dict = {}  # id(texture) -> (texture, its light pyramid): the vie
 
 
 def warp_pad_view(pad, camera: Camera, cam2pad: np.ndarray, background=(90, 110, 70),
-                  levels: list | None = None, supersample: int = 3, in_light: bool = False,
+                  levels: list | None = None, supersample: int = 3, in_light: bool = True,
                   blur_sigma_px: float = 0.0) -> np.ndarray:
     """RGB ``(H, W, 3)`` uint8 view of the pad (on a flat background colour) from pose ``cam2pad``.
 
     Pixels integrate over their area like a camera's: the view is warped at ``supersample``
     times the resolution (from a texture pyramid level with >= 4 texels per sample, so nothing
-    aliases) and box-averaged down.  By default texels and samples are averaged in their 8-bit
-    display values, as the renderer's revisions up to 11 did (``levels``, a pyramid of the texture
-    as it is, may be passed to share it); ``in_light``: in light, as a camera's pixel sums it and
-    the renderer now mixes it (``camera.mix_in_light``; ``levels``, if passed, are then light), then
-    blurred by a Gaussian of ``blur_sigma_px`` (a lens's) and written through the renderer's tone
-    curve (:func:`render.imaging.display_bytes`).  Lens distortion is applied exactly by remapping
-    the ideal pinhole view.  (The tests' views are still mixed in display values, where the
-    localizer's fits were tuned: README, "Mixing in light".)
+    aliases) and box-averaged down.  ``in_light`` (the default): texels and samples are averaged
+    in light, as a camera's pixel sums it and the renderer mixes it (``camera.mix_in_light``;
+    ``levels``, a pyramid of the texture in light, may be passed to share it), then blurred by a
+    Gaussian of ``blur_sigma_px`` (a lens's) and written through the renderer's tone curve
+    (:func:`render.imaging.display_bytes`).  ``in_light=False``: averaged in the texture's own
+    values (8-bit display values, as the renderer's revisions up to 11 mixed them; or whatever
+    ``levels`` and a float ``pad.texture_rgb`` hold, for a caller that mixes light itself), no
+    blur.  Lens distortion is applied exactly by remapping the ideal pinhole view.
     """
     if in_light:
         from .imaging import SRGB_TO_LINEAR, display_bytes

@@ -21,10 +21,15 @@ def aruco_pad():
 
 @pytest.mark.parametrize("yaw_deg", [0, 70, 200])
 def test_aruco_peer_recovers_the_pose_through_the_lens(aruco_pad, yaw_deg):
-    G = tilted(0.1, -0.05, 2.0, math.radians(yaw_deg), 0.03, -0.02)
+    """Right ids, corner order and frames, on a view summed in light as the renderer draws.  At
+    1.2 m the markers span 55 px: OpenCV's subpixel corners are 0.55-0.57 px RMS off there (0.22 in
+    views mixed in display values: the corner refinement, on an L corner's edges that the tone curve
+    makes asymmetric); at 2 m (33 px) one marker's corners jumped 3 px, the pose 121 mm and 3.4
+    degrees off: a detector's limit, which the benchmarks measure, not a convention."""
+    G = tilted(0.1, -0.05, 1.2, math.radians(yaw_deg), 0.03, -0.02)
     e = ArucoLocalizer(aruco_pad, CAM).process(warp_pad_view(aruco_pad, CAM, G, GROUND), 0.0)
     assert e.status == "ok", e.reason
-    assert e.n_corr == 12 and e.extras["markers"] == 3 and e.rms_px < 0.5
+    assert e.n_corr == 12 and e.extras["markers"] == 3 and e.rms_px < 0.8
     dp, da = pose_error(e.cam2pad, G)
     assert dp < 0.02 and da < 0.5, f"{dp * 1000:.1f} mm, {da:.2f} deg"  # 1 % of height: right frames, not a tuned bound
 
@@ -82,7 +87,9 @@ def test_apriltag_pad_is_two_nested_tags_the_detector_reads_where_pad_json_puts_
 @pytest.mark.parametrize("height, tags", [(0.3, 1), (1.0, 2)])
 def test_apriltag_peer_recovers_the_pose_from_every_tag_in_view(apriltag_pad, height, tags):
     """Right ids, corners and frames: a wrong corner order or pixel convention is centimetres and
-    degrees off.  (Low, only the small tag is whole in view: 4 corners fix the tilt less well.)"""
+    degrees off.  (Low, only the small tag is whole in view: 4 corners fix the tilt less well.  On
+    views summed in light the library's corners are up to 0.24 px RMS off (0.08 in display values)
+    and the two tags' pose up to 0.54 degrees.)"""
     from benchmarks.peers import AprilTagLocalizer
 
     for yaw in (0, 40, 200):
@@ -91,7 +98,7 @@ def test_apriltag_peer_recovers_the_pose_from_every_tag_in_view(apriltag_pad, he
         assert e.status == "ok", e.reason
         assert e.extras["markers"] == tags and e.rms_px < 0.3
         dp, da = pose_error(e.cam2pad, G)
-        assert dp < 0.01 * tags * height and da < 0.5, f"yaw {yaw}: {dp * 1000:.1f} mm, {da:.2f} deg"
+        assert dp < 0.01 * tags * height and da < 0.8, f"yaw {yaw}: {dp * 1000:.1f} mm, {da:.2f} deg"
 
 
 def test_apriltag_peer_refuses_other_pads_and_never_raises(apriltag_pad, pad):

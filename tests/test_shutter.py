@@ -249,7 +249,9 @@ def test_a_pose_counts_the_gyros_vibration_it_was_unrolled_with(pad):
     unrolled with that rate moves the pose.  A still camera at 2 m read in 60 ms at 5 Hz, its
     gyro's samples carrying 0.3 rad/s: poses 26-67 mm off.  Their covariance counts the rate's
     doubt (the rows' scatter): every pose within 3 sigma (NEES at most 7.9); without it, two were
-    beyond (NEES 14.2 and 29.7)."""
+    beyond (NEES 14.2 and 29.7).  Since a markers pose states the shift and swell its corners share
+    (in units of the noise its fit shows), none is beyond without it either, but the NEES is five
+    times as high in the median (2.5 against 0.5 on views summed in light)."""
     cam = Camera.from_hfov(400, 400, math.radians(30))
     T = nadir_cam2pad(0.03, -0.02, 2.0, 0.4)
     still = warp_pad_view(pad, cam, T, GROUND, supersample=2).astype(np.float32)
@@ -274,7 +276,7 @@ def test_a_pose_counts_the_gyros_vibration_it_was_unrolled_with(pad):
             d = e.cam2pad[:3, 3] - T[:3, 3]
             nees[doubt].append(float(d @ np.linalg.solve(e.cov[:3, :3], d)))
     assert max(nees[True]) < 14.16, np.round(nees[True], 1)  # 3 sigma of three dimensions
-    assert max(nees[False]) > 14.16, np.round(nees[False], 1)
+    assert np.median(nees[False]) > 3.0 * np.median(nees[True]), (np.round(nees[False], 1), np.round(nees[True], 1))
 
 
 def test_an_imu_block_is_read_row_by_row_and_a_single_row_localizer_gets_its_last_row():
@@ -342,7 +344,9 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
     last frame's, which at 5 Hz in a fast descent is 0.14 m farther from the pad than this one, so
     every shift came out ~15 % short.  The chain of keyframes drifted by that each frame (an unseen
     1280x960 scene at 5 Hz read in 29 ms: 12 mm sideways from 0.9 m down, and its poses refused at
-    0.2 m for their tilt).  Now it unrolls again at the frame's own first pose."""
+    0.2 m for their tilt).  Now it unrolls again at the frame's own first pose: 0.4 mm off on views
+    mixed in display values, 1.3 mm on views summed in light (as far off as unrolled at the true
+    pose: the tracks' own error over a 16 % change of scale); at the last frame's pose, 8 mm."""
     from hvloc.phases import FlowTracker
 
     cam = Camera.from_hfov(400, 400, math.radians(50))
@@ -360,7 +364,7 @@ def test_the_flow_unrolls_its_tracks_at_the_frames_pose_not_the_last_ones(pad):
     res, n, why = tracker.track(view(0.2), prior_cam2pad=pose_at(0.0), up_C=up_C)
     assert res is not None, why
     err = np.abs(res.cam2pad[:3, 3] - pose_at(0.2)[:3, 3])
-    assert err.max() < 0.001, np.round(err * 1000, 2)
+    assert err.max() < 0.0025, np.round(err * 1000, 2)
 
 
 def test_the_shutters_velocity_is_counted_uncertain_in_every_direction(pad, monkeypatch):
