@@ -122,7 +122,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         return None, {"why": "pad out of view"}
     if not MIN_SIDE_PX <= side_px <= MAX_SIDE_PX:
         return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{MAX_SIDE_PX:.0f})"}
-    grid = synth.window(camera, box, 1.0)
+    grid = synth.window(camera, box, 1.0, own=True)  # (a far pad's window: a few thousand pixels)
     img = np.asarray(image[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
     img = img.reshape(img.shape[0], img.shape[1], -1)
     luma = np.array(LUMA) if img.shape[2] == 3 else np.full(img.shape[2], 1.0 / img.shape[2])  # a grey camera: its one channel
