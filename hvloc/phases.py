@@ -1632,8 +1632,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
     sets = {}
     for m in pad_geometry.markers_in(kind="finder"):
         sets.setdefault(m.set, {})[m.name] = m
-    g = img.astype(np.float32)
-    lin = srgb_to_linear(img)  # the squares' corners are placed in light, as a pixel sums it
+    lin = None  # the crop in light, made once a marker set is named: its squares' corners are placed there
     if not triples:
         by = "prior" if prior is not None else "design" if design is not None else None
         tried = []
@@ -1645,10 +1644,11 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
             if by == "prior":
                 named, extra = _pair_by_prior(cand, sets, camera, prior, x0, y0), {}
             else:
-                named = _pair_by_design(g, cand, sets, pad_geometry, camera, up_C, design, x0, y0)
+                named = _pair_by_design(img.astype(np.float32), cand, sets, pad_geometry, camera, up_C, design, x0, y0)
                 named, extra = (named[:3], named[3]) if named is not None else (None, {})
             if named is not None:
                 set_name, quads, module_px = named
+                lin = srgb_to_linear(img) if lin is None else lin
                 got = _marker_corners(lin, sets[set_name], quads, module_px, camera, x0, y0)
                 if got is not None and len(got[0]) >= MIN_SQUARES_PER_MARKER * len(quads):
                     pts_P, px, _ = got
@@ -1673,6 +1673,7 @@ def detect_markers(gray: np.ndarray, pad_geometry: PadGeometry, camera: Camera |
         if len(quads) != 3:
             continue
         module_px = math.sqrt(np.mean([n.area_px for n in t.by_name.values()])) / 7.0
+        lin = srgb_to_linear(img) if lin is None else lin
         got = _marker_corners(lin, ms, quads, module_px, camera, x0, y0)
         if got is None or len(got[0]) < MIN_SQUARES_PER_MARKER * len(quads):
             few = f"{0 if got is None else len(got[0])} of {sum(len(ms[n].squares) for n in quads)} squares"
@@ -1712,13 +1713,15 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
     if H is None:
         return None
 
-    def predict(xy):
-        ideal = cv2.perspectiveTransform(np.asarray(xy, np.float64).reshape(-1, 1, 2), H)[:, 0, :]
-        return cam.distort_pixels(ideal) if lens else ideal
+    def through(H):  # pad-plane (N, 2) metres -> the crop's pixels by the homography H, through the lens
+        def f(xy):
+            ideal = cv2.perspectiveTransform(np.asarray(xy, np.float64).reshape(-1, 1, 2), H)[:, 0, :]
+            return cam.distort_pixels(ideal) if lens else ideal
+        return f
 
     hw = float(np.clip(0.45 * module_px, 0.8, 3.0))
     squares = [sq.corners for name in ("Top", "Right", "Bottom") if name in quads for sq in ms[name].squares]
-    guesses = np.stack([predict(P[:, :2]) for P in squares])
+    guesses = np.stack([through(H)(P[:, :2]) for P in squares])
     refined, _ = refine_quads(g, guesses, hw, camera=cam)
     pts_P, px = [], []
     for P, guess, ref in zip(squares, guesses, refined):
@@ -1726,16 +1729,20 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
             continue
         pts_P.append(P)
         px.append(ref + [x0, y0])
-    if len(pts_P) >= 2:
+
+    def predict(xy):
         # what lies beyond the markers (the pad's outer corners) is predicted by the refined
         # corners, not the contours' pixel-level quads: from those, a 200 px pad's far corner was
         # predicted 1-2 px off on views mixed in display values, 2-4.6 px on views summed in light
-        # (its refinement's reach, 2 % of the side), from these 0.1-0.2 px
-        P_all = np.concatenate(pts_P)[:, :2]
-        seen = np.concatenate(px) - [x0, y0]
-        Hr, _ = cv2.findHomography(P_all, cam.undistort_pixels(seen) if lens else seen, 0)
-        if Hr is not None and np.isfinite(Hr).all():
-            H = Hr
+        # (its refinement's reach, 2 % of the side), from these 0.1-0.2 px.  (Fitted when asked:
+        # only the markers pose that joins the outer corners asks.)
+        if len(pts_P) >= 2:
+            seen = np.concatenate(px) - [x0, y0]
+            Hr, _ = cv2.findHomography(np.concatenate(pts_P)[:, :2], cam.undistort_pixels(seen) if lens else seen, 0)
+            if Hr is not None and np.isfinite(Hr).all():
+                return through(Hr)(xy)
+        return through(H)(xy)
+
     return pts_P, px, predict
 
 
