@@ -1076,6 +1076,7 @@ class HierarchicalLocalizer:
         # it the pad may lie (a tilting deck's; 0: level)
         self.up_sigma_deg, self.up_tolerance_deg = cfg.up_sigma_deg(), cfg.pad_tilt_deg
         self.deck_tracked = False  # whether a tilting deck's tilt is known from the image this frame
+        self.texture_tried_kf: int | None = None  # the chained keyframe the texture was last drawn over (_texture_over_flow)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
                                    self.outer_P)
         self.flow.unroll = self._unrolled if self.shutter.active else None
@@ -1237,51 +1238,104 @@ class HierarchicalLocalizer:
                                       else "none named by the pad's design either")
                 reasons.append(f"{method}: {why}")
                 continue
-            pose, n, extras = res
-            est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
-                           extras=extras)
-            verdict = self._gate(est, R_W_B)
-            self._pad_tilt_seen(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
-            if verdict:
-                est.status, est.reason = "rejected", verdict
-                self.twist = twist
-                reasons.append(f"{method}: rejected, {verdict}")
-                rejected = rejected or est
-                continue
-            if reasons:
-                est.extras["before"] = "; ".join(reasons)
-            if self.last is not None and 0 < est.t - self.last.t < 0.5:
-                self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
-            else:  # poses that far apart tell no velocity, and one from before them is another moment's
-                self.velocity = None
-            self.last = est
-            self.last_attitude, self.turn_B = self.attitude, np.eye(3)
-            # the velocity filter (the rolling shutter's correction reads it, and the flow's guess: _predicted)
-            cov = est.extras.get("still_cov")
-            if cov is None:  # a pose with no covariance: counted 1 % of its height off
-                cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
-            self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
-                                est.extras.get("still_shared", (None, None)), est.extras.get("still_dv"))
-            self.unposed = 0
-            if R_W_B is not None:
-                self.heading_t = t
-                # the image's own view of the normal, from many points (field1080's outline tilts were
-                # 0.6 degrees off on average: they taught the AHRS a wrong error)
-                if image_tilt_from_many(est):
-                    self.ahrs.update(R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
-                                     est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
-                                     est.extras.get("mirror_normal_img_C"),
-                                     est.extras.get("mirror_chi2_gap", float("inf")))
-                    normal_W = self._pad_normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
-                    if self.deck is not None and normal_W is not None:  # (the AHRS's error is not learnt on a deck)
-                        self.deck.update(t, normal_W, est.extras.get("tilt_sigma_deg", float("nan")))
-            self._after_accept(method, est, gray)
-            return est
+            tried_twist = self.twist
+            for method, res in self._candidates(method, res, gray, up_C):
+                self.twist = tried_twist
+                pose, n, extras = res
+                est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
+                               extras=extras)
+                verdict = self._gate(est, R_W_B)
+                self._pad_tilt_seen(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
+                if verdict:
+                    est.status, est.reason = "rejected", verdict
+                    self.twist = twist
+                    reasons.append(f"{method}: rejected, {verdict}")
+                    rejected = rejected or est
+                    continue
+                return self._accepted(method, est, gray, reasons, R_W_B, R_W_B_raw)
         self.flow.skip()
         if rejected is not None:
             rejected.reason = "; ".join(reasons)
             return rejected
         return Estimate(t, self.phase, "lost", None, reason="; ".join(reasons) or "no method enabled")
+
+    def _accepted(self, method: str, est: Estimate, gray, reasons: list, R_W_B, R_W_B_raw) -> Estimate:
+        """``est``, a pose of ``method`` the gates passed, taken: the last pose, the velocity filter,
+        the AHRS's tilt error and the deck's tilt told, the flow tracker kept ready."""
+        t = est.t
+        if reasons:
+            est.extras["before"] = "; ".join(reasons)
+        if self.last is not None and 0 < est.t - self.last.t < 0.5:
+            self.velocity = (est.cam2pad[:3, 3] - self.last.cam2pad[:3, 3]) / (est.t - self.last.t)
+        else:  # poses that far apart tell no velocity, and one from before them is another moment's
+            self.velocity = None
+        self.last = est
+        self.last_attitude, self.turn_B = self.attitude, np.eye(3)
+        # the velocity filter (the rolling shutter's correction reads it, and the flow's guess: _predicted)
+        cov = est.extras.get("still_cov")
+        if cov is None:  # a pose with no covariance: counted 1 % of its height off
+            cov = est.cov if est.cov is not None else (0.01 * max(est.cam2pad[2, 3], 0.1)) ** 2 * np.eye(3)
+        self.vfilter.update(t, est.extras.get("still_p", est.cam2pad[:3, 3]), cov,
+                            est.extras.get("still_shared", (None, None)), est.extras.get("still_dv"))
+        self.unposed = 0
+        if R_W_B is not None:
+            self.heading_t = t
+            # the image's own view of the normal, from many points (field1080's outline tilts were
+            # 0.6 degrees off on average: they taught the AHRS a wrong error)
+            if image_tilt_from_many(est):
+                self.ahrs.update(R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
+                                 est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
+                                 est.extras.get("mirror_normal_img_C"),
+                                 est.extras.get("mirror_chi2_gap", float("inf")))
+                normal_W = self._pad_normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
+                if self.deck is not None and normal_W is not None:  # (the AHRS's error is not learnt on a deck)
+                    self.deck.update(t, normal_W, est.extras.get("tilt_sigma_deg", float("nan")))
+        self._after_accept(method, est, gray)
+        return est
+
+    def _candidates(self, method: str, res: tuple, gray, up_C) -> list:
+        """``[(method, (pose, n, extras)), ...]``: what the gates are asked in turn for a method's pose
+        ``res``: a flow pose's the pad's texture placed where it puts it first, where that anchors a
+        chained keyframe (:meth:`_texture_over_flow`); else the pose alone."""
+        if method == "flow":
+            over = self._texture_over_flow(res[0], gray, up_C)
+            if over is not None:
+                return [("texture", over), (method, res)]
+        return [(method, res)]
+
+    def _texture_over_flow(self, pose: PoseResult, gray, up_C):
+        """``(pose, n, extras) | None``: the pad's texture drawn where the flow's ``pose`` puts it and
+        tracked into the frame (:meth:`hvloc.texture.PadTexture.placed_at`, no ORB), once for each
+        chained keyframe (one the tracker renewed from its own pose, not anchored to the pad), where
+        that pose lies where the flow's says within both doubts (:func:`foreseen`) and is surer than
+        the keyframe: the keyframe after it is then the texture's, anchored.
+
+        A chain's error grows at each renewal, the tracked pose's tilt above all where nothing holds
+        it: on a tilting deck the IMU's up says little.  On the smoke deck (10 degrees, 320x320) a
+        chain of 12 renewals from 0.77 m drifted 0.7-1.2 degrees, 5-9 mm sideways at 0.3-0.45 m,
+        where the texture's poses were within 0.15 degrees; on level ground the chain held to 1-2
+        mm and the texture to a few tenths."""
+        cfg, kf = self.config, self.flow.kf
+        if (kf is None or kf.anchored or kf.serial == self.texture_tried_kf or cfg.anchor_once or not cfg.use_texture
+                or self.pad is None or pose.cov is None or not self._texture_allowed(self.policy_h, orb=True)):
+            return None
+        self.texture_tried_kf = kf.serial
+        from .texture import RANSAC_PX
+
+        T, motion = pose.cam2pad, self._motion()
+        plan = self._smear_plan(T, motion)
+        reach = 2.0 * RANSAC_PX if plan is None else plan[3]
+        det, _ = self.work(lambda: ("texture_at", id(self._texture), array_key(T), reach,
+                                    plan is not None and (array_key(motion.v_P), array_key(motion.w_C), self.exposure_s)),
+                           self._texture.placed_at, gray, self.camera, T, reach,
+                           *((motion, self.exposure_s) if plan is not None else ()))
+        posed, _ = self._posed(det, "", self._prior(), up_C, False)
+        if posed is None or posed[0].cov is None:
+            return None
+        if not foreseen(posed[0], (T[:3, 3], pose.cov[:3, :3])) or not _surer(kf, posed[0].cov):
+            return None
+        posed[2]["over_flow"] = True
+        return posed
 
     def _pad_tilt_seen(self, est: Estimate, R_W_B) -> None:
         """A pad taken for level that the image shows tilting is taken for a deck from the next frame.
@@ -1914,29 +1968,37 @@ class HierarchicalLocalizer:
     def _smear_of(self, motion, up_C):
         """:meth:`hvloc.texture.PadTexture.locate`'s ``smear``: for the texture's matches, their pose
         (with the IMU's gravity) and ``motion`` (the frame's: :meth:`_motion`) where it smears the
-        pad's part in view (:meth:`_view_on_pad`; the matches where under 4 grid points lie on the
-        pad) :data:`TRACK_SMEAR_MIN_PX` or more in the median, and the reach of the smeared
-        drawing's tracks (twice RANSAC's threshold and half the matches' longest smear); ``None``
-        (the drawing left sharp) with no exposure or no motion known.  Under unseen85's 23-28 px
+        pad :data:`TRACK_SMEAR_MIN_PX` or more (:meth:`_smear_plan`); ``None`` (the drawing left
+        sharp) with no exposure or no motion known.  Under unseen85's 23-28 px
         the sharp drawing's corners were 0.3-2.5 mm off at 0.18-0.3 m, the smeared one's 0.03-0.2."""
         if not self.exposure_s > 0 or (motion.v_P is None and motion.w_C is None):
             return None
-        from .texture import RANSAC_PX
 
         def smear(pts_P, px):
             start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
-            if start is None:
-                return None
-            # how far the pad is smeared: over its part in view (a grid of the frame's pixels on it), not
-            # where the matches happen to lie (a turn smears the edges more than the centre)
-            seen = self._view_on_pad(start.cam2pad)
-            d = self._image_motion(start.cam2pad, motion, pts_P if seen is None else seen)
-            if d is None or not np.nanmedian(np.linalg.norm(d, axis=1)) >= TRACK_SMEAR_MIN_PX:
-                return None
-            d = self._image_motion(start.cam2pad, motion, pts_P)
-            return start.cam2pad, motion, self.exposure_s, 2.0 * RANSAC_PX + 0.5 * float(np.nanmax(np.linalg.norm(d, axis=1)))
+            return None if start is None else self._smear_plan(start.cam2pad, motion, pts_P)
 
         return smear
+
+    def _smear_plan(self, cam2pad, motion, pts_P=None):
+        """``(cam2pad, motion, exposure_s, reach_px)`` where ``motion`` smears the pad seen from
+        ``cam2pad`` :data:`TRACK_SMEAR_MIN_PX` or more in the median over its part in view (a grid of
+        the frame's pixels on it, not where matches ``pts_P`` happen to lie: a turn smears the edges
+        more than the centre), the reach twice RANSAC's threshold and half the longest smear (of
+        ``pts_P``, else of the view); ``None`` otherwise or with no exposure or motion known."""
+        from .texture import RANSAC_PX
+
+        if not self.exposure_s > 0 or (motion.v_P is None and motion.w_C is None):
+            return None
+        seen = self._view_on_pad(cam2pad)
+        if seen is None and pts_P is None:
+            return None
+        d = self._image_motion(cam2pad, motion, pts_P if seen is None else seen)
+        if d is None or not np.nanmedian(np.linalg.norm(d, axis=1)) >= TRACK_SMEAR_MIN_PX:
+            return None
+        if pts_P is not None:
+            d = self._image_motion(cam2pad, motion, pts_P)
+        return cam2pad, motion, self.exposure_s, 2.0 * RANSAC_PX + 0.5 * float(np.nanmax(np.linalg.norm(d, axis=1)))
 
     def _view_on_pad(self, cam2pad: np.ndarray):
         """``(N, 3)`` the pad's points a 9x9 grid over the frame sees from ``cam2pad`` (on the pad,

@@ -257,11 +257,35 @@ class PadTexture:
             if det is not None:
                 return replace(det, info={**info, **det.info}), "ok"
             info["smeared_drawing"] = why
-        refined = self._refined(gray, camera, [H], H, 2.0 * RANSAC_PX * shrink)
+        refined = self._detection(self._refined(gray, camera, [H], H, 2.0 * RANSAC_PX * shrink))
         if refined is not None:
-            pts, seen, cc = refined
-            return Detection(pts, seen, "texture", {**info, "refined": len(pts), "cc": round(cc, 3)}), "ok"
+            return replace(refined, info={**info, **refined.info}), "ok"
         return Detection(P[keep], px[keep], "texture", info), "ok"
+
+    def placed_at(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, reach_px: float, motion=None,
+                  exposure_s: float = 0.0) -> tuple:
+        """``(Detection | None, reason)``: the texture's corners in the frame, tracked from the texture
+        drawn at ``cam2pad`` (a pose known to a few pixels: another method's), within ``reach_px`` of
+        where it draws them: no ORB (its features and their matching took 130-270 ms of a 1280x720
+        frame through a lens, this 60-110 ms); smeared as ``motion`` smears it over ``exposure_s`` where that is given
+        (:meth:`refined_under`).  Taken where the drawing correlates :data:`TILE_MIN_CC` with the frame."""
+        if motion is not None and exposure_s > 0:
+            det, why = self.refined_under(gray, camera, cam2pad, motion, exposure_s, reach_px)
+        else:
+            H = pad_plane_homography(camera, cam2pad)
+            det, why = self._detection(self._refined(gray, camera, [H], H, reach_px)), "the drawing did not track into the frame"
+        if det is None:
+            return None, why
+        no = _tile_refusal(det)
+        return (None, no) if no else (det, "ok")
+
+    @staticmethod
+    def _detection(refined, **info):
+        """:meth:`_refined`'s answer as a :class:`Detection` (``None`` for none)."""
+        if refined is None:
+            return None
+        pts, seen, cc = refined
+        return Detection(pts, seen, "texture", {"refined": len(pts), "cc": round(cc, 3), **info})
 
     def refined_under(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, motion, exposure_s: float,
                       reach_px: float) -> tuple:
@@ -293,8 +317,7 @@ class PadTexture:
                                 H0, reach_px)
         if refined is None:
             return None, f"the drawing smeared {smear:.0f} px did not track into the frame"
-        pts, seen, cc = refined
-        return Detection(pts, seen, "texture", {"refined": len(pts), "cc": round(cc, 3), "smeared_px": round(smear, 1)}), "ok"
+        return self._detection(refined, smeared_px=round(smear, 1)), "ok"
 
     def _refined(self, gray: np.ndarray, camera: Camera, Hs: list, H: np.ndarray, reach_px: float):
         """``(pts_P, px, cc)`` to a fraction of a pixel, or ``None``: ORB's keypoints sit on a pyramid's
