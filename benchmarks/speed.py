@@ -157,6 +157,28 @@ def localizer_speed(width: int, height: int, hfov_deg: float, n: int) -> list:
     return out
 
 
+def _texture_pad():
+    """The default pad printed at 1000 px/m, and its :class:`hvloc.texture.PadTexture`."""
+    from hvloc.texture import PadTexture
+    from pad_design import make_pad
+
+    pad = make_pad(ppm=1000.0)
+    return pad, PadTexture(pad)
+
+
+def _texture_views(h: float):
+    """``(name, camera, cam2pad)``: 1280x720 through a pinhole (90 degrees) and through a 100 degree
+    barrel lens (k1 -0.22), ``h`` over the pad, a little off its centre, yawed and tilted."""
+    from hvloc.geometry import Camera, so3_exp
+    from render.planar import nadir_cam2pad
+
+    for name, dist in (("pinhole 90 deg", (0, 0, 0, 0, 0)), ("barrel 100 deg", (-0.22, 0.04, 0, 0, 0))):
+        cam = Camera.from_hfov(1280, 720, math.radians(90 if name.startswith("pinhole") else 100), dist=dist)
+        G = nadir_cam2pad(0.05, -0.03, h, 0.3)
+        G[:3, :3] = G[:3, :3] @ so3_exp([0.03, -0.02, 0.0])
+        yield name, cam, G
+
+
 def texture_smear_speed(n: int) -> list:
     """ms of one refinement of the texture against its drawing smeared by the frame's motion
     (``PadTexture.refined_under``: the drawing of 8 instants, drawn twice), at 1280x720 through a
@@ -165,19 +187,12 @@ def texture_smear_speed(n: int) -> list:
     plain ``cv2.cvtColor`` + ``cv2.GaussianBlur`` of the same frame."""
     import cv2
 
-    from hvloc.geometry import Camera, so3_exp
     from hvloc.shutter import Twist
-    from hvloc.texture import PadTexture
-    from pad_design import make_pad
-    from render.planar import nadir_cam2pad, warp_pad_view
+    from render.planar import warp_pad_view
 
-    pad = make_pad(ppm=1000.0)
-    tex = PadTexture(pad)
+    pad, tex = _texture_pad()
     out = []
-    for name, dist in (("pinhole 90 deg", (0, 0, 0, 0, 0)), ("barrel 100 deg", (-0.22, 0.04, 0, 0, 0))):
-        cam = Camera.from_hfov(1280, 720, math.radians(90 if name.startswith("pinhole") else 100), dist=dist)
-        G = nadir_cam2pad(0.05, -0.03, 0.25, 0.3)
-        G[:3, :3] = G[:3, :3] @ so3_exp([0.03, -0.02, 0.0])
+    for name, cam, G in _texture_views(0.25):
         v, e = np.array([0.4, -0.1, -0.1]), 0.025
         views = []
         for s in np.linspace(-0.5, 0.5, 12):  # the exposure's instants, averaged
@@ -204,18 +219,12 @@ def texture_placed_speed(n: int) -> list:
     it is placed at 2 mm and 0.2 degrees off; beside a plain ``cv2.cvtColor`` + ``cv2.GaussianBlur``."""
     import cv2
 
-    from hvloc.geometry import Camera, so3_exp
-    from hvloc.texture import PadTexture
-    from pad_design import make_pad
-    from render.planar import nadir_cam2pad, warp_pad_view
+    from hvloc.geometry import so3_exp
+    from render.planar import warp_pad_view
 
-    pad = make_pad(ppm=1000.0)
-    tex = PadTexture(pad)
+    pad, tex = _texture_pad()
     out = []
-    for name, dist in (("pinhole 90 deg", (0, 0, 0, 0, 0)), ("barrel 100 deg", (-0.22, 0.04, 0, 0, 0))):
-        cam = Camera.from_hfov(1280, 720, math.radians(90 if name.startswith("pinhole") else 100), dist=dist)
-        G = nadir_cam2pad(0.05, -0.03, 0.4, 0.3)
-        G[:3, :3] = G[:3, :3] @ so3_exp([0.03, -0.02, 0.0])
+    for name, cam, G in _texture_views(0.4):
         T = G.copy()
         T[:3, 3] += [0.0015, -0.001, 0.001]
         T[:3, :3] = T[:3, :3] @ so3_exp(np.radians([0.2, 0.0, 0.0]))
