@@ -229,9 +229,9 @@ def texture_placed_speed(n: int) -> list:
         T[:3, 3] += [0.0015, -0.001, 0.001]
         T[:3, :3] = T[:3, :3] @ so3_exp(np.radians([0.2, 0.0, 0.0]))
         gray = cv2.cvtColor(warp_pad_view(pad, cam, G, (80, 110, 60)), cv2.COLOR_RGB2GRAY)
-        placed = tex.placed_at(gray, cam, T, 6.0)[0]
+        placed = tex.placed_at(gray, cam, T, None, 0.0, 6.0)[0]
         found = tex.locate(gray, cam, 0.4)[0]
-        ms = 1000 * _timeit(lambda: tex.placed_at(gray, cam, T, 6.0), n, warmup=1)
+        ms = 1000 * _timeit(lambda: tex.placed_at(gray, cam, T, None, 0.0, 6.0), n, warmup=1)
         orb_ms = 1000 * _timeit(lambda: tex.locate(gray, cam, 0.4), n, warmup=1)
         ref = 1000 * _timeit(lambda: cv2.GaussianBlur(cv2.cvtColor(cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB), cv2.COLOR_RGB2GRAY),
                                                       (5, 5), 0), n)

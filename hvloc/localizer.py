@@ -1323,12 +1323,10 @@ class HierarchicalLocalizer:
         from .texture import RANSAC_PX
 
         T, motion = pose.cam2pad, self._motion()
-        plan = self._smear_plan(T, motion)
-        reach = 2.0 * RANSAC_PX if plan is None else plan[3]
-        det, _ = self.work(lambda: ("texture_at", id(self._texture), array_key(T), reach,
-                                    plan is not None and (array_key(motion.v_P), array_key(motion.w_C), self.exposure_s)),
-                           self._texture.placed_at, gray, self.camera, T, reach,
-                           *((motion, self.exposure_s) if plan is not None else ()))
+        plan = self._smear_plan(T, motion) or (T, None, 0.0, 2.0 * RANSAC_PX)  # (sharp: no smear to draw)
+        det, _ = self.work(lambda: ("texture_at", id(self._texture), array_key(T), plan[3], plan[1] is not None and (
+                                        array_key(motion.v_P), array_key(motion.w_C), self.exposure_s)),
+                           self._texture.placed_at, gray, self.camera, *plan)
         posed, _ = self._posed(det, "", self._prior(), up_C, False)
         if posed is None or posed[0].cov is None:
             return None

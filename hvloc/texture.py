@@ -262,13 +262,14 @@ class PadTexture:
             return replace(refined, info={**info, **refined.info}), "ok"
         return Detection(P[keep], px[keep], "texture", info), "ok"
 
-    def placed_at(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, reach_px: float, motion=None,
-                  exposure_s: float = 0.0) -> tuple:
+    def placed_at(self, gray: np.ndarray, camera: Camera, cam2pad: np.ndarray, motion, exposure_s: float,
+                  reach_px: float) -> tuple:
         """``(Detection | None, reason)``: the texture's corners in the frame, tracked from the texture
         drawn at ``cam2pad`` (a pose known to a few pixels: another method's), within ``reach_px`` of
         where it draws them: no ORB (its features and their matching took 130-270 ms of a 1280x720
-        frame through a lens, this 60-110 ms); smeared as ``motion`` smears it over ``exposure_s`` where that is given
-        (:meth:`refined_under`).  Taken where the drawing correlates :data:`TILE_MIN_CC` with the frame."""
+        frame through a lens, this 60-110 ms).  Smeared as ``motion`` smears it over ``exposure_s``
+        (:meth:`refined_under`, whose arguments these are), sharp where no motion is given.  Taken
+        where the drawing correlates :data:`TILE_MIN_CC` with the frame."""
         if motion is not None and exposure_s > 0:
             det, why = self.refined_under(gray, camera, cam2pad, motion, exposure_s, reach_px)
         else:
