@@ -2459,36 +2459,38 @@ FLOW_MIN_INLIERS = 20
 
 
 FLOW_INLIER_SIGMAS = 3.0   # a track within this many of the tracks' own noise of their consensus is one of it ...
-FLOW_INLIER_MAX_PX = 8.0   # ... up to this far: a track that slipped a checker cell (35-75 px) stays out
+FLOW_INLIER_MAX_PX = 8.0   # ... up to this far: a track that slipped a checker cell (35-75 px) stays out ...
+FLOW_INLIER_MIN_PX = 0.3   # ... and at least this far (Lucas-Kanade's precision on a sharp frame's patches)
 
 
 def noise_inliers(src: np.ndarray, dst: np.ndarray, H: np.ndarray, inl: np.ndarray, min_thr: float,
                   max_thr: float) -> np.ndarray:
-    """RANSAC's inliers ``inl`` of the homography ``H`` (``src`` -> ``dst``), taken again where the
-    points' own noise is larger than its threshold ``min_thr``: every point within
-    :data:`FLOW_INLIER_SIGMAS` of that noise (:func:`hvloc.pose.robust_sigma` of the points within
-    ``max_thr``), at most ``max_thr``, the homography refitted on them
-    (three rounds at most).
+    """RANSAC's inliers ``inl`` of the homography ``H`` (``src`` -> ``dst``), taken again at the
+    points' own noise: every point within :data:`FLOW_INLIER_SIGMAS` of it
+    (:func:`hvloc.pose.robust_sigma` of the points within ``max_thr``), at least ``min_thr`` and at
+    most ``max_thr`` off, the homography refitted on them (three rounds at most); RANSAC's as they
+    are where that would leave fewer than half of them or :data:`FLOW_MIN_INLIERS`.
 
     A threshold under the noise keeps a chance subset, and the pose is wherever that subset agrees.
     unseen85's tracks at 0.25 m, into a frame smeared by a 25 ms exposure in a gust, scatter 2.4 px
     about their homography: RANSAC at 2 px kept 44-45 of 111 tracks, and two runs whose tracks
     differed by 0.1 px at most kept different ones, posed 0.5 and 5.9 mm off (1.5 mm stated).  All
-    111 agree on a pose 0.4 mm off.  Where the noise is within the threshold (a sharp frame's
-    tracks, a few tenths of a pixel) RANSAC's inliers stand as they are."""
+    111 agree on a pose 0.4 mm off.  A threshold far over the noise keeps the tracks that slipped:
+    the smoke deck's at 0.55 m, a few hundredths of a pixel off in the median, kept five 0.7-1.2 px
+    off their consensus under RANSAC's 2 px, and those few tilted the pose 0.3 degrees (2.9 mm off,
+    stating 1.3)."""
     fin = np.isfinite(dst).all(axis=1)
+    least = max(FLOW_MIN_INLIERS, 0.5 * inl.sum())
     for _ in range(3):
         r = np.linalg.norm(cv2.perspectiveTransform(src[None].astype(np.float64), H)[0] - dst, axis=1)
         near = fin & (r <= max_thr)
         if near.sum() < 4:
             return inl
-        thr = min(FLOW_INLIER_SIGMAS * robust_sigma(r[near]), max_thr)
-        if not thr > min_thr:
+        thr = float(np.clip(FLOW_INLIER_SIGMAS * robust_sigma(r[near]), min_thr, max_thr))
+        taken = fin & (r <= thr)
+        if taken.sum() < least or np.array_equal(taken, inl):
             return inl
-        wider = fin & (r <= thr)
-        if wider.sum() < 4 or np.array_equal(wider, inl):
-            return inl
-        inl = wider
+        inl = taken
         H2, _ = cv2.findHomography(src[inl].astype(np.float64), dst[inl].astype(np.float64), 0)
         if H2 is None:
             return inl
@@ -2515,7 +2517,7 @@ def pose_from_tracks(camera: Camera, kf: Keyframe, px: np.ndarray, prev_cam2pad:
     H, inl = cv2.findHomography(P[:, :2], xy, cv2.RANSAC, thr)
     if H is None:
         return None, ok, "no homography"
-    inl = noise_inliers(P[:, :2], xy, H, inl[:, 0].astype(bool), ransac_px / camera.fx,
+    inl = noise_inliers(P[:, :2], xy, H, inl[:, 0].astype(bool), FLOW_INLIER_MIN_PX / camera.fx,
                         FLOW_INLIER_MAX_PX / camera.fx)
     if inl.sum() < FLOW_MIN_INLIERS:
         return None, ok, f"{int(inl.sum())} homography inliers (< {FLOW_MIN_INLIERS})"

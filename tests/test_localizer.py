@@ -793,8 +793,8 @@ def test_tracks_whose_tilt_gravity_contradicts_widen_their_noise_until_it_does_n
             tip = rng.normal(0.0, math.radians(0.5), 2)
             up_n = so3_exp([tip[0], tip[1], 0.0]) @ up
             px = CAM.project_from(G, P) + rng.normal(0.0, 0.3, (len(P), 2))
-            res = pose_from_tracks(CAM, kf, px, G, up_n)[0]
-            old = solve_planar_pose(CAM, P, px, up_C=up_n, prev_cam2pad=G)
+            res, inl, _ = pose_from_tracks(CAM, kf, px, G, up_n)
+            old = solve_planar_pose(CAM, P[inl], px[inl], up_C=up_n, prev_cam2pad=G)  # (its tracks: within 3 sigma)
             if res.tilt_noise_scale > 1.0:
                 widened += 1
                 assert nees(res, G) < 11.3, (yaw, j, nees(res, G), nees(old, G))
@@ -1062,6 +1062,32 @@ def test_tracks_are_refined_on_their_keyframe_through_a_zoom_and_a_shadows_edge(
     monkeypatch.setattr(ph, "refined_on_keyframe", as_it_was)
     e = errors()
     assert np.median(e[np.isfinite(e)]) > 0.15, np.percentile(e[np.isfinite(e)], [50, 90, 100])
+
+
+def test_a_few_tracks_that_slipped_together_are_no_inliers_of_sharp_tracks():
+    """Sharp tracks agree with their homography to hundredths of a pixel; RANSAC's 2 px kept the
+    few that slipped a pixel, and where they lie together on one side of the view they tilt the pose
+    (the smoke deck at 0.55 m: five tracks 0.7-1.2 px off among 126, the pose 2.9 mm off stating 1.3).
+    Taken at the tracks' own noise (at least 0.3 px), they are out and the pose is the others'."""
+    import hvloc.phases as ph
+    from hvloc.geometry import invert, transform_points
+
+    rng = np.random.default_rng(5)
+    G = tilted(0.02, -0.01, 0.5, 0.4, 0.01, 0.02)
+    P, _ = ph._on_pad_plane(CAM, G, rng.uniform(60, 740, (120, 2)))
+    kf = ph.Keyframe(gray=np.zeros((CAM.height, CAM.width), np.uint8), cam2pad=G, px=CAM.project(
+        transform_points(invert(G), P)), pts_P=P, anchored=True)
+    px = kf.px + rng.normal(0.0, 0.05, kf.px.shape)
+    side = np.argsort(px[:, 0])[-8:]  # the eight rightmost, slipped 1.2 px outwards together
+    px[side, 0] += 1.2
+    res, inl, why = ph.pose_from_tracks(CAM, kf, px, None, up_in_camera(G), gravity_sigma_deg=3.0)
+    assert why == "ok" and not inl[side].any() and inl.sum() >= 110, (why, inl[side], inl.sum())
+    err = np.linalg.norm(res.cam2pad[:3, 3] - G[:3, 3])
+    assert err < 0.15e-3 and err < 2.0 * math.sqrt(np.trace(res.cov[:3, :3])), (err, res.cov)
+    # tracks noisier than the floor keep every one of them within three of their own noise
+    px = kf.px + rng.normal(0.0, 0.25, kf.px.shape)
+    res, inl, why = ph.pose_from_tracks(CAM, kf, px, None, up_in_camera(G), gravity_sigma_deg=3.0)
+    assert inl.sum() >= 116, inl.sum()
 
 
 @pytest.mark.parametrize("shift_mm", [(100.0, -60.0), (-70.0, 110.0)])
