@@ -76,20 +76,37 @@ def test_approaching_height_is_unbiased_on_a_small_pad(pad, h):
     """A half-level edge fit put the outline ~0.18 px outside the border's edge at 30 px (the solid
     band is under a pixel wide, the checker inside it half as bright): the pad looked 1 % too big
     and the height came out 0.85 % low at 20 m, 0.38 % at 14 m.  Fitted with the border's own
-    profile, the signed height error is within 0.2 % at each height (median of 16 views).  Drawn in
-    display values (``in_light=False``), where the outline's sides are placed on a sharp frame:
-    summed in light these views' height is 0.48 % (14 m) and 0.77 % (20 m) low in the median; with
-    the sides placed in light 0.02 and 0.06 %, but then a JPEG'd outline on a green ground came out
-    1.2 px inside (JPEG smears the chroma in display values): open (README, "Mixing in light")."""
+    profile, the signed height error is within 0.2 % at each height (median of 16 views), on views
+    summed in light as a camera's pixels sum it, where the sides are placed in light: placed in
+    display values, 0.48 % (14 m) and 0.77 % (20 m) low.  JPEG'd, they are placed in display values
+    as before (JPEG smears chroma there: ``test_jpeg_outline_is_fitted_on_luma_where_its_colour_edges_smear``)."""
     errs = []
     for yaw in np.linspace(0.1, 2 * np.pi, 8, endpoint=False):
         for x in (-1.0, 0.5):
             G = tilted(x, 0.3, h, yaw, 0.03, -0.02)
-            det, why = detect_outline(warp_pad_view(pad, CAM, G, GROUND, in_light=False), pad.geometry, CAM)
+            det, why = detect_outline(warp_pad_view(pad, CAM, G, GROUND), pad.geometry, CAM)
             assert det is not None, why
             res = solve_planar_pose(CAM, det.pts_P, det.px, up_C=up_in_camera(G))
             errs.append((res.cam2pad[2, 3] - G[2, 3]) / G[2, 3] * 100.0)
     assert abs(np.median(errs)) < 0.2, np.round(errs, 2)
+
+
+def test_a_frames_halved_chroma_is_told_from_a_whole_one(pad):
+    """JPEG and H.264 keep chroma at half resolution, and there the outline's sides are placed in
+    display values (its colour edges smear), elsewhere in light.  Told by the chroma's steps along
+    its rows: a rendered view as it is, and the same through JPEG at 30-95 (OpenCV's libjpeg, 4:2:0),
+    on a green ground and a grey one, near and far; a grey frame (no chroma) is not compressed chroma."""
+    from hvloc.phases import chroma_halved
+
+    for ground in (GROUND, (128, 128, 128)):
+        for h in (1.5, 6.0):
+            rgb = warp_pad_view(pad, CAM, tilted(0.2, -0.1, h, 0.4, 0.02, 0.01), ground)
+            assert not chroma_halved(rgb), (ground, h)
+            for q in (30, 50, 75, 95):
+                j = cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, q])[1], cv2.IMREAD_COLOR)
+                assert chroma_halved(np.ascontiguousarray(j[..., ::-1])), (ground, h, q)
+    grey = cv2.cvtColor(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    assert not chroma_halved(grey)
 
 
 def test_marker_names_and_flip_choice_at_every_10_degrees(pad):
