@@ -334,7 +334,9 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             # before: fitted in light such sides passed the band's check 3 px out, in display values not)
             # Where the frame's chroma is whole (not compressed), a sharp edge is placed in light too:
             # a frame's pixels sum light, and fitted in display values a sharp pad's corners lay 0.1-0.3
-            # px outward together on every dataset (the height as much low: 0.4-1.1 % at 30-60 px)
+            # px outward together on every dataset (the height as much low: 0.4-1.1 % at 30-60 px).  Not
+            # past SMEARED_PX (above): placed in light there, a 60 px pad cut by the image's edge under
+            # 10 px of smear was posed 0.36 m off at 9 m, "ok" (test_a_far_pad_cut_by_the_edge_...)
             soft = smear is not None and LIGHT_FIT_SMEAR_PX < smear <= SMEARED_PX
             light = soft or (not (smear is not None and smear > SMEARED_PX) and not chroma_halved(rgb))
             refined = _on_banded_edge(_border_channel(srgb_to_linear(f)) if light else chan, refined, pad_geometry,
