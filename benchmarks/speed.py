@@ -280,6 +280,31 @@ def keyframe_refine_speed(n: int) -> list:
     return out
 
 
+def chroma_tell_speed(n: int) -> list:
+    """ms of telling a frame's chroma halved (``hvloc.phases.chroma_halved``: the column parity of its
+    sharp chroma steps, every other row; the outline's sides are placed in light where it is whole),
+    on a view of the default pad 3 m up at 1280x720 and 1920x1080, as rendered and through JPEG 75;
+    beside a plain ``cv2.cvtColor`` + ``cv2.GaussianBlur`` of the same frame."""
+    import cv2
+
+    from hvloc.geometry import Camera
+    from hvloc.phases import chroma_halved
+    from render.planar import nadir_cam2pad, warp_pad_view
+
+    pad, _ = _texture_pad()
+    out = []
+    for w, h in ((1280, 720), (1920, 1080)):
+        cam = Camera.from_hfov(w, h, math.radians(90))
+        rgb = warp_pad_view(pad, cam, nadir_cam2pad(0.3, -0.2, 3.0, 0.4), (80, 110, 60))
+        jpeg = np.ascontiguousarray(cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 75])[1],
+                                                 cv2.IMREAD_COLOR)[..., ::-1])
+        ms = 1000 * _timeit(lambda: chroma_halved(rgb), n)
+        ref = 1000 * _timeit(lambda: cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), (5, 5), 0), n)
+        out.append({"resolution": f"{w}x{h}", "ms": ms, "halved_as_rendered": chroma_halved(rgb),
+                    "halved_jpeg75": chroma_halved(jpeg), "ref_gray_blur_ms": ref, "ratio_to_ref": ms / ref})
+    return out
+
+
 def _speed_row(width, height, phase, h, ms, ok, methods, ref) -> dict:
     return {"resolution": f"{width}x{height}", "phase": phase, "height_m": round(h, 2),
             "ms_p50": float(np.percentile(ms, 50)), "ms_p95": float(np.percentile(ms, 95)),
@@ -351,6 +376,11 @@ def main(argv=None) -> int:
               f"({r['plain_median_err_px']:.3f} px off)  gray+blur "
               f"{r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x (to the plain pass {r['ratio_to_plain']:.1f}x)",
               flush=True)
+    res["chroma_tell"] = chroma_tell_speed(n)
+    for r in res["chroma_tell"]:
+        print(f"chroma told halved or whole, {r['resolution']:>9s} (as rendered: {r['halved_as_rendered']}, JPEG 75: "
+              f"{r['halved_jpeg75']}): {r['ms']:6.2f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
+              f"{r['ratio_to_ref']:5.1f}x", flush=True)
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1) + "\n")
