@@ -13,6 +13,7 @@ Conventions
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, field, replace
@@ -462,3 +463,18 @@ class Camera:
         with np.errstate(invalid="ignore"):
             return ((px[:, 0] >= -0.5 + margin) & (px[:, 0] <= self.width - 0.5 - margin)
                     & (px[:, 1] >= -0.5 + margin) & (px[:, 1] <= self.height - 0.5 - margin))
+
+
+@functools.lru_cache(maxsize=8)
+def ideal_grid(camera: Camera, step: int = 1, dtype=np.float64) -> np.ndarray:
+    """``(ny, nx, 2)``: where every ``step``-th pixel of ``camera``'s frame lies in the ideal pinhole
+    image (:meth:`Camera.ideal_pixel_grid` at ``step`` 1; past 1, from pixel 0 to one node past the
+    frame's right and bottom edges), made once per camera and kept: undistorting a 1280x720 frame's every
+    pixel takes 0.6 s, and the texture, the smeared drawing and the flow each warp through it.
+    Shared: read it, do not write to it."""
+    if step == 1:
+        return camera.ideal_pixel_grid().astype(dtype, copy=False)
+    u, v = np.meshgrid(np.arange(0, camera.width + step, step, dtype=np.float64),
+                       np.arange(0, camera.height + step, step, dtype=np.float64))
+    g = np.column_stack([u.ravel(), v.ravel()])
+    return (camera.undistort_pixels(g) if camera.has_distortion else g).reshape(u.shape + (2,)).astype(dtype, copy=False)

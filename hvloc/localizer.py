@@ -1927,7 +1927,9 @@ class HierarchicalLocalizer:
                     found, why = self.work(lambda: ("grey outline", r), ph.find_grey_outline, rgb, gray, self.geometry,
                                            self.camera, r, self._design())
                 else:
-                    found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r)
+                    halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
+                    found, why = self.work(lambda: ("outline", r), ph.find_outline, rgb, self.geometry, self.camera, r,
+                                           halved=halved)
                 det = None
                 if found is not None:
                     hint = self.camera.project_from(prior, self.outer_P) if prior is not None else None

@@ -16,7 +16,7 @@ from .features import (_inside, band_centroid_offsets, banded_edge_offsets, band
                        refine_quads, rise_offsets, srgb_to_linear, step_blur)
 from pad_design.geometry import PadGeometry
 
-from .geometry import Camera, invert, rotation_angle, so3_exp, transform_points
+from .geometry import Camera, ideal_grid, invert, rotation_angle, so3_exp, transform_points
 from .pose import robust_sigma
 from .work import ImageWork, array_key
 
@@ -121,12 +121,15 @@ OCCLUDED_WHEN = ("no pad-coloured quadrilateral", "its border band is missing al
 
 
 def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                 max_scale: int = 8) -> tuple:
+                 max_scale: int = 8, halved: bool | None = None) -> tuple:
     """``(OutlineQuad | None, reason)``: the image work of :func:`detect_outline` (segmentation,
     quad, sub-pixel sides, the cue colour at each corner), which no prior influences.  A pad with a
     corner hidden by something in the scene is looked for when no whole one is found
-    (:func:`_occluded_outline`)."""
-    found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale)
+    (:func:`_occluded_outline`).  ``halved``: :func:`chroma_halved` of the frame, where already told
+    (it is the frame's, not the window's: told once, whatever is searched)."""
+    if halved is None:
+        halved = chroma_halved(rgb)
+    found, why = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, halved=halved)
     swollen = found is None and why in SWOLLEN_WHEN
     if found is None and why in OCCLUDED_WHEN:
         hidden, why_hidden = _occluded_outline(rgb, pad_geometry, camera, roi, max_scale)
@@ -135,7 +138,7 @@ def find_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | No
         if why_hidden:
             why = f"{why} (and {why_hidden})"
     if swollen:  # neither whole nor partly hidden: the colour grown into shadow may have swollen
-        again, _ = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False)
+        again, _ = _whole_outline(rgb, pad_geometry, camera, roi, max_scale, shadow=False, halved=halved)
         if again is not None and _field_agrees(rgb, again.quad_px, pad_geometry, camera):
             return again, "ok"
     return found, why
@@ -162,9 +165,10 @@ def _segment(rgb: np.ndarray, pad_geometry: PadGeometry, roi, max_scale: int, sh
 
 
 def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
-                   max_scale: int = 8, shadow: bool = True) -> tuple:
+                   max_scale: int = 8, shadow: bool = True, halved: bool = True) -> tuple:
     """:func:`find_outline` for a pad of which at least a corner and its sides' stretches toward
-    the others are in view (a corner may be out of the image)."""
+    the others are in view (a corner may be out of the image); ``halved``: the frame's chroma is
+    (:func:`chroma_halved`)."""
     if min(_crop(rgb, roi)[0].shape[:2]) < 8:
         return None, "image too small"
     img, x0, y0, scale, small, hsv, mask = _segment(rgb, pad_geometry, roi, max_scale, shadow)
@@ -197,20 +201,20 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
         tries += [] if other is None else [other]
     if not tries:
         if scale > 1:  # far away the pad may be too small in the reduced copy: look at full size
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, halved=halved)
         return None, "no pad-coloured quadrilateral"
     for quad in tries:
         if scale > 1 and np.linalg.norm(quad[0] - quad[2]) < 45:
             # small in the reduced copy: its corners would be too coarse to start from
-            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow)
-        found, why = _outline_from_ring(rgb, quad, small, scale, (x0, y0), cut_edges, pad_geometry, camera)
+            return _whole_outline(rgb, pad_geometry, camera, roi, max_scale=1, shadow=shadow, halved=halved)
+        found, why = _outline_from_ring(rgb, quad, small, scale, (x0, y0), cut_edges, pad_geometry, camera, halved)
         if found is not None:
             return found, why
     return found, why
 
 
 def _outline_from_ring(rgb: np.ndarray, quad: np.ndarray, small: np.ndarray, scale: int, origin, cut_edges,
-                       pad_geometry: PadGeometry, camera: Camera | None) -> tuple:
+                       pad_geometry: PadGeometry, camera: Camera | None, halved: bool = True) -> tuple:
     """``(OutlineQuad | None, reason)`` from a ring's quadrilateral ``quad`` found in ``small`` (the
     searched area reduced ``scale`` times, at ``origin`` in the image)."""
     # a corner out of view, or at the image's edge (a hull that ran along it a little: the corner just
@@ -228,7 +232,7 @@ def _outline_from_ring(rgb: np.ndarray, quad: np.ndarray, small: np.ndarray, sca
     # cue is read afterwards, at full resolution (far away its square is a few pixels, and a
     # downscaled copy blends it away), where the exact quad puts it.
     side_px = _mean_side(quad)
-    found, why = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera)
+    found, why = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera, halved=halved)
     if found is None and why in MISREAD_WHEN:
         # glare washes out the border's rim and the colour hull lies a pixel or two inside a far
         # pad: the sides' coarse profiles then hold its whole 3-4 px border, and by their own ends
@@ -236,17 +240,19 @@ def _outline_from_ring(rgb: np.ndarray, quad: np.ndarray, small: np.ndarray, sca
         # more from the same hull, the coarse fit told the border's polarity.  (Only then: on clean
         # far outlines the plain fit's corners are a little more precise, which the four-corner
         # tilt without an IMU needs.)
-        again, _ = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera, polarity=True)
+        again, _ = _outline_from_hull(rgb, quad, side_px, cut, pad_geometry, camera, polarity=True, halved=halved)
         if again is not None:
             return again, "ok"
     return found, why
 
 
 def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: bool, pad_geometry: PadGeometry,
-                       camera: Camera | None, polarity: bool = False) -> tuple:
+                       camera: Camera | None, polarity: bool = False, halved: bool = True) -> tuple:
     """``(OutlineQuad | None, reason)``: the sides fitted from the colour hull's ``quad`` (full-resolution
     pixels; ``cut``: a corner out of view) and the checks a found outline must pass; ``polarity``:
-    the coarse side fit knows the border is brighter than what lies beyond it (:func:`_fit_sides`)."""
+    the coarse side fit knows the border is brighter than what lies beyond it (:func:`_fit_sides`);
+    ``halved``: the frame's chroma is (:func:`chroma_halved`: a sharp side is then placed in display
+    values)."""
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
     field, edge, field_noise = None, False, 0.0
@@ -338,7 +344,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
             # past SMEARED_PX (above): placed in light there, a 60 px pad cut by the image's edge under
             # 10 px of smear was posed 0.36 m off at 9 m, "ok" (test_a_far_pad_cut_by_the_edge_...)
             soft = smear is not None and LIGHT_FIT_SMEAR_PX < smear <= SMEARED_PX
-            light = soft or (not (smear is not None and smear > SMEARED_PX) and not chroma_halved(rgb))
+            light = soft or (not (smear is not None and smear > SMEARED_PX) and not halved)
             refined = _on_banded_edge(_border_channel(srgb_to_linear(f)) if light else chan, refined, pad_geometry,
                                       cam_s) + [bx0, by0]
             why = "its border band is missing along a side" if _band_missing(rgb, refined, pad_geometry, camera) \
@@ -2385,16 +2391,6 @@ def local_contrast(gray: np.ndarray, sigma: float = LOCAL_MEAN_SIGMA_PX) -> np.n
     return cv2.divide(f, mean, scale=128.0, dtype=cv2.CV_8U)
 
 
-@functools.lru_cache(maxsize=8)
-def _ideal_nodes(camera: Camera, step: int) -> np.ndarray:
-    """``(ny, nx, 2)``: where every ``step``-th pixel of ``camera``'s frame (and one node past its right
-    and bottom edges) lies in the ideal pinhole image (itself where the lens has no distortion)."""
-    u, v = np.meshgrid(np.arange(0, camera.width + step, step, dtype=np.float64),
-                       np.arange(0, camera.height + step, step, dtype=np.float64))
-    g = np.column_stack([u.ravel(), v.ravel()])
-    return (camera.undistort_pixels(g) if camera.has_distortion else g).reshape(u.shape + (2,))
-
-
 def refined_on_keyframe(kf: Keyframe, gray: np.ndarray, kf_px: np.ndarray, p1: np.ndarray, good: np.ndarray,
                         camera: Camera) -> tuple:
     """``(p2, status)`` as ``cv2.calcOpticalFlowPyrLK`` gives them: the tracks ``p1`` (``(N, 1, 2)``
@@ -2431,7 +2427,7 @@ def refined_on_keyframe(kf: Keyframe, gray: np.ndarray, kf_px: np.ndarray, p1: n
     x0, y0, x1, y1 = i0 * s, j0 * s, min(int(hi[0]), w), min(int(hi[1]), h)
     if x1 - x0 < 16 or y1 - y0 < 16:
         return None, None
-    nodes = _ideal_nodes(camera, s)[j0:-(-y1 // s) + 1, i0:-(-x1 // s) + 1]
+    nodes = ideal_grid(camera, s)[j0:-(-y1 // s) + 1, i0:-(-x1 // s) + 1]
     # each node's place in the keyframe, and every pixel's between the nodes bilinearly
     src = dis(cv2.perspectiveTransform(nodes.reshape(-1, 1, 2), np.linalg.inv(H)).reshape(-1, 2))
     up = np.float64([[1.0 / s, 0.0, 0.0], [0.0, 1.0 / s, 0.0]])

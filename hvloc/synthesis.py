@@ -36,7 +36,7 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .features import srgb_to_linear
-from .geometry import Camera, invert, pad_plane_homography
+from .geometry import Camera, ideal_grid, invert, pad_plane_homography
 from .phases import Detection
 from .shutter import Twist
 
@@ -183,7 +183,6 @@ class PadSynthesis:
         self.pad = pad
         gray = cv2.cvtColor(np.ascontiguousarray(pad.texture_rgb), cv2.COLOR_RGB2GRAY)
         self.levels = box_levels(srgb_to_linear(gray), pad.side_m, 64)
-        self._ideal = None  # (camera, (H, W, 2) float32 every pixel's place in the ideal pinhole image)
 
     def reach_m(self, camera: Camera, height_m: float) -> float:
         """How far off (m, across the pad's plane) a prediction from ``height_m`` above the pad may
@@ -191,12 +190,6 @@ class PadSynthesis:
         side, the window being the pad or, near the ground, the frame's view of its plane."""
         view = max(camera.width / camera.fx, camera.height / camera.fy) * max(height_m, 0.0)
         return MAX_SHIFT * min(self.pad.side_m, view)
-
-    def _ideal_pixels(self, camera: Camera) -> np.ndarray:
-        """``(H, W, 2)`` float32: every pixel's place in the ideal pinhole image (kept per camera)."""
-        if self._ideal is None or self._ideal[0] is not camera:
-            self._ideal = (camera, camera.ideal_pixel_grid().astype(np.float32))
-        return self._ideal[1]
 
     def window(self, camera: Camera, box, scale: float, own: bool = False) -> np.ndarray:
         """``(h, w, 2)`` float32: the ideal pinhole place of each pixel of the frame's window ``box``
@@ -215,7 +208,7 @@ class PadSynthesis:
         if own:
             px = np.column_stack([uu.ravel(), vv.ravel()]).astype(np.float64)
             return camera.undistort_pixels(px).reshape(h, w, 2).astype(np.float32)
-        return cv2.remap(self._ideal_pixels(camera), uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return cv2.remap(ideal_grid(camera, dtype=np.float32), uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
     def draw(self, camera: Camera, grid: np.ndarray, scale: float, pose_at, times, row_dt=None) -> tuple:
         """``(image, inside, field)`` on ``grid`` (:meth:`window`): the texture seen from

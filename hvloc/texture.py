@@ -23,7 +23,7 @@ import numpy as np
 from pad_design.texture import texture_to_pad
 
 from .features import linear_to_srgb, srgb_to_linear
-from .geometry import Camera, pad_plane_homography
+from .geometry import Camera, ideal_grid, pad_plane_homography
 from .phases import LK_PARAMS, Detection
 
 MIN_INLIERS = 20        # homography inliers for a location: another pad's texture gives at most ~11
@@ -61,7 +61,6 @@ class PadTexture:
         self.levels = [gray]  # box-filtered halvings, to draw the texture at the image's scale
         while min(self.levels[-1].shape) > 64:
             self.levels.append(cv2.pyrDown(self.levels[-1]))
-        self._grid = None  # (camera, (H, W, 2) undistorted pixel of every pixel)
         self._dense_set = None  # every feature of the texture (_dense)
         self.orb = cv2.ORB_create(nfeatures=TEXTURE_FEATURES, scaleFactor=1.2, nlevels=8, fastThreshold=10)
         kps, self.des = self.orb.detectAndCompute(gray, None)
@@ -402,7 +401,7 @@ class PadTexture:
         pixel), over the texels the frame sees, and the sum is taken through the lens in one
         remap.  Mapping every pixel for every instant cost 12 ms an instant at 1280x720 (a
         smeared drawing of 8 instants, drawn twice: 190 ms)."""
-        grid = self._undistorted_grid(camera)
+        grid = ideal_grid(camera)
         h, w = grid.shape[:2]
         uv = cv2.perspectiveTransform(grid.reshape(-1, 1, 2), np.linalg.inv(M)).reshape(h, w, 2).astype(np.float32)
         if len(Ms) == 1:
@@ -428,12 +427,6 @@ class PadTexture:
         uv -= np.array([x0, y0], np.float32)
         return (cv2.remap(acc, uv[..., 0], uv[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT),
                 cv2.remap(ins, uv[..., 0], uv[..., 1], cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT))
-
-    def _undistorted_grid(self, camera: Camera) -> np.ndarray:
-        """``(H, W, 2)`` float64: every pixel's place in the ideal pinhole image (kept per camera)."""
-        if self._grid is None or self._grid[0] is not camera:
-            self._grid = (camera, camera.ideal_pixel_grid())
-        return self._grid[1]
 
 
 def _lit_as(drawn: np.ndarray, gray: np.ndarray, mask: np.ndarray) -> np.ndarray:
