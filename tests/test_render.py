@@ -676,3 +676,36 @@ def test_an_opengl_without_a_float_framebuffer_is_named_not_drawn_black(monkeypa
         assert scene.render(np.eye(4)).dtype == np.uint8
     finally:
         scene.close()
+
+
+def test_the_cameras_sharpening_clips_at_black_and_moves_only_the_specs_that_sharpen():
+    """The camera's unsharp mask undershoots beside a bright edge; a camera clips that at black.
+    Written as its absolute value (OpenCV's convertScaleAbs), a black pixel beside white read 38
+    of 255 under a 0.5 mask: a grey halo on the dark side of every strong edge.  Where nothing
+    undershoots, the sharpening is as it was; the specs that sharpen take render revision 13."""
+    from hvloc.geometry import Camera
+    from render.imaging import WHITE_LEVEL, ImageFormation, ImagingParams
+    from render.spec import render_revision
+
+    cam = Camera(64, 24, 60.0, 60.0, 31.5, 11.5)
+
+    def written(left, right, sharpen):
+        p = ImagingParams(exposure_gain=1.0, gamma=1.0, defocus_sigma_px=0.0, shot_noise=0.0, read_noise=0.0,
+                          jpeg_quality=None, sharpen=sharpen)
+        light = np.full((24, 64, 3), left, np.float32)
+        light[:, 32:] = right
+        return ImageFormation(cam, 1, p, 1.0 / WHITE_LEVEL, seed=0).finish(light, 0)[12, :, 1].astype(int)
+
+    row = written(0.0, 1.0, 0.5)
+    assert (row[:32] == 0).all() and (row[32:] == 255).all(), row  # clipped both ways: no halo
+    # grey to grey: nothing undershoots black, the mask's overshoot as a camera writes it
+    row, soft = written(0.05, 0.4, 0.5), written(0.05, 0.4, 0.0)
+    disp = soft[[0, 31, 32, 63]] / 255.0
+    step = 0.5 * (disp[2] - disp[1]) * 0.5 * math.erfc(0.5 / math.sqrt(2.0))  # a 1 px Gaussian's share across
+    assert row[31] < soft[31] - 10 and row[32] > soft[32] + 10 and row[31] > 0, (row, soft)
+    assert abs(row[31] - 255.0 * (disp[1] - step)) <= 1.5 and abs(row[32] - 255.0 * (disp[2] + step)) <= 1.5, (row, soft, step)
+    assert (row[:20] == soft[:20]).all() and (row[44:] == soft[44:]).all()  # far from the edge: untouched
+    sharp = DatasetSpec.model_validate({"degradations": {"sharpen": [0.2, 0.4]}})
+    assert render_revision(sharp) == 13 and render_revision(DatasetSpec.model_validate({})) == 12
+    assert render_revision(DatasetSpec.model_validate({"camera": {"mix_in_light": False},
+                                                      "degradations": {"sharpen": [0.0, 0.1]}})) == 13
