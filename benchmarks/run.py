@@ -167,7 +167,8 @@ def make_localizer(kind: str, seq, config: LocalizerConfig, gates: bool = False,
 
     if kind == "hierarchical":
         loc = HierarchicalLocalizer(seq.pad, seq.camera, config, T_B_C=seq.T_B_C, work=work, line_s=seq.line_s,
-                                    ref_row=seq.ref_row, exposure_s=seq.exposure_s)
+                                    ref_row=seq.ref_row, exposure_s=seq.exposure_s,
+                                    response=getattr(seq, "response", None))
     else:
         loc = localizer_class(kind)(seq.pad, seq.camera, config, T_B_C=seq.T_B_C)
     if gates and kind != "hierarchical":

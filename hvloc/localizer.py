@@ -1012,11 +1012,13 @@ class HierarchicalLocalizer:
 
     def __init__(self, pad, camera: Camera, config: LocalizerConfig | None = None, T_B_C: np.ndarray | None = None,
                  work: ImageWork | None = None, line_s: float = 0.0, ref_row: float | None = None,
-                 exposure_s: float = 0.0):
+                 exposure_s: float = 0.0, response: tuple | None = None):
         """``line_s``, ``ref_row``: the camera's rolling shutter (:mod:`hvloc.shutter`): the time
         between its rows, and the row whose time a frame's stamp is (by default the middle one).
         ``exposure_s``: how long a frame is exposed (0: not known), which says how far motion
-        smears it (:mod:`hvloc.synthesis`)."""
+        smears it (:mod:`hvloc.synthesis`).  ``response``: the camera's photometric calibration
+        where known, ``(gamma, sharpen, sharpen_sigma_px)`` (``camera.json``'s ``response``): a far
+        pad's design is drawn as the camera writes it (:func:`hvloc.texfit.fit_pose_to_design`)."""
         self.geometry = pad.geometry if hasattr(pad, "geometry") else pad
         self.pad = pad if getattr(pad, "texture_rgb", None) is not None else None  # a bare geometry has no texture
         self._texture = None  # its ORB features (hvloc.texture), made when first needed
@@ -1035,6 +1037,12 @@ class HierarchicalLocalizer:
         if not (math.isfinite(exposure_s) and 0.0 <= exposure_s <= 1.0):
             raise ValueError(f"exposure_s: {exposure_s!r} s is no frame's exposure")
         self.exposure_s = float(exposure_s)
+        if response is not None:
+            response = tuple(float(v) for v in response)
+            if not (len(response) == 3 and all(math.isfinite(v) for v in response) and response[0] > 0
+                    and response[1] >= 0 and response[2] > 0):
+                raise ValueError(f"response: {response!r} is no camera's (gamma > 0, sharpen >= 0, its sigma > 0)")
+        self.response = response
         # the IMU's rows a frame's gyro rate is the mean of (imu_rate): those its rows were read in
         self.rate_span_s = abs(self.shutter.line_s) * (camera.height - 1)
         self._synthesis = None  # the pad drawn and smeared (hvloc.synthesis), made when first needed
@@ -2032,8 +2040,9 @@ class HierarchicalLocalizer:
         square = _rms_share(start.rms_px, det.info) <= self.config.max_outline_rms_share
         if not (square or rescue):
             return det
-        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g),
-                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad)
+        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g,
+                                          self.response),
+                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)
@@ -2321,8 +2330,8 @@ class HierarchicalLocalizer:
         quad = self.camera.project_from(T, self.outer_P)
         if quad is None or not np.isfinite(quad).all() or not MIN_SIDE_PX <= ph._mean_side(quad) < MIN_PAD_PX:
             return None, why
-        fitted, info = self.work(lambda: ("design at the prediction", array_key(T)), fit_pose_to_design, rgb,
-                                 self.camera, self._drawing(), T)
+        fitted, info = self.work(lambda: ("design at the prediction", array_key(T), self.response), fit_pose_to_design,
+                                 rgb, self.camera, self._drawing(), T, self.response)
         px = None if fitted is None else self.camera.project_from(fitted, self.outer_P)
         if px is None or not np.isfinite(px).all():
             return None, f"{why}; its design fitted from the predicted pose: {info.get('why', 'out of view')}"

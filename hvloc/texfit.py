@@ -49,10 +49,12 @@ MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px 
 MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
 BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
 BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in
-TONE = 2.2             # the tone curve's exponent (written = light ** (1 / it)): sRGB's, as cameras write.  Not
-                       # fitted: a far pad's few grey levels hardly fix it, and a fitted one took up the model's errors
+TONE = 2.2             # the tone curve's exponent (written = light ** (1 / it)): sRGB's, as cameras write, unless the
+                       # camera's response is known.  Not fitted: the colour gains leave only the edges' profiles to
+                       # fix it, and a fitted one took up the model's errors (far_wide's renders: 0.15-0.3 low)
 SHARPEN_SIGMA_PX = 1.0  # a camera's own sharpening (an unsharp mask) subtracts a blur this wide (px) ...
 SHARPEN_RANGE = (0.0, 1.5)  # ... this many times over (fitted; 0: none)
+UNSHARP_ROUNDS = 12    # a known sharpening undone on the frame by this many rounds (each leaves a / (1 + a) of the error)
 LIGHT_FLOOR = 1e-3     # light below this (of the brightest) is taken as this: a black marker's grey is noise
 ITERATIONS = 10
 HUBER_K = 2.0          # residuals beyond this many robust sigmas weigh less (shadows, glare, dirt)
@@ -99,14 +101,24 @@ def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray) -> tuple:
+def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
     (:data:`LUMA`), or a grey camera's ``(H, W)``.  ``info``: the blur (px),
     and sharpening fitted, the drawing's correlation with the frame, the residual's RMS, the
     pixels compared, iterations.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - :data:`MAX_SIDE_PX` across,
-    too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`)."""
+    too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`).
+
+    ``response``: the camera's photometric calibration where it is known, ``(gamma, sharpen[,
+    sigma])``: its tone curve's exponent (written = light ** (1 / gamma)) and its own sharpening, an
+    unsharp mask (a Gaussian of ``sigma`` px, :data:`SHARPEN_SIGMA_PX` unless given) of the values
+    it writes (``camera.json``'s ``response``).
+    Both move a far pad's fitted size: blurred, an edge's profile as written depends on the tone,
+    and the mask's overshoot on the side it falls.  Unknown, sRGB's exponent is taken and a
+    sharpening is fitted in light, which stands in for it (far_wide's renders: a camera's exponent
+    2.02 or 2.40 and a 0.35-0.45 mask put the pad 0.3-0.9 % too near from the labelled pose;
+    known, 0.0-0.5 %, as an unsharpened sRGB camera's)."""
     info: dict = {}
     half = synth.pad.side_m / 2.0
     outer = np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
@@ -135,14 +147,36 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     n = int(mask.sum())
     if n < MIN_PIXELS:
         return None, {"why": f"{n} pixels near the pad (< {MIN_PIXELS})"}
+    known = response is not None
+    tone = float(response[0]) if known else TONE
+    amount = float(response[1]) if known else 0.0  # the camera's own sharpening, held where known
+    sharp_sigma = float(response[2]) if known and len(response) > 2 else SHARPEN_SIGMA_PX
+    # the pixels modelled: those compared, or with a known sharpening the whole window (its blur
+    # reaches past them); ``at``: the compared among the modelled
+    sel = np.ones_like(mask) if known else mask
+    at = mask[sel] if known else slice(None)
     target = img[mask]  # (n, channels) as written
     seen = target @ luma  # the luma compared
-    target_light = target ** TONE  # ... and each channel in light
+    # ... and each channel in light, the gains' target: where the camera sharpened, as it was before
+    # (the mask undone: x = (written + a G(x)) / (1 + a), a contraction; solved on the sharpened
+    # values, the gains took the mask's halos for the pad's levels and the pad came out 0.1 % small)
+    unsharp = img.astype(np.float32)
+    for _ in range(UNSHARP_ROUNDS if amount > 0 else 0):
+        unsharp = (img + amount * cv2.GaussianBlur(unsharp, (0, 0), sharp_sigma).reshape(img.shape)) / (1.0 + amount)
+    target_light = np.clip(unsharp[mask], 0.0, 1.0) ** tone
     depth = max(float(invert(cam2pad)[2, 3]), 1e-3)
     m_per_px = depth / camera.fx
     # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
     steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6)])
-    ideal = np.column_stack([grid[mask].astype(np.float64), np.ones(n)])  # the compared pixels' ideal places
+    ideal = np.column_stack([grid[sel].astype(np.float64), np.ones(int(sel.sum()))])  # the modelled pixels' ideal places
+
+    def written(t):
+        """Toned values ``t`` (modelled pixels, channels) as the camera writes them: sharpened by
+        ``amount`` where its sharpening is known (a mask of the written values, not of light)."""
+        if amount <= 0:
+            return t
+        win = t.reshape(mask.shape + (-1,)).astype(np.float32)
+        return (1.0 + amount) * t - amount * cv2.GaussianBlur(win, (0, 0), sharp_sigma).reshape(t.shape)
 
     def drawn(q):
         """``(D, B1, B2)``, each ``(h, w, 4)``: the design's channels at q's pose blurred as the camera
@@ -166,9 +200,9 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         design's colours: blurred, the magenta border's edges were drawn where the camera does not
         put them (synthetic 35 px pads under 0.6-1.5 px of blur: 0.4-1.0 % too near)."""
         A = np.column_stack([d[:, 0], d[:, 1], d[:, 2], 1.0 - d[:, 3], np.ones(len(d))])
-        g, *_ = np.linalg.lstsq(A, target_light, rcond=None)  # (5, channels)
+        g, *_ = np.linalg.lstsq(A[at], target_light, rcond=None)  # (5, channels)
         light = np.maximum(A @ g, LIGHT_FLOOR)  # (the tone curve's slope is unbounded at black)
-        return seen - light ** (1.0 / TONE) @ luma, A, g, light
+        return seen - (written(light ** (1.0 / tone)) @ luma)[at], A, g, light
 
     def jacobian(q, DB, A, g, light):
         """``(n, 6)``: the residuals' derivatives.  The pose's four from the drawing's gradient and
@@ -186,21 +220,23 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         off = [_draw(levels, synth, camera, grid + np.float32(o), T)
                for o in ((GRAD_PX, 0.0), (-GRAD_PX, 0.0), (0.0, GRAD_PX), (0.0, -GRAD_PX))]
         grad = blurred(np.concatenate([off[0] - off[1], off[2] - off[3]], axis=2) / np.float32(2 * GRAD_PX), q)[0]
-        gx, gy = grad[..., :4][mask].astype(np.float64), grad[..., 4:][mask].astype(np.float64)
+        gx, gy = grad[..., :4][sel].astype(np.float64), grad[..., 4:][sel].astype(np.float64)
         sig = max(q[4], 0.05)
-        lap = sig * ((1.0 + q[5]) * cv2.Laplacian(B1, cv2.CV_32F, ksize=1)[mask].astype(np.float64)
-                     - q[5] * cv2.Laplacian(B2, cv2.CV_32F, ksize=1)[mask].astype(np.float64))
+        lap = sig * ((1.0 + q[5]) * cv2.Laplacian(B1, cv2.CV_32F, ksize=1)[sel].astype(np.float64)
+                     - q[5] * cv2.Laplacian(B2, cv2.CV_32F, ksize=1)[sel].astype(np.float64))
         # (n, channels): the tone curve's slope; 0 where the light was floored (the residual does not
         # move there: the slope at the floor, ~20, made the Jacobian's columns 2-4 times too long)
-        slope = np.where(light > LIGHT_FLOOR, light ** (1.0 / TONE - 1.0) / TONE, 0.0)
+        slope = np.where(light > LIGHT_FLOOR, light ** (1.0 / tone - 1.0) / tone, 0.0)
 
-        lit = target_light - A @ g  # (n, channels): what the gains leave of each channel in light
-        AtA_inv = np.linalg.pinv(A.T @ A)
+        Ac = A[at]
+        lit = target_light - Ac @ g  # (n, channels): what the gains leave of each channel in light
+        AtA_inv = np.linalg.pinv(Ac.T @ Ac)
 
-        def of(dd):  # the residuals' change for a change ``dd`` (n, 4) of the drawn channels
-            dA = np.column_stack([dd[:, :3], -dd[:, 3], np.zeros(n)])
-            dg = AtA_inv @ (dA.T @ lit - A.T @ (dA @ g))  # the gains' change (the normal equations')
-            return -(slope * (dA @ g + A @ dg)) @ luma
+        def of(dd):  # the residuals' change for a change ``dd`` (modelled pixels, 4) of the drawn channels
+            dA = np.column_stack([dd[:, :3], -dd[:, 3], np.zeros(len(dd))])
+            dAc = dA[at]
+            dg = AtA_inv @ (dAc.T @ lit - Ac.T @ (dAc @ g))  # the gains' change (the normal equations')
+            return -(written(slope * (dA @ g + A @ dg)) @ luma)[at]
 
         J = np.empty((n, 6))
         for k in range(4):  # each pose parameter moves the pad points' ideal images
@@ -210,12 +246,12 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[k]
             J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
         J[:, 4] = of(lap)
-        J[:, 5] = of((B1 - B2)[mask].astype(np.float64))
+        J[:, 5] = of((B1 - B2)[sel].astype(np.float64))
         return J
 
     q = np.array([0.0, 0.0, 0.0, 0.0, BLUR_START_PX, 0.0])
     DB = drawn(q)
-    r, A, g, light = toned(DB[0][mask].astype(np.float64))
+    r, A, g, light = toned(DB[0][sel].astype(np.float64))
     lam = 1e-3
     it = 0
     for it in range(1, ITERATIONS + 1):
@@ -231,6 +267,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         free = np.ones(len(q), bool)
         for k, (lo, hi) in ((4, BLUR_RANGE_PX), (5, SHARPEN_RANGE)):
             free[k] = not ((q[k] <= lo and b[k] > 0) or (q[k] >= hi and b[k] < 0))
+        free[5] &= not known  # (a known sharpening is the camera's, in its written values)
         moved = False
         for _ in range(8):
             dq = np.zeros(len(q))
@@ -243,7 +280,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             qn[4] = float(np.clip(qn[4], *BLUR_RANGE_PX))
             qn[5] = float(np.clip(qn[5], *SHARPEN_RANGE))
             DBn = drawn(qn)
-            rn, An, gn, ln = toned(DBn[0][mask].astype(np.float64))
+            rn, An, gn, ln = toned(DBn[0][sel].astype(np.float64))
             if float(np.sum(w * rn * rn)) < cost:
                 q, DB, r, A, g, light, moved = qn, DBn, rn, An, gn, ln, True
                 lam = max(lam / 10.0, 1e-9)
@@ -257,7 +294,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     a = d - d.mean()
     t = t - t.mean()
     ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
-    info = {"blur_px": round(float(q[4]), 3), "sharpen": round(float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it}
+    info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it}
     if not np.isfinite(q).all() or ncc < MIN_NCC:
         info["why"] = f"the drawing matches the frame poorly (correlation {ncc:.2f} < {MIN_NCC})"
         return None, info

@@ -469,6 +469,27 @@ def _check_camera_info(camera: Camera, fps: float, T_B_C: np.ndarray, info: dict
         if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)) or \
                 (key != "imu_time_offset_s" and v < 0):
             raise InputError(f"{where}: {key} {v!r} is not a {'time' if key.endswith('_s') else 'row'}")
+    if info.get("response") is not None:
+        camera_response_of(info, where)
+
+
+def camera_response_of(info: dict, where) -> tuple | None:
+    """``camera.json``'s ``response`` (a photometric calibration: :func:`render.imaging.camera_response`)
+    as ``(gamma, sharpen, sharpen_sigma_px)``, or ``None`` where the camera's response is not known;
+    an :class:`InputError` naming the field that no camera's response has."""
+    r = info.get("response")
+    if r is None:
+        return None
+    if not isinstance(r, dict) or "gamma" not in r:
+        raise InputError(f"{where}: response must be an object with gamma (and sharpen, sharpen_sigma_px), got {r!r}")
+    out = []
+    for key, default, lo, hi in (("gamma", None, 0.2, 10.0), ("sharpen", 0.0, 0.0, 10.0), ("sharpen_sigma_px", 1.0, 1e-3, 20.0)):
+        v = r.get(key, default)
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi) or \
+                (key != "sharpen" and v <= 0):
+            raise InputError(f"{where}: response.{key} {v!r} is not a camera's (a number in [{lo:g}, {hi:g}])")
+        out.append(float(v))
+    return tuple(out)
 
 
 class Sequence:
@@ -562,6 +583,12 @@ class Sequence:
         """How long each frame is exposed (s; 0 where the camera does not say): how far motion smears it."""
         v = self.camera_info.get("exposure_s", 0.0)
         return float(v) if isinstance(v, (int, float)) and math.isfinite(v) and v > 0 else 0.0
+
+    @property
+    def response(self) -> tuple | None:
+        """The camera's photometric response where ``camera.json`` gives it, ``(gamma, sharpen,
+        sharpen_sigma_px)`` (:func:`camera_response_of`); ``None``: not known."""
+        return camera_response_of(self.camera_info, self.root / "camera.json")
 
     @property
     def imu_time_offset_s(self) -> float:

@@ -17,6 +17,7 @@ from pad_design.errors import InputError, progress_bar
 
 from . import dataset as ds
 from .executor import report_progress, run_units
+from .imaging import camera_response
 from .plan import camera_from_spec, check_flyable, mount_from_spec, pad_for, plan_sequence  # noqa: F401  (re-exported)
 from .spec import DatasetSpec
 
@@ -44,6 +45,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
                      "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate, "mono": cam.mono,
                      "conventions": r.camera.conventions})
         plan = r.plan
+        if cam.response_known:  # a photometric calibration: written = light ** (1 / gamma), then sharpened
+            info["response"] = camera_response(plan.imaging)
         meta = {"sequence": sid, "index": index, "seed": plan.seed, "dataset_seed": spec.seed, "family": plan.family,
                 "duration_s": float(plan.trajectory.duration), "frames": len(r), "blur_method": spec.degradations.blur_method,
                 "scene": plan.scene_draw.to_dict(), "imaging": plan.imaging.to_dict(),

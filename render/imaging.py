@@ -19,6 +19,7 @@ from hvloc.geometry import Camera
 
 SRGB_GAMMA = 2.2
 WHITE_LEVEL = 0.85  # auto-exposure: a sunlit white horizontal surface lands here (linear)
+SHARPEN_SIGMA_PX = 1.0  # the camera's own sharpening subtracts a Gaussian blur this wide (px) of the written values
 MONO_RESPONSE = np.array([0.2126, 0.7152, 0.0722], np.float32)  # a mono sensor's weights of linear R, G, B
 SRGB_TO_LINEAR = ((np.arange(256, dtype=np.float32) / 255.0) ** SRGB_GAMMA).astype(np.float32)
 
@@ -40,6 +41,15 @@ class ImagingParams:
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
+
+
+def camera_response(params: ImagingParams) -> dict:
+    """``camera.json``'s ``response`` (``camera.response_known``): what a photometric calibration says
+    of how the camera writes light.  ``gamma``: each channel is written as ``(gain * light) ** (1 /
+    gamma)``; ``sharpen``: then sharpened, ``(1 + sharpen) v - sharpen G(v)`` with ``G`` a Gaussian of
+    ``sharpen_sigma_px``, before its 8 bits (and JPEG)."""
+    return {"gamma": SRGB_GAMMA * float(params.gamma), "sharpen": float(params.sharpen),
+            "sharpen_sigma_px": SHARPEN_SIGMA_PX}
 
 
 def display_bytes(render: np.ndarray) -> np.ndarray:
@@ -191,7 +201,7 @@ class ImageFormation:
         np.clip(x, 0.0, 1.0, out=x)
         disp = cv2.pow(x, self.tone_exponent)
         if p.sharpen > 0:  # the camera's own sharpening, in display space (a symmetric kernel keeps edges put)
-            disp = cv2.addWeighted(disp, 1.0 + p.sharpen, cv2.GaussianBlur(disp, (0, 0), 1.0), -p.sharpen, 0.0)
+            disp = cv2.addWeighted(disp, 1.0 + p.sharpen, cv2.GaussianBlur(disp, (0, 0), SHARPEN_SIGMA_PX), -p.sharpen, 0.0)
             # its undershoot beside a bright edge is black, as a camera clips it: written as it was
             # (convertScaleAbs takes the absolute value), a black pixel beside white read 38 of 255
             # under a 0.5 unsharp mask, a grey halo on the dark side of every strong edge (revision 13)

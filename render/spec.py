@@ -182,6 +182,10 @@ class CameraSpec(_Model):
                        "light summed with Rec. 709's weights, written as grey RGB (R = G = B); its JPEG is grey")
     auto_exposure_lag_s: float | None = Field(None, gt=0.0, description="auto exposure: the gain follows the scene's "
                                               "brightness with this time constant (None: fixed exposure)")
+    response_known: bool = Field(False, description="write the camera's photometric response into camera.json "
+                                 "(`response`: its tone curve's exponent and in-camera sharpening, drawn per "
+                                 "sequence), as a photometric calibration gives it: localizers may use it (hvloc's "
+                                 "far-pad design fit does); false: a camera whose response is not known")
     mount: MountSpec = MountSpec()
     # timing as real systems have it
     frame_time_jitter_s: float = Field(0.0, ge=0.0, description="std of each frame's capture time around k / fps "

@@ -709,3 +709,28 @@ def test_the_cameras_sharpening_clips_at_black_and_moves_only_the_specs_that_sha
     assert render_revision(sharp) == 13 and render_revision(DatasetSpec.model_validate({})) == 12
     assert render_revision(DatasetSpec.model_validate({"camera": {"mix_in_light": False},
                                                       "degradations": {"sharpen": [0.0, 0.1]}})) == 13
+
+
+def test_a_known_camera_response_is_written_with_the_frames_it_made_and_read_back(tmp_path):
+    """``camera.response_known``: each sequence's camera.json says how its camera wrote light (the
+    tone curve's exponent and the sharpening drawn for it, meta.json's imaging), as a photometric
+    calibration does; the frames are the same as without it.  A response no camera has is named."""
+    from pad_design.errors import InputError
+    from render.dataset import Sequence
+
+    over = {"degradations.gamma": [0.9, 1.1], "degradations.sharpen": [0.2, 0.5]}
+    generate(_tiny(**over, **{"camera.response_known": True}), tmp_path / "known", show_progress=False, only=[0])
+    generate(_tiny(**over), tmp_path / "plain", show_progress=False, only=[0])
+    known, plain = Dataset(tmp_path / "known")[0], Dataset(tmp_path / "plain")[0]
+    drawn = json.loads((known.root / "meta.json").read_text())["imaging"]
+    assert known.response == pytest.approx((2.2 * drawn["gamma"], drawn["sharpen"], 1.0))
+    assert 0.2 <= drawn["sharpen"] <= 0.5 and drawn["gamma"] != 1.0
+    assert plain.response is None and "response" not in plain.camera_info
+    assert all((known.root / f"images/{k:06d}.png").read_bytes() == (plain.root / f"images/{k:06d}.png").read_bytes()
+               for k in range(len(known)))
+    info = json.loads((known.root / "camera.json").read_text())
+    for bad, field in (({"gamma": -2.2}, "response.gamma"), ({"gamma": 2.2, "sharpen": float("nan")}, "response.sharpen"),
+                       ("sRGB", "response must be an object")):
+        (known.root / "camera.json").write_text(json.dumps({**info, "response": bad}))
+        with pytest.raises(InputError, match=field.replace(".", r"\.")):
+            Sequence(known.root)
