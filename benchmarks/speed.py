@@ -305,6 +305,39 @@ def chroma_tell_speed(n: int) -> list:
     return out
 
 
+def design_fit_speed(n: int) -> list:
+    """ms of fitting the default pad's drawn design to a view (``hvloc.texfit.fit_pose_to_design``,
+    from the labelled pose moved 1 %) at 40, 90 and 130 px across, 1280x720 behind an 80 degree lens
+    through JPEG 50 (pads over 64 px are fitted only where the chroma is halved), beside finding the
+    outline in the same frame (``hvloc.phases.find_outline``); and the heights' error."""
+    import cv2
+
+    from hvloc.geometry import Camera
+    from hvloc.phases import find_outline
+    from hvloc.synthesis import PadSynthesis
+    from hvloc.texfit import HALVED_MAX_SIDE_PX, fit_pose_to_design
+    from render.planar import nadir_cam2pad, warp_pad_view
+
+    pad, _ = _texture_pad()
+    cam = Camera.from_hfov(1280, 720, math.radians(80))
+    syn = PadSynthesis(pad)
+    out = []
+    for side in (40, 90, 130):
+        h = pad.geometry.side_m * cam.fx / side
+        G = nadir_cam2pad(0.3, -0.2, h, 0.4)
+        rgb = warp_pad_view(pad, cam, G, (80, 110, 60))
+        jpeg = np.ascontiguousarray(cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 50])[1],
+                                                 cv2.IMREAD_COLOR)[..., ::-1])
+        start = G.copy()
+        start[:3, 3] *= 1.01
+        fitted, _ = fit_pose_to_design(jpeg, cam, syn, start, max_side_px=HALVED_MAX_SIDE_PX)
+        ms = 1000 * _timeit(lambda: fit_pose_to_design(jpeg, cam, syn, start, max_side_px=HALVED_MAX_SIDE_PX), n)
+        ref = 1000 * _timeit(lambda: find_outline(jpeg, pad.geometry, cam, halved=True), n)
+        out.append({"side_px": side, "ms": ms, "ref_outline_ms": ref, "ratio_to_ref": ms / ref,
+                    "height_err_pct": None if fitted is None else 100 * (fitted[2, 3] - h) / h})
+    return out
+
+
 def _speed_row(width, height, phase, h, ms, ok, methods, ref) -> dict:
     return {"resolution": f"{width}x{height}", "phase": phase, "height_m": round(h, 2),
             "ms_p50": float(np.percentile(ms, 50)), "ms_p95": float(np.percentile(ms, 95)),
@@ -381,6 +414,11 @@ def main(argv=None) -> int:
         print(f"chroma told halved or whole, {r['resolution']:>9s} (as rendered: {r['halved_as_rendered']}, JPEG 75: "
               f"{r['halved_jpeg75']}): {r['ms']:6.2f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
               f"{r['ratio_to_ref']:5.1f}x", flush=True)
+    res["design_fit"] = design_fit_speed(n)
+    for r in res["design_fit"]:
+        err = "failed" if r["height_err_pct"] is None else f"{r['height_err_pct']:+.2f} % of the height"
+        print(f"design fitted to a {r['side_px']:3d} px pad, 1280x720 JPEG 50 ({err}): {r['ms']:6.1f} ms  outline found "
+              f"{r['ref_outline_ms']:5.1f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1) + "\n")

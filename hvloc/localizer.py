@@ -2029,9 +2029,12 @@ class HierarchicalLocalizer:
         :attr:`LocalizerConfig.design_fit` on or off (the caller asks only where the pad was foreseen)."""
         if up_C is None or self.pad is None:
             return det
-        from .texfit import fit_pose_to_design
+        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
 
         g = self.up_sigma_deg
+        # larger pads too where the frame's chroma is at half resolution: its colour edges smear
+        halved = rgb.ndim == 3 and self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
+        top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
         start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
         if start is None:
             return det
@@ -2041,8 +2044,8 @@ class HierarchicalLocalizer:
         if not (square or rescue):
             return det
         fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g,
-                                          self.response),
-                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response)
+                                          self.response, top),
+                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)

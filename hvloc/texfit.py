@@ -45,6 +45,10 @@ from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
 
 MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger ones the step fit places well ...
+# ... unless the frame's chroma is at half resolution (JPEG, H.264): there the border's colour edges smear and
+# the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
+# luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
+HALVED_MAX_SIDE_PX = 140.0
 MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off)
 MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
 BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
@@ -101,13 +105,14 @@ def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None) -> tuple:
+def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None,
+                       max_side_px: float = MAX_SIDE_PX) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
     (:data:`LUMA`), or a grey camera's ``(H, W)``.  ``info``: the blur (px),
     and sharpening fitted, the drawing's correlation with the frame, the residual's RMS, the
-    pixels compared, iterations.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - :data:`MAX_SIDE_PX` across,
+    pixels compared, iterations.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - ``max_side_px`` across,
     too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`).
 
     ``response``: the camera's photometric calibration where it is known, ``(gamma, sharpen[,
@@ -132,8 +137,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
            min(camera.width, int(math.ceil(hi[0]))), min(camera.height, int(math.ceil(hi[1]))))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return None, {"why": "pad out of view"}
-    if not MIN_SIDE_PX <= side_px <= MAX_SIDE_PX:
-        return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{MAX_SIDE_PX:.0f})"}
+    if not MIN_SIDE_PX <= side_px <= max_side_px:
+        return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{max_side_px:.0f})"}
     grid = synth.window(camera, box, 1.0, own=True)  # (a far pad's window: a few thousand pixels)
     img = np.asarray(image[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
     img = img.reshape(img.shape[0], img.shape[1], -1)
