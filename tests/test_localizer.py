@@ -4573,6 +4573,20 @@ def test_a_far_pad_fitted_by_its_design_is_as_far_as_it_is_under_any_blur(pad, b
     assert np.max(np.abs(errs)) < 0.002, (blur, errs)
 
 
+def _camera_view(pad, rng, heights, ground, gamma: float = 2.2, sharpen: float = 0.0):
+    """``(G, h, frame)``: the pad seen from a height drawn in ``heights``, as a camera makes it: a 4x
+    finer view averaged in light, a 0.6 px blur, noise, each channel written as light ** (1 / gamma)
+    and sharpened by an unsharp mask of 1 px (clipped at black), 8 bits."""
+    h = rng.uniform(*heights)
+    G = tilted(rng.uniform(-1, 1), rng.uniform(-1, 1), h, rng.uniform(0, 2 * np.pi), 0.02, -0.01)
+    fine = (warp_pad_view(pad, CAM.scaled(4), G, ground, supersample=1).astype(np.float32) / 255.0) ** 2.2
+    light = cv2.GaussianBlur(cv2.resize(fine, (CAM.width, CAM.height), interpolation=cv2.INTER_AREA), (0, 0), 0.6)
+    light += rng.normal(0.0, 0.003, light.shape).astype(np.float32)
+    written = np.clip(light, 0, 1) ** (1 / gamma)
+    written = np.clip((1 + sharpen) * written - sharpen * cv2.GaussianBlur(written, (0, 0), 1.0), 0, 1)
+    return G, h, (255.0 * written + 0.5).astype(np.uint8)
+
+
 @pytest.mark.parametrize("gamma,sharpen", [(2.42, 0.4), (2.2, 0.5), (2.42, 0.0)])
 def test_a_far_pad_fitted_with_its_cameras_known_response_is_as_far_as_it_is(pad, gamma, sharpen):
     """A camera whose tone curve is not sRGB's (written = light ** (1 / 2.42), a gamma of 1.1 on top)
@@ -4587,14 +4601,7 @@ def test_a_far_pad_fitted_with_its_cameras_known_response_is_as_far_as_it_is(pad
     syn, rng = PadSynthesis(pad), np.random.default_rng(int(100 * gamma + 10 * sharpen))
     errs = {False: [], True: []}
     for trial in range(3):
-        h = rng.uniform(14.0, 19.0)
-        G = tilted(rng.uniform(-1, 1), rng.uniform(-1, 1), h, rng.uniform(0, 2 * np.pi), 0.02, -0.01)
-        fine = (warp_pad_view(pad, CAM.scaled(4), G, (120, 90, 60), supersample=1).astype(np.float32) / 255.0) ** 2.2
-        light = cv2.GaussianBlur(cv2.resize(fine, (CAM.width, CAM.height), interpolation=cv2.INTER_AREA), (0, 0), 0.6)
-        light += rng.normal(0.0, 0.003, light.shape).astype(np.float32)
-        written = np.clip(light, 0, 1) ** (1 / gamma)
-        written = np.clip((1 + sharpen) * written - sharpen * cv2.GaussianBlur(written, (0, 0), 1.0), 0, 1)
-        frame = (255.0 * written + 0.5).astype(np.uint8)
+        G, h, frame = _camera_view(pad, rng, (14.0, 19.0), (120, 90, 60), gamma, sharpen)
         for known in (False, True):
             fitted, info = fit_pose_to_design(frame, CAM, syn, G, (gamma, sharpen, 1.0) if known else None)
             assert fitted is not None, info
@@ -4620,12 +4627,7 @@ def test_a_pad_of_80_to_100_px_in_a_compressed_frame_is_placed_by_its_design(pad
     rng = np.random.default_rng(5)
     step = []
     for trial in range(3):
-        h = rng.uniform(5.5, 8.0)
-        G = tilted(rng.uniform(-1, 1), rng.uniform(-1, 1), h, rng.uniform(0, 2 * np.pi), 0.02, -0.01)
-        fine = (warp_pad_view(pad, CAM.scaled(4), G, (70, 110, 50), supersample=1).astype(np.float32) / 255.0) ** 2.2
-        light = cv2.GaussianBlur(cv2.resize(fine, (CAM.width, CAM.height), interpolation=cv2.INTER_AREA), (0, 0), 0.6)
-        light += rng.normal(0.0, 0.003, light.shape).astype(np.float32)
-        frame = (255.0 * np.clip(light, 0, 1) ** (1 / 2.2) + 0.5).astype(np.uint8)
+        G, h, frame = _camera_view(pad, rng, (5.5, 8.0), (70, 110, 50))
         jpeg = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(frame, cv2.COLOR_RGB2BGR),
                                                       [cv2.IMWRITE_JPEG_QUALITY, 50])[1], cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
 
