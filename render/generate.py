@@ -22,6 +22,20 @@ from .plan import camera_from_spec, check_flyable, mount_from_spec, pad_for, pla
 from .spec import DatasetSpec
 
 
+def camera_info(spec: DatasetSpec, r) -> dict:
+    """What a sequence's ``camera.json`` says (``r``: its :class:`render.frames.SequenceRenderer`)."""
+    cam = spec.camera
+    info = r.camera.to_dict()
+    info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
+                 "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
+                 "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
+                 "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate, "mono": cam.mono,
+                 "conventions": r.camera.conventions})
+    if cam.response_known:  # a photometric calibration: written = light ** (1 / gamma), then sharpened
+        info["response"] = camera_response(r.plan.imaging)
+    return info
+
+
 def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> dict:
     """Render sequence ``index`` of ``spec`` into ``out_root/.tmp-<id>/``, complete and checksummed.
     Returns its record; :func:`generate` moves it into place.  The pad's texture is read from
@@ -38,15 +52,8 @@ def render_sequence(spec: DatasetSpec, index: int, out_root, progress=None) -> d
             writer.add(r.render(k))
             (progress or report_progress)(1)
         cam = spec.camera
-        info = r.camera.to_dict()
-        info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
-                     "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
-                     "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
-                     "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate, "mono": cam.mono,
-                     "conventions": r.camera.conventions})
+        info = camera_info(spec, r)
         plan = r.plan
-        if cam.response_known:  # a photometric calibration: written = light ** (1 / gamma), then sharpened
-            info["response"] = camera_response(plan.imaging)
         meta = {"sequence": sid, "index": index, "seed": plan.seed, "dataset_seed": spec.seed, "family": plan.family,
                 "duration_s": float(plan.trajectory.duration), "frames": len(r), "blur_method": spec.degradations.blur_method,
                 "scene": plan.scene_draw.to_dict(), "imaging": plan.imaging.to_dict(),

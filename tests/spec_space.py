@@ -27,6 +27,12 @@ def _choice(values):
     return lambda rng: values[int(rng.integers(len(values)))]
 
 
+def _aside(values):
+    """A choice drawn without advancing ``rng``, for a field that changes what a dataset says but
+    not its pixels: adding it leaves every random spec's other fields as they were drawn."""
+    return lambda rng: values[int(np.random.default_rng(rng.bit_generator.state["state"]["state"]).integers(len(values)))]
+
+
 def _uniform(lo, hi):
     return lambda rng: float(rng.uniform(lo, hi))
 
@@ -212,6 +218,7 @@ FIELDS = {
     "imu.vibration_hz": (_rng_range(60.0, 180.0), [30.0, 40.0], {"imu.vibration_accel_mps2": 1.0}),
     # adjustment frames need a camera that resolves the markers
     "phase_rule.min_module_px": (_uniform(1.5, 3.0), 40.0, {"camera.width": 200, "camera.height": 200}),
+    "camera.response_known": (_aside([False, True]), True, {}),  # (camera.json's response, not its pixels)
 }
 
 # the spec the effect test perturbs: small, quick, every effect visible in sequence 0's first frames

@@ -16,7 +16,7 @@ from hvloc.geometry import invert, make_transform, rotation_z, so3_exp, transfor
 from render.checks import check_image
 from render.dataset import Dataset, sha256_file, verify_dataset
 from render.frames import SequenceRenderer
-from render.generate import generate
+from render.generate import camera_info, generate
 from render.imaging import display_bytes
 from render.phase import PadSamples
 from render.spec import DatasetSpec
@@ -45,7 +45,7 @@ def test_every_spec_field_is_in_the_spec_space():
 
 
 def _outputs(d: dict, render: bool) -> str:
-    """A digest of what sequence 0 of a spec is: its plan, labels and (with ``render``) pixels."""
+    """A digest of what sequence 0 of a spec is: its plan, its camera.json, labels and (with ``render``) pixels."""
     return _outputs_of(json.dumps(d, sort_keys=True), render)
 
 
@@ -57,8 +57,8 @@ def _outputs_of(spec_json: str, render: bool) -> str:
         p = r.plan
         for part in (r.times, r.body2world, r.pad2world, p.imu, r.T_B_C, r.pad.texture_rgb):
             h.update(np.ascontiguousarray(part).tobytes())
-        h.update(json.dumps([p.scene_draw.to_dict(), p.imaging.to_dict(), r.camera.to_dict(), r.pad.document(),
-                             spec.camera.exposure_s, spec.camera.supersample], default=str).encode())
+        h.update(json.dumps([p.scene_draw.to_dict(), p.imaging.to_dict(), camera_info(spec, r), r.pad.document()],
+                            default=str).encode())
         if render:
             for k in range(len(r)):
                 layers = r.render(k)
