@@ -280,6 +280,21 @@ def keyframe_refine_speed(n: int) -> list:
     return out
 
 
+def _jpeg(rgb: np.ndarray, quality: int) -> np.ndarray:
+    """``rgb`` through OpenCV's JPEG at ``quality`` (chroma at half resolution, 4:2:0)."""
+    import cv2
+
+    return np.ascontiguousarray(cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, quality])[1],
+                                             cv2.IMREAD_COLOR)[..., ::-1])
+
+
+def _report(res: dict, key: str, rows: list, line) -> None:
+    """``rows`` kept in ``res[key]``, each printed as ``line(row)`` says."""
+    res[key] = rows
+    for r in rows:
+        print(line(r), flush=True)
+
+
 def chroma_tell_speed(n: int) -> list:
     """ms of telling a frame's chroma halved (``hvloc.phases.chroma_halved``: the column parity of its
     sharp chroma steps, every other row; the outline's sides are placed in light where it is whole),
@@ -296,8 +311,7 @@ def chroma_tell_speed(n: int) -> list:
     for w, h in ((1280, 720), (1920, 1080)):
         cam = Camera.from_hfov(w, h, math.radians(90))
         rgb = warp_pad_view(pad, cam, nadir_cam2pad(0.3, -0.2, 3.0, 0.4), (80, 110, 60))
-        jpeg = np.ascontiguousarray(cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 75])[1],
-                                                 cv2.IMREAD_COLOR)[..., ::-1])
+        jpeg = _jpeg(rgb, 75)
         ms = 1000 * _timeit(lambda: chroma_halved(rgb), n)
         ref = 1000 * _timeit(lambda: cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), (5, 5), 0), n)
         out.append({"resolution": f"{w}x{h}", "ms": ms, "halved_as_rendered": chroma_halved(rgb),
@@ -326,8 +340,7 @@ def design_fit_speed(n: int) -> list:
         h = pad.geometry.side_m * cam.fx / side
         G = nadir_cam2pad(0.3, -0.2, h, 0.4)
         rgb = warp_pad_view(pad, cam, G, (80, 110, 60))
-        jpeg = np.ascontiguousarray(cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 50])[1],
-                                                 cv2.IMREAD_COLOR)[..., ::-1])
+        jpeg = _jpeg(rgb, 50)
         start = G.copy()
         start[:3, 3] *= 1.01
         fitted, _ = fit_pose_to_design(jpeg, cam, syn, start, max_side_px=HALVED_MAX_SIDE_PX)
@@ -393,32 +406,26 @@ def main(argv=None) -> int:
             print(f"localize {r['resolution']:>9s} {r['phase']:23s} (h {r['height_m']:5.2f} m, {','.join(r['methods'])}, "
                   f"ok {r['ok']}): p50 {r['ms_p50']:6.2f} ms  p95 {r['ms_p95']:6.2f} ms  "
                   f"gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
-    res["texture_smear"] = texture_smear_speed(max(3, n // 4))
-    for r in res["texture_smear"]:
-        print(f"texture refined under {r['smeared_px']} px of smear, {r['camera']:24s} ({r['refined']} corners): "
-              f"{r['ms']:6.1f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
-    res["texture_placed"] = texture_placed_speed(max(3, n // 4))
-    for r in res["texture_placed"]:
-        print(f"texture placed at a pose, {r['camera']:24s} ({r['placed']} corners): {r['placed_ms']:6.1f} ms  found by ORB "
-              f"({r['orb_found']} corners) {r['orb_ms']:6.1f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
-              f"{r['ratio_to_ref']:5.1f}x (to ORB's {r['ratio_to_orb']:.2f}x)", flush=True)
-    res["keyframe_refine"] = keyframe_refine_speed(n)
-    for r in res["keyframe_refine"]:
-        print(f"tracks refined on their keyframe, {r['camera']:24s} ({r['tracks']} tracks, {r['median_err_px']:.3f} px off "
-              f"in the median): {r['ms']:6.2f} ms  on the keyframe as it is {r['plain_lk_ms']:5.2f} ms "
-              f"({r['plain_median_err_px']:.3f} px off)  gray+blur "
-              f"{r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x (to the plain pass {r['ratio_to_plain']:.1f}x)",
-              flush=True)
-    res["chroma_tell"] = chroma_tell_speed(n)
-    for r in res["chroma_tell"]:
-        print(f"chroma told halved or whole, {r['resolution']:>9s} (as rendered: {r['halved_as_rendered']}, JPEG 75: "
-              f"{r['halved_jpeg75']}): {r['ms']:6.2f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
-              f"{r['ratio_to_ref']:5.1f}x", flush=True)
-    res["design_fit"] = design_fit_speed(n)
-    for r in res["design_fit"]:
-        err = "failed" if r["height_err_pct"] is None else f"{r['height_err_pct']:+.2f} % of the height"
-        print(f"design fitted to a {r['side_px']:3d} px pad, 1280x720 JPEG 50 ({err}): {r['ms']:6.1f} ms  outline found "
-              f"{r['ref_outline_ms']:5.1f} ms  ratio {r['ratio_to_ref']:5.1f}x", flush=True)
+    _report(res, "texture_smear", texture_smear_speed(max(3, n // 4)), lambda r: (
+        f"texture refined under {r['smeared_px']} px of smear, {r['camera']:24s} ({r['refined']} corners): "
+        f"{r['ms']:6.1f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x"))
+    _report(res, "texture_placed", texture_placed_speed(max(3, n // 4)), lambda r: (
+        f"texture placed at a pose, {r['camera']:24s} ({r['placed']} corners): {r['placed_ms']:6.1f} ms  found by ORB "
+        f"({r['orb_found']} corners) {r['orb_ms']:6.1f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
+        f"{r['ratio_to_ref']:5.1f}x (to ORB's {r['ratio_to_orb']:.2f}x)"))
+    _report(res, "keyframe_refine", keyframe_refine_speed(n), lambda r: (
+        f"tracks refined on their keyframe, {r['camera']:24s} ({r['tracks']} tracks, {r['median_err_px']:.3f} px off "
+        f"in the median): {r['ms']:6.2f} ms  on the keyframe as it is {r['plain_lk_ms']:5.2f} ms "
+        f"({r['plain_median_err_px']:.3f} px off)  gray+blur "
+        f"{r['ref_gray_blur_ms']:5.2f} ms  ratio {r['ratio_to_ref']:5.1f}x (to the plain pass {r['ratio_to_plain']:.1f}x)"))
+    _report(res, "chroma_tell", chroma_tell_speed(n), lambda r: (
+        f"chroma told halved or whole, {r['resolution']:>9s} (as rendered: {r['halved_as_rendered']}, JPEG 75: "
+        f"{r['halved_jpeg75']}): {r['ms']:6.2f} ms  gray+blur {r['ref_gray_blur_ms']:5.2f} ms  ratio "
+        f"{r['ratio_to_ref']:5.1f}x"))
+    _report(res, "design_fit", design_fit_speed(n), lambda r: (
+        f"design fitted to a {r['side_px']:3d} px pad, 1280x720 JPEG 50 "
+        f"({'failed' if r['height_err_pct'] is None else format(r['height_err_pct'], '+.2f') + ' % of the height'}): "
+        f"{r['ms']:6.1f} ms  outline found {r['ref_outline_ms']:5.1f} ms  ratio {r['ratio_to_ref']:5.1f}x"))
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1) + "\n")

@@ -1038,10 +1038,9 @@ class HierarchicalLocalizer:
             raise ValueError(f"exposure_s: {exposure_s!r} s is no frame's exposure")
         self.exposure_s = float(exposure_s)
         if response is not None:
-            response = tuple(float(v) for v in response)
-            if not (len(response) == 3 and all(math.isfinite(v) for v in response) and response[0] > 0
-                    and response[1] >= 0 and response[2] > 0):
-                raise ValueError(f"response: {response!r} is no camera's (gamma > 0, sharpen >= 0, its sigma > 0)")
+            from .texfit import parse_response
+
+            response = parse_response(response)
         self.response = response
         # the IMU's rows a frame's gyro rate is the mean of (imu_rate): those its rows were read in
         self.rate_span_s = abs(self.shutter.line_s) * (camera.height - 1)
@@ -2033,7 +2032,7 @@ class HierarchicalLocalizer:
 
         g = self.up_sigma_deg
         # larger pads too where the frame's chroma is at half resolution: its colour edges smear
-        halved = rgb.ndim == 3 and self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
+        halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
         start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
         if start is None:

@@ -67,6 +67,28 @@ GRAD_PX = 0.25         # the drawing's gradient is its difference this far (idea
 LUMA = (0.299, 0.587, 0.114)  # an RGB frame is compared in this mix of its written channels (OpenCV's grey, JPEG's luma)
 
 
+RESPONSE_FIELDS = (("gamma", None, 0.2, 10.0), ("sharpen", 0.0, 0.0, 10.0), ("sharpen_sigma_px", SHARPEN_SIGMA_PX, 1e-3, 20.0))
+
+
+def parse_response(value) -> tuple:
+    """A camera's photometric response (``camera.json``'s ``response``: ``{gamma, sharpen,
+    sharpen_sigma_px}``, or that tuple) as ``(gamma, sharpen, sharpen_sigma_px)``; a
+    :class:`ValueError` naming the field no camera's response has."""
+    if isinstance(value, dict):
+        if "gamma" not in value:
+            raise ValueError(f"response must be an object with gamma (and sharpen, sharpen_sigma_px), got {value!r}")
+        items = [value.get(k, d) for k, d, _, _ in RESPONSE_FIELDS]
+    elif isinstance(value, (tuple, list)) and len(value) in (2, 3):
+        items = list(value) + [SHARPEN_SIGMA_PX] * (3 - len(value))
+    else:
+        raise ValueError(f"response must be an object with gamma (and sharpen, sharpen_sigma_px), got {value!r}")
+    for v, (key, _, lo, hi) in zip(items, RESPONSE_FIELDS):
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi) or \
+                (key != "sharpen" and v <= 0):
+            raise ValueError(f"response.{key} {v!r} is not a camera's (a number in [{lo:g}, {hi:g}])")
+    return tuple(float(v) for v in items)
+
+
 def _design_levels(synth) -> list:
     """The pad's design as four channels, float32: its red, green and blue in linear light and how
     much of each texel is pad (1), box-filtered to halves, quarters,
@@ -153,13 +175,11 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     if n < MIN_PIXELS:
         return None, {"why": f"{n} pixels near the pad (< {MIN_PIXELS})"}
     known = response is not None
-    tone = float(response[0]) if known else TONE
-    amount = float(response[1]) if known else 0.0  # the camera's own sharpening, held where known
-    sharp_sigma = float(response[2]) if known and len(response) > 2 else SHARPEN_SIGMA_PX
+    tone, amount, sharp_sigma = parse_response(response) if known else (TONE, 0.0, SHARPEN_SIGMA_PX)
     # the pixels modelled: those compared, or with a known sharpening the whole window (its blur
     # reaches past them); ``at``: the compared among the modelled
-    sel = np.ones_like(mask) if known else mask
-    at = mask[sel] if known else slice(None)
+    sel = np.ones_like(mask) if amount > 0 else mask
+    at = mask[sel] if amount > 0 else slice(None)
     target = img[mask]  # (n, channels) as written
     seen = target @ luma  # the luma compared
     # ... and each channel in light, the gains' target: where the camera sharpened, as it was before

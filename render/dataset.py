@@ -477,19 +477,17 @@ def camera_response_of(info: dict, where) -> tuple | None:
     """``camera.json``'s ``response`` (a photometric calibration: :func:`render.imaging.camera_response`)
     as ``(gamma, sharpen, sharpen_sigma_px)``, or ``None`` where the camera's response is not known;
     an :class:`InputError` naming the field that no camera's response has."""
+    from hvloc.texfit import parse_response
+
     r = info.get("response")
     if r is None:
         return None
-    if not isinstance(r, dict) or "gamma" not in r:
+    if not isinstance(r, dict):  # (a tuple is the localizer's form, not camera.json's)
         raise InputError(f"{where}: response must be an object with gamma (and sharpen, sharpen_sigma_px), got {r!r}")
-    out = []
-    for key, default, lo, hi in (("gamma", None, 0.2, 10.0), ("sharpen", 0.0, 0.0, 10.0), ("sharpen_sigma_px", 1.0, 1e-3, 20.0)):
-        v = r.get(key, default)
-        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi) or \
-                (key != "sharpen" and v <= 0):
-            raise InputError(f"{where}: response.{key} {v!r} is not a camera's (a number in [{lo:g}, {hi:g}])")
-        out.append(float(v))
-    return tuple(out)
+    try:
+        return parse_response(r)
+    except ValueError as err:
+        raise InputError(f"{where}: {err}") from None
 
 
 class Sequence:

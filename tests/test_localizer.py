@@ -103,8 +103,7 @@ def test_a_frames_halved_chroma_is_told_from_a_whole_one(pad):
             rgb = warp_pad_view(pad, CAM, tilted(0.2, -0.1, h, 0.4, 0.02, 0.01), ground)
             assert not chroma_halved(rgb), (ground, h)
             for q in (30, 50, 75, 95):
-                j = cv2.imdecode(cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, q])[1], cv2.IMREAD_COLOR)
-                assert chroma_halved(np.ascontiguousarray(j[..., ::-1])), (ground, h, q)
+                assert chroma_halved(_jpeg(rgb, q)), (ground, h, q)
     grey = cv2.cvtColor(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
     assert not chroma_halved(grey)
 
@@ -4628,8 +4627,7 @@ def test_a_pad_of_80_to_100_px_in_a_compressed_frame_is_placed_by_its_design(pad
     step = []
     for trial in range(3):
         G, h, frame = _camera_view(pad, rng, (5.5, 8.0), (70, 110, 50))
-        jpeg = cv2.cvtColor(cv2.imdecode(cv2.imencode(".jpg", cv2.cvtColor(frame, cv2.COLOR_RGB2BGR),
-                                                      [cv2.IMWRITE_JPEG_QUALITY, 50])[1], cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        jpeg = _jpeg(frame, 50)
 
         def posed(img):
             e = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4)).process(img, 0.0, imu=G[:3, :3])
