@@ -1420,11 +1420,11 @@ def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None,
-                 hint_from: str = "previous") -> tuple:
+                 hint_from: str = "previous", use_cue: bool = True) -> tuple:
     """``(Detection | None, reason)``: the corners of ``found`` named TL, TR, BR, BL by the cue corner
-    (bottom-right on hvloc's pads), or, when it cannot be read, by ``yaw_hint_corner0``: the
-    predicted TL pixel (2,), or the predicted pixels of all four corners (4, 2), TL first
-    (``hint_from`` says where the prediction came from).
+    (bottom-right on hvloc's pads), or, when it cannot be read (or ``use_cue`` is off: its reading
+    was refused), by ``yaw_hint_corner0``: the predicted TL pixel (2,), or the predicted pixels of
+    all four corners (4, 2), TL first (``hint_from`` says where the prediction came from).
 
     Four predicted corners name the outline by its shape: the naming whose corners, taken about
     their centre, lie nearest the prediction's about its own.  A prediction shifted by more than
@@ -1433,10 +1433,9 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     refined = found.quad_px
     info_yellow = "colour {}, brightness {}".format(*([round(float(y), 2) for y in row] for row in found.cue))
     order = None
-    k, how = _cue_corner_seen(found.cue)
+    k, how = cue_naming(found, pad_geometry) if use_cue else (None, "")
     if k is not None:
-        c = _cue_corner(pad_geometry)  # image corner k is pad corner c
-        order = [(k + j - c) % 4 for j in range(4)]
+        order = [(k + j) % 4 for j in range(4)]
     elif yaw_hint_corner0 is not None:
         hint = np.asarray(yaw_hint_corner0, np.float64)
         if hint.shape == (4, 2):
@@ -1468,6 +1467,14 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     refined = refined[order]
     pts = pad_geometry.outer_corners
     return Detection(pts, refined, "outline", info), "ok"
+
+
+def cue_naming(found: OutlineQuad, pad_geometry: PadGeometry) -> tuple:
+    """``(k, how)``: image corner ``k`` of ``found`` is the pad's TL corner as its yaw cue names it
+    (:func:`_cue_corner_seen`: ``how`` says by what), or ``(None, "")`` where the cue is unreadable.
+    The same index as :func:`name_by_design`'s."""
+    k, how = _cue_corner_seen(found.cue)
+    return (None, "") if k is None else ((k - _cue_corner(pad_geometry)) % 4, how)
 
 
 class PadDesign:
