@@ -49,7 +49,10 @@ MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger on
 # the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
 # luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
 HALVED_MAX_SIDE_PX = 140.0
-MIN_SIDE_PX = 20.0  # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off)
+# ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off).
+# At 16-20 px it stands in for the white field's corners, which a camera summing light puts 7-9 % of the
+# field's side too large there (the checker averages to a bright grey): README, "A far pad placed by its drawn design"
+MIN_SIDE_PX = 16.0
 MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
 BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
 BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in
