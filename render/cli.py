@@ -151,6 +151,10 @@ def import_main(argv: list) -> int:
     p.add_argument("--exposure-s", type=float,
                    help="how long each frame is exposed, in seconds (the camera's metadata says): the localizer "
                    "draws the pad smeared over it where a gust smears every feature (README); default: not known")
+    p.add_argument("--response", type=float, nargs="+", metavar="V",
+                   help="the camera's photometric calibration: GAMMA [SHARPEN [SIGMA_PX]], each channel written as "
+                   "light ** (1 / GAMMA) and then sharpened by an unsharp mask of SHARPEN (Gaussian of SIGMA_PX, "
+                   "default 1); the far pad's design fit draws the pad as the camera writes it (README); default: not known")
     p.add_argument("--name", default="imported", help="the dataset's name")
     p.add_argument("--out", required=True, help="new dataset folder")
     p.add_quiet()
@@ -163,7 +167,8 @@ def import_main(argv: list) -> int:
     res = import_recording(a.out, a.frames, a.calibration, calibration_name=a.camera_name, fps=a.fps,
                            timestamps=a.timestamps, groundtruth=a.groundtruth, gt_body=a.gt_body, gt_time_offset_s=a.gt_time_offset,
                            imu=a.imu, mount_rpy_deg=a.mount_rpy, pad_spec=a.pad_spec, name=a.name,
-                           line_s=a.line_time_s, ref_row=a.ref_row, exposure_s=a.exposure_s, show_progress=not a.quiet)
+                           line_s=a.line_time_s, ref_row=a.ref_row, exposure_s=a.exposure_s, response=a.response,
+                           show_progress=not a.quiet)
     print(f"{res['root']}: {res['frames']} frames, {res['with_ground_truth']} with ground truth, "
           f"{'with' if res['with_imu'] else 'no'} IMU")
     return 0

@@ -206,12 +206,16 @@ def frame_numbers_from_times(t: np.ndarray, fps: float, source) -> np.ndarray:
 def import_recording(out, frames, calibration, *, calibration_name: str | None = None, fps: float | None = None,
                      timestamps=None, groundtruth=None, gt_body: bool = False, gt_time_offset_s: float = 0.0, imu=None,
                      mount_rpy_deg=None, pad_spec=None, name: str = "imported", line_s: float = 0.0,
-                     ref_row: float | None = None, exposure_s: float | None = None, show_progress: bool = False) -> dict:
+                     ref_row: float | None = None, exposure_s: float | None = None, response=None,
+                     show_progress: bool = False) -> dict:
     """Write the recording as a one-sequence dataset in ``out`` (a new folder, written whole or not at
     all).  ``line_s``, ``ref_row``: the camera's rolling shutter (``camera.json``): the time between
     its rows' exposures, and the row a frame's time is (default: the middle one).  ``exposure_s``:
     how long each frame is exposed, where the camera says (its metadata; how far motion smears a
-    frame, which the localizer draws: hvloc.synthesis); ``None``: not known.
+    frame, which the localizer draws: hvloc.synthesis); ``None``: not known.  ``response``: the
+    camera's photometric calibration, ``(gamma[, sharpen[, sharpen_sigma_px]])`` (``camera.json``'s
+    ``response``: each channel written as ``light ** (1 / gamma)``, then sharpened by an unsharp mask;
+    the far pad's design fit then draws the pad as the camera writes it); ``None``: not known.
     Returns ``{"root", "frames", "with_ground_truth", "with_imu"}``."""
     import yaml
 
@@ -242,6 +246,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     if exposure_s is not None and not (math.isfinite(float(exposure_s)) and 0.0 < float(exposure_s) <= 1.0 / fps):
         raise InputError(f"--exposure-s {exposure_s:g}: an exposure lasts more than 0 s and at most a frame interval "
                          f"({1.0 / fps:g} s at {fps:g} fps)")
+    response = _response(response)
     mount = MountSpec() if mount_rpy_deg is None else validate_model(MountSpec, {"rpy_deg": list(mount_rpy_deg)},
                                                                        "--mount-rpy")
     pad_doc = {} if pad_spec is None else (yaml.safe_load(Path(pad_spec).read_text()) or {})
@@ -288,13 +293,30 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
     try:
         return _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good,
                       q if good else None, imu_rows, fps, cal, calibration, groundtruth, gt_body,
-                      gt_time_offset_s, imu, pad_spec, show_progress, timestamps, zero, jitter, shutter)
+                      gt_time_offset_s, imu, pad_spec, show_progress, timestamps, zero, jitter, shutter, response)
     except BaseException:  # nothing half-written: the folder was new (or empty)
         import shutil
 
         for p in root.iterdir():
             shutil.rmtree(p) if p.is_dir() else p.unlink()
         raise
+
+
+def _response(values) -> dict | None:
+    """``--response GAMMA [SHARPEN [SIGMA_PX]]`` as ``camera.json``'s ``response``, or ``None``; an
+    :class:`InputError` naming the option where no camera writes so."""
+    from hvloc.texfit import parse_response
+
+    if values is None:
+        return None
+    v = list(values)
+    if not 1 <= len(v) <= 3:
+        raise InputError(f"--response {' '.join(map(str, v))}: give GAMMA [SHARPEN [SIGMA_PX]]")
+    try:
+        gamma, sharpen, sigma = parse_response(v + [0.0] if len(v) == 1 else v)
+    except ValueError as err:
+        raise InputError(f"--response {' '.join(map(str, v))}: {err}") from None
+    return {"gamma": gamma, "sharpen": sharpen, "sharpen_sigma_px": sigma}
 
 
 def _rolling_shutter(line_s, ref_row, height: int, fps: float) -> tuple:
@@ -315,7 +337,7 @@ def _rolling_shutter(line_s, ref_row, height: int, fps: float) -> tuple:
 
 def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good, q, imu_rows, fps, cal,
            calibration, groundtruth, gt_body, gt_time_offset_s, imu, pad_spec, show_progress, timestamps=None,
-           zero=0.0, jitter=0.0, shutter=(0.0, None)) -> dict:
+           zero=0.0, jitter=0.0, shutter=(0.0, None), response=None) -> dict:
     from pad_design.errors import progress_bar
 
     from .imu import IMU_COLUMNS
@@ -355,6 +377,8 @@ def _write(root, spec, camera, T_B_C, pad, images, index, frames, t, poses, good
                      "rolling_shutter_line_s": shutter[0],
                      "rolling_shutter_ref_row": (camera.height - 1) / 2 if shutter[1] is None else shutter[1],
                      "conventions": camera.conventions})
+        if response is not None:
+            info["response"] = response
         sources = {"frames": str(frames), "calibration": f"{calibration} ({cal.source})"}
         for key, p in (("groundtruth", groundtruth), ("imu", imu), ("pad_spec", pad_spec), ("timestamps", timestamps)):
             if p is not None:

@@ -192,6 +192,31 @@ def test_an_exposure_stated_at_import_reaches_the_localizer(recording, tmp_path)
         assert not out.exists() or not any(out.iterdir())
 
 
+def test_a_cameras_response_stated_at_import_reaches_the_localizer(recording, tmp_path):
+    """A photometric calibration (``--response GAMMA [SHARPEN [SIGMA_PX]]``) is written to camera.json's
+    ``response`` and given to the localizer's design fit; not stated, none is.  One that no camera
+    has is refused naming the option, and nothing is written."""
+    from benchmarks.run import make_localizer
+    from hvloc.config import LocalizerConfig
+
+    base, cam = recording
+    seq = _import(base, tmp_path / "ds", base / "frames", "--fps", "10", "--response", "2.4", "0.3")
+    assert json.loads((tmp_path / "ds" / "seq_0000" / "camera.json").read_text())["response"] == \
+        {"gamma": 2.4, "sharpen": 0.3, "sharpen_sigma_px": 1.0}
+    assert seq.response == (2.4, 0.3, 1.0) and make_localizer("hierarchical", seq, LocalizerConfig()).response == (2.4, 0.3, 1.0)
+    one = _import(base, tmp_path / "one", base / "frames", "--fps", "10", "--response", "2.2")
+    assert one.response == (2.2, 0.0, 1.0)
+    plain = _import(base, tmp_path / "plain", base / "frames", "--fps", "10")
+    assert "response" not in json.loads((tmp_path / "plain" / "seq_0000" / "camera.json").read_text())
+    assert plain.response is None and make_localizer("hierarchical", plain, LocalizerConfig()).response is None
+    for i, bad in enumerate((["-2.2"], ["2.2", "-1"], ["2.2", "0.3", "0"], ["nan"], ["2.2", "0.3", "1", "4"])):
+        out = tmp_path / f"o{i}"
+        r = run_cli("import", base / "frames", "--fps", "10", "--response", *bad, "--calibration", base / "ost.yaml",
+                    "--out", out, "--quiet")
+        assert_input_error(r, "--response")
+        assert not out.exists() or not any(out.iterdir())
+
+
 def test_numbered_images_keep_their_frame_numbers_and_times_across_dropped_frames(recording, tmp_path):
     """A recording that dropped frames: the images named by frame number keep it, so each is labelled
     at its own time (not shifted into the gap)."""
