@@ -827,6 +827,8 @@ DESIGN_VOTE_LEAD = 0.01  # a naming leading by less is no vote
 DESIGN_VOTE_WINDOW_S = 2.0  # votes this old at most are weighed together
 DESIGN_VOTE_AGREE_DEG = 20.0  # votes whose pad headings lie this close agree (a quarter turn apart: they disagree)
 DESIGN_VOTE_SIDE_SHARE = 0.2  # votes weighed together are of outlines this alike in size (another quad is another object)
+# named by the design fitted from each naming (HierarchicalLocalizer._named_by_fit): the next one's RMS this many times the best's
+FIT_NAMING_RATIO = 1.3
 
 
 class DesignVotes:
@@ -1878,7 +1880,41 @@ class HierarchicalLocalizer:
         return None, (f"its {how} names image corner {k} the pad's TL, its design corner {best} "
                       f"(correlations {np.round(scores, 2).tolist()}): no first pose from either")
 
-    def _named_by_design(self, found, gray, t: float, R_W_B, up_C, why: str, scores=None) -> tuple:
+    def _named_by_fit(self, found, rgb, up_C) -> int | None:
+        """Image corner ``k`` of ``found`` that is the pad's TL corner where the pad's design fitted from
+        each of the outline's four namings (:func:`hvloc.texfit.fit_pose_to_design`, with the IMU's
+        gravity) fits one clearly best: the next naming's residual RMS at least
+        :data:`FIT_NAMING_RATIO` times its own; ``None`` otherwise, or without gravity, or for a pad
+        the fit does not take.
+
+        The correlation of the design resampled through the outline (:func:`hvloc.phases.name_by_design`)
+        reads a 17-30 px pad's three markers as blots, and at dusk under JPEG 45 it leads by 0.01-0.05:
+        a cold start waited 4-5 s for a naming.  Drawn, blurred and toned as the camera makes it and
+        placed by the fit, the right naming's residual is half the others' from ~30 px
+        (README, "Naming a far pad by its design fitted from each naming")."""
+        if up_C is None or rgb is None or self.pad is None:
+            return None
+        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
+
+        halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
+        top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
+        field = found.field_px is not None
+        quad, pts = (found.field_px, self.geometry.field_corners) if field else (found.quad_px, self.outer_P)
+        rms, fits = np.full(4, np.inf), np.zeros(4, bool)
+        for j in range(4):
+            start = solve_planar_pose(self.camera, pts, np.roll(quad, -j, axis=0), up_C=up_C,
+                                      gravity_sigma_deg=self.up_sigma_deg)
+            if start is None:
+                continue
+            fitted, info = fit_pose_to_design(rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
+            rms[j], fits[j] = info.get("rms", np.inf), fitted is not None  # (a drawing that matched poorly: its RMS)
+        k = int(np.argmin(rms))
+        o = np.sort(rms)
+        if not (fits[k] and np.isfinite(o[1]) and o[1] >= FIT_NAMING_RATIO * o[0]):
+            return None
+        return k
+
+    def _named_by_design(self, found, gray, t: float, R_W_B, up_C, why: str, scores=None, rgb=None) -> tuple:
         """``(Detection | None, reason)``: a cold start's outline named by the pad's whole design
         (:func:`hvloc.phases.name_by_design`; ``scores`` where already read), where this frame's naming
         is sure or agrees with those of the frames before (:class:`DesignVotes`: the pad's heading in
@@ -1897,7 +1933,11 @@ class HierarchicalLocalizer:
         side_px = float(np.mean(np.linalg.norm(found.quad_px - np.roll(found.quad_px, 1, axis=0), axis=1)))
         taken = self.design_votes.cast(t, heading, side_px, float(o[-1]), float(o[-1] - o[-2]))
         if taken is None:
-            return None, why + f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
+            # (where the design's correlation says it is there at all: the fits cost 10-40 ms each)
+            fit = self._named_by_fit(found, rgb, up_C) if o[-1] >= ph.DESIGN_MIN_NCC else None
+            if fit is None:
+                return None, why + f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
+            k, taken = fit, "pad design fitted"
         return ph.name_outline(found, self.geometry, found.quad_px[k], hint_from=taken, use_cue=False)
 
     def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None, by_prior: bool = False):
@@ -1977,7 +2017,7 @@ class HierarchicalLocalizer:
                         if hint is not None:
                             det, why = ph.name_outline(found, self.geometry, hint, hint_from="imu heading", use_cue=False)
                     if det is None and hint is None and self.pad is not None:  # a cold start: the whole design
-                        det, why = self._named_by_design(found, gray, t, R_W_B, up_C, why, scores)
+                        det, why = self._named_by_design(found, gray, t, R_W_B, up_C, why, scores, rgb)
             else:
                 use_rgb = rgb if cfg.use_outline else None
                 named_by = prior if by_prior else None
