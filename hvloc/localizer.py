@@ -100,6 +100,8 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
 
 
 OUTER_AGREE_PX = 0.45  # the pad's outer corners join a markers pose when the markers' own fit puts them this close (RMS)
+# the least pad (px, as its white field's corners put it) that those corners alone may place (HierarchicalLocalizer._small_field_refused)
+FIELD_MIN_SIDE_PX = 20.0
 DESIGN_FIT_MAX_MOVE = 0.1  # the design's fit may move the outline's corners by this share of its side at most
 MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
@@ -2029,6 +2031,8 @@ class HierarchicalLocalizer:
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by, design=design)
             if det is not None and det.kind == "outline" and cfg.design_fit:
                 det = self._design_fitted(det, rgb, up_C)
+            if det is not None and det.kind == "outline":
+                det, why = self._small_field_refused(det, why)
             if det is not None:
                 res, why = self._posed(det, why, prior, up_C, r is not None)
                 if res is not None and det.kind == "outline" and _rms_share(res[0].rms_px, det.info) > cfg.max_outline_rms_share \
@@ -2124,6 +2128,22 @@ class HierarchicalLocalizer:
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
         return replace(det, px=px, info=dict(det.info, design_fit=info, **({} if square else {"rescued": "design fit"})))
+
+    def _small_field_refused(self, det, why: str) -> tuple:
+        """``(None, reason)`` for an outline placed by its white field's corners alone (its design not
+        fitted) that puts the pad under :data:`FIELD_MIN_SIDE_PX`; ``(det, why)`` otherwise.  Summed in
+        light, a 15-20 px pad's field comes out 7-9 % of its side too large (the border's checker
+        averages to a bright grey beside it): on far_wide's spec such poses were 10-12 % of the height
+        near, false accepts.  The design fit places those pads from 16 px (:data:`hvloc.texfit.MIN_SIDE_PX`);
+        where it cannot (no gravity, a poor match, or under 16 px) the field's corners do not either."""
+        if det.info.get("corners") != "field" or isinstance(det.info.get("design_fit"), dict):
+            return det, why
+        side = float(np.mean(np.linalg.norm(det.px - np.roll(det.px, 1, axis=0), axis=1))) \
+            * self.geometry.side_m / self.geometry.field_side_m
+        if side >= FIELD_MIN_SIDE_PX:
+            return det, why
+        return None, (f"its colour swelled past its white field, and a pad of {side:.0f} px (< {FIELD_MIN_SIDE_PX:g}) "
+                      f"is not placed by the field's corners (its design not fitted: {det.info.get('design_fit', 'off')})")
 
     def _posed(self, det, why: str, prior, up_C, roi: bool):
         """``((pose, n, extras) | None, reason)``: the pose of a detection's correspondences."""

@@ -4726,7 +4726,10 @@ def test_a_pad_of_16_to_20_px_placed_by_its_white_field_is_placed_by_its_design_
     cells of a quarter pixel here, averages to a grey half as bright as the white, and a blurred field
     comes out larger than it is: its corners put 16-20 px pads 1-2.5 % too near here (7-9 % of the
     field's side on far_wide's renders, whose poses at 17-18 m were 10-12 % off: false accepts).
-    Fitted by its design from 16 px (:data:`hvloc.texfit.MIN_SIDE_PX`), within 0.5 %."""
+    Fitted by its design from 16 px (:data:`hvloc.texfit.MIN_SIDE_PX`), within 0.5 %; where the design
+    is not fitted (``design_fit: false`` here), the field's corners alone no longer place a pad under
+    :data:`hvloc.localizer.FIELD_MIN_SIDE_PX`."""
+    import hvloc.localizer as L
     import hvloc.texfit as tf
 
     rng = np.random.default_rng(7)
@@ -4739,8 +4742,8 @@ def test_a_pad_of_16_to_20_px_placed_by_its_white_field_is_placed_by_its_design_
         near = _camera_view(pad, rng, None, (200, 195, 185), G=G0)[2]  # the pad's heading learnt from a nearer pose
         far = _jpeg(_camera_view(pad, rng, None, (200, 195, 185), G=G, blur_px=1.0)[2], 50)
 
-        def posed():
-            loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4))
+        def posed(cfg=LocalizerConfig()):
+            loc = HierarchicalLocalizer(pad, CAM, cfg, T_B_C=np.eye(4))
             assert loc.process(near, 0.0, imu=G0[:3, :3]).ok
             return loc.process(far, 2.0, imu=G[:3, :3])
 
@@ -4749,8 +4752,11 @@ def test_a_pad_of_16_to_20_px_placed_by_its_white_field_is_placed_by_its_design_
             continue
         assert isinstance(e.extras.get("design_fit"), dict), e.extras.get("design_fit")
         fitted.append((e.cam2pad[2, 3] - G[2, 3]) / h)
+        e = posed(LocalizerConfig(design_fit=False))
+        assert not e.ok and "is not placed by the field's corners" in e.reason, (e.status, e.reason)
         with monkeypatch.context() as m:  # the field's corners alone, as before
             m.setattr(tf, "MIN_SIDE_PX", 20.0)
+            m.setattr(L, "FIELD_MIN_SIDE_PX", 0.0)
             e = posed()
             assert e.ok and not isinstance(e.extras.get("design_fit"), dict), (e.status, e.reason)
             field.append((e.cam2pad[2, 3] - G[2, 3]) / h)
