@@ -2138,8 +2138,7 @@ class HierarchicalLocalizer:
         where it cannot (no gravity, a poor match, or under 16 px) the field's corners do not either."""
         if det.info.get("corners") != "field" or isinstance(det.info.get("design_fit"), dict):
             return det, why
-        side = float(np.mean(np.linalg.norm(det.px - np.roll(det.px, 1, axis=0), axis=1))) \
-            * self.geometry.side_m / self.geometry.field_side_m
+        side = ph._mean_side(det.px) * self.geometry.side_m / self.geometry.field_side_m
         if side >= FIELD_MIN_SIDE_PX:
             return det, why
         return None, (f"its colour swelled past its white field, and a pad of {side:.0f} px (< {FIELD_MIN_SIDE_PX:g}) "
