@@ -1896,19 +1896,15 @@ class HierarchicalLocalizer:
         (README, "Naming a far pad by its design fitted from each naming")."""
         if up_C is None or rgb is None or self.pad is None:
             return None
-        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
-
-        halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
-        top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
         field = found.field_px is not None
         quad, pts = (found.field_px, self.geometry.field_corners) if field else (found.quad_px, self.outer_P)
         rms, fits = np.full(4, np.inf), np.zeros(4, bool)
         for j in range(4):
-            start = solve_planar_pose(self.camera, pts, np.roll(quad, -j, axis=0), up_C=up_C,
-                                      gravity_sigma_deg=self.up_sigma_deg)
+            px = np.roll(quad, -j, axis=0)  # (the named outline's own: with shared image work its fit is not redone)
+            start = solve_planar_pose(self.camera, pts, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
             if start is None:
                 continue
-            fitted, info = fit_pose_to_design(rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
+            fitted, info = self._design_fit(pts, px, start, rgb, up_C)
             rms[j], fits[j] = info.get("rms", np.inf), fitted is not None  # (a drawing that matched poorly: its RMS)
         k = int(np.argmin(rms))
         o = np.sort(rms)
@@ -2094,6 +2090,20 @@ class HierarchicalLocalizer:
         ok[ok] = (transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0) & (np.abs(P[ok, :2]).max(axis=1) <= self.pad.side_m / 2)
         return P[ok] if ok.sum() >= 4 else None
 
+    def _design_fit(self, pts_P, px, start, rgb: np.ndarray, up_C) -> tuple:
+        """``(cam2pad | None, info)``: :func:`hvloc.texfit.fit_pose_to_design` of the outline's
+        correspondences ``pts_P``, ``px`` from their pose ``start`` (with the IMU's gravity ``up_C``),
+        asked of the image work by all they depend on; pads up to :data:`hvloc.texfit.MAX_SIDE_PX`,
+        or :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` where the frame's chroma is at half resolution (its
+        colour edges smear)."""
+        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
+
+        halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
+        top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
+        return self.work(lambda: ("design fit", array_key(pts_P), array_key(px), array_key(up_C), self.up_sigma_deg,
+                                  self.response, top),
+                         fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
+
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
         (:func:`hvloc.texfit.fit_pose_to_design`), started from the outline's pose with the IMU's
@@ -2102,13 +2112,7 @@ class HierarchicalLocalizer:
         :attr:`LocalizerConfig.design_fit` on or off (the caller asks only where the pad was foreseen)."""
         if up_C is None or self.pad is None:
             return det
-        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
-
-        g = self.up_sigma_deg
-        # larger pads too where the frame's chroma is at half resolution: its colour edges smear
-        halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
-        top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
-        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=g)
+        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
         if start is None:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
@@ -2116,9 +2120,7 @@ class HierarchicalLocalizer:
         square = _rms_share(start.rms_px, det.info) <= self.config.max_outline_rms_share
         if not (square or rescue):
             return det
-        fitted, info = self.work(lambda: ("design fit", array_key(det.pts_P), array_key(det.px), array_key(up_C), g,
-                                          self.response, top),
-                                 fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
+        fitted, info = self._design_fit(det.pts_P, det.px, start, rgb, up_C)
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)

@@ -305,7 +305,7 @@ def import_recording(out, frames, calibration, *, calibration_name: str | None =
 def _response(values) -> dict | None:
     """``--response GAMMA [SHARPEN [SIGMA_PX]]`` as ``camera.json``'s ``response``, or ``None``; an
     :class:`InputError` naming the option where no camera writes so."""
-    from hvloc.texfit import parse_response
+    from hvloc.texfit import RESPONSE_FIELDS, parse_response
 
     if values is None:
         return None
@@ -313,10 +313,10 @@ def _response(values) -> dict | None:
     if not 1 <= len(v) <= 3:
         raise InputError(f"--response {' '.join(map(str, v))}: give GAMMA [SHARPEN [SIGMA_PX]]")
     try:
-        gamma, sharpen, sigma = parse_response(v + [0.0] if len(v) == 1 else v)
+        parsed = parse_response(v + [0.0] if len(v) == 1 else v)
     except ValueError as err:
         raise InputError(f"--response {' '.join(map(str, v))}: {err}") from None
-    return {"gamma": gamma, "sharpen": sharpen, "sharpen_sigma_px": sigma}
+    return {key: value for (key, *_), value in zip(RESPONSE_FIELDS, parsed)}
 
 
 def _rolling_shutter(line_s, ref_row, height: int, fps: float) -> tuple:
