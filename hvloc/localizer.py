@@ -56,6 +56,10 @@ RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by
 # share of each one's own smear over the exposure, counted in the pose's covariance (:meth:`_smear_spread`) ...
 TRACK_SMEAR_DOUBT = 0.1
 TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
+# the design fit's tilt is held where the frame's motion smears the pad more than this (px) over the exposure:
+# the fit's blur is isotropic, and a smear along one way is taken up by the tilt.  On unseen100 (1-4 px of
+# motion smear) the fitted tilt put 44-100 px pads 0.14-0.39 % of the height off in the median, held 0.08-0.24
+TILT_MAX_SMEAR_PX = 1.0
 # ORB's keypoints (a texture pose its drawing did not refine) land anywhere along a smear: a uniform spread
 # over it, 1/sqrt(12) of its length (unseen84/85, at 0.2-0.28 m under 31-52 px: 3.9-5.8 mm off stating 1.9-2.4)
 KEYPOINT_SMEAR_DOUBT = 0.29
@@ -680,6 +684,21 @@ def _mirror_refusal(pose: PoseResult) -> str:
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
     """The world's up direction in the camera frame, from the IMU attitude (None without one)."""
     return None if R_W_B is None else (R_W_B @ T_B_C[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+
+
+def _fitted_up(cam2pad: np.ndarray, info: dict) -> dict:
+    """A detection's ``fitted_up_C`` and ``fitted_up_sigma_deg`` where the design fit (``info``,
+    :func:`hvloc.texfit.fit_pose_to_design`) fitted the pad's tilt: the pad's normal in the camera as
+    ``cam2pad`` (the fit) has it, and the fit's doubt of it, for the pose's gravity prior in place of
+    the IMU's (:meth:`HierarchicalLocalizer._posed`).  Its corners alone, solved with the IMU's up,
+    kept half of what the fit found (unseen104: heights +0.38 % held, +0.19 % so, -0.06 % with the
+    fitted up): a 100 px pad's four corners say little about a few tenths of a degree of tilt.  Its
+    doubt: on unseen104's 55-130 px pads 0.02-0.17 degrees, the tilt 0.005-0.18 off (0.6 of it in
+    the median, 1.3 at most); doubted as the IMU's up, the poses were 0.19 of their stated sigma
+    off.  ``{}`` otherwise."""
+    if "tilt_deg" not in info:
+        return {}
+    return {"fitted_up_C": cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0]), "fitted_up_sigma_deg": info["tilt_sigma_deg"]}
 
 
 def outline_rms_share(est: "Estimate") -> float:
@@ -2095,14 +2114,23 @@ class HierarchicalLocalizer:
         correspondences ``pts_P``, ``px`` from their pose ``start`` (with the IMU's gravity ``up_C``),
         asked of the image work by all they depend on; pads up to :data:`hvloc.texfit.MAX_SIDE_PX`,
         or :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` where the frame's chroma is at half resolution (its
-        colour edges smear)."""
+        colour edges smear).  The pad's tilt is fitted too where the pad is large and sharp enough
+        (:data:`hvloc.texfit.TILT_MIN_SIDE_PX`), weighed against the IMU's (:attr:`up_sigma_deg`)."""
         from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
+        tilt_up = None if self._smeared_past(start.cam2pad, pts_P, TILT_MAX_SMEAR_PX) else up_C
         return self.work(lambda: ("design fit", array_key(pts_P), array_key(px), array_key(up_C), self.up_sigma_deg,
-                                  self.response, top),
-                         fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top)
+                                  self.response, top, array_key(tilt_up)),
+                         fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top,
+                         tilt_up, self.up_sigma_deg)
+
+    def _smeared_past(self, cam2pad: np.ndarray, pts_P, limit_px: float) -> bool:
+        """Whether the frame's motion (:meth:`_motion`) smears some of ``pts_P``, seen from ``cam2pad``,
+        more than ``limit_px`` over the exposure; ``False`` where no motion or exposure is known."""
+        d = self._image_motion(cam2pad, self._motion(), pts_P)
+        return d is not None and bool(np.nanmax(np.linalg.norm(d, axis=1)) > limit_px)
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
@@ -2129,7 +2157,8 @@ class HierarchicalLocalizer:
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
-        return replace(det, px=px, info=dict(det.info, design_fit=info, **({} if square else {"rescued": "design fit"})))
+        return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info),
+                                             **({} if square else {"rescued": "design fit"})))
 
     def _small_field_refused(self, det, why: str) -> tuple:
         """``(None, reason)`` for an outline placed by its white field's corners alone (its design not
@@ -2152,6 +2181,9 @@ class HierarchicalLocalizer:
             return None, why
         cfg = self.config
         sigma = corner_sigma_px(det.info)
+        up_sigma, up_tolerance = self.up_sigma_deg, self.up_tolerance_deg
+        if up_C is not None and "fitted_up_C" in det.info:  # the pad's tilt its design fit found (_fitted_up)
+            up_C, up_sigma, up_tolerance = det.info["fitted_up_C"], det.info["fitted_up_sigma_deg"], 0.0
 
         def markers_seen(P):  # each point's marker (-1: none), and the markers with 4 points at least
             g = self._marker_of(P) if det.kind == "markers" else np.full(len(P), -1)
@@ -2205,11 +2237,10 @@ class HierarchicalLocalizer:
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
                                       array_key(prior) if up_C is None else None,
                                       array_key(level), array_key(s), w,
-                                      None if sh is None else (sh.shift, sh.dilation), self.up_sigma_deg,
-                                      self.up_tolerance_deg),
+                                      None if sh is None else (sh.shift, sh.dilation), up_sigma, up_tolerance),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
                              sigma_from_fit=w, shared=None if weigh else sh, level_up_C=level,
-                             gravity_sigma_deg=self.up_sigma_deg, up_tolerance_deg=self.up_tolerance_deg,
+                             gravity_sigma_deg=up_sigma, up_tolerance_deg=up_tolerance,
                              stated_shared=sh if weigh else None)
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
@@ -2242,7 +2273,7 @@ class HierarchicalLocalizer:
         refusal = _mirror_refusal(pose) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
         if refusal:
             return None, refusal
-        info = dict(det.info)
+        info = {k: v for k, v in det.info.items() if k not in ("fitted_up_C", "fitted_up_sigma_deg")}
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
@@ -2423,15 +2454,18 @@ class HierarchicalLocalizer:
         quad = self.camera.project_from(T, self.outer_P)
         if quad is None or not np.isfinite(quad).all() or not MIN_SIDE_PX <= ph._mean_side(quad) < MIN_PAD_PX:
             return None, why
-        fitted, info = self.work(lambda: ("design at the prediction", array_key(T), self.response), fit_pose_to_design,
-                                 rgb, self.camera, self._drawing(), T, self.response)
+        tilt_up = None if self._smeared_past(T, self.outer_P, TILT_MAX_SMEAR_PX) else up_C
+        fitted, info = self.work(lambda: ("design at the prediction", array_key(T), self.response, array_key(tilt_up),
+                                          self.up_sigma_deg),
+                                 fit_pose_to_design, rgb, self.camera, self._drawing(), T, self.response,
+                                 up_C=tilt_up, up_sigma_deg=self.up_sigma_deg)
         px = None if fitted is None else self.camera.project_from(fitted, self.outer_P)
         if px is None or not np.isfinite(px).all():
             return None, f"{why}; its design fitted from the predicted pose: {info.get('why', 'out of view')}"
         det = ph.Detection(self.outer_P, px, "outline", {
             "side_px": ph._mean_side(px),
             "by": "design at the predicted pose", "design_fit": info,
-            "px_sigma_blur": DESIGN_SIGMA_PER_BLUR * float(info["blur_px"])})
+            "px_sigma_blur": DESIGN_SIGMA_PER_BLUR * float(info["blur_px"]), **_fitted_up(fitted, info)})
         res, why2 = self._posed(det, why, prior, up_C, False)
         if res is None:
             return None, why2

@@ -10,7 +10,9 @@ frame best places every edge at once, each with its real profile.
 With the IMU's gravity the pad's tilt is known to a fraction of a degree, and a far pad's pixels
 say little about it; what they do fix is where the pad lies in the image, how large it is and its
 yaw.  So four pose parameters are fitted (the camera's position in the pad frame and its yaw about
-the pad's normal), and two of the camera's: its blur (a Gaussian's sigma, in px: lens, sensor
+the pad's normal; from :data:`TILT_MIN_SIDE_PX` the tilt too, weighed against the IMU's: seen
+obliquely, a few tenths of a degree of it change the pad's foreshortening, and so its fitted size,
+by as many tenths of a percent), and two of the camera's: its blur (a Gaussian's sigma, in px: lens, sensor
 and codec together, which couples with the size: a wider blur spreads the white field outward)
 and its own sharpening (an unsharp mask's amount).  Each of the camera's channels is linear in
 light (the design's red, green and blue, the ground's, an offset), solved at every step, and
@@ -67,6 +69,19 @@ ITERATIONS = 10
 HUBER_K = 2.0          # residuals beyond this many robust sigmas weigh less (shadows, glare, dirt)
 MIN_NCC = 0.8          # the fitted drawing's correlation with the frame, for the fit to be used
 GRAD_PX = 0.25         # the drawing's gradient is its difference this far (ideal px) each way
+# The pad's tilt, with the IMU's up as its prior (``up_C``), is fitted too where the pad is this many px across
+# or more and the fit's blur at most TILT_MAX_BLUR_PX: with the AHRS's tilt (0.3-0.5 degrees off) held, a camera
+# pitched 35 degrees off nadir put its pads 0.45-0.76 % of the height too high at 44-150 px (the fitted size
+# follows the tilt's foreshortening), fitted 0.04-0.09 % (unseen104, from the labelled position).  Smaller
+# (unseen106's 30-44 px pads, fast, JPEG 60: heights 0.33 % off held, 0.44-0.78 % fitted), or smeared past that
+# blur (motion the isotropic blur does not model: a 55 px pad under 5 px of smear fitted its tilt 0.3-0.7
+# degrees off), the image tells the tilt worse than the AHRS does
+TILT_MIN_SIDE_PX = 44.0
+TILT_MAX_BLUR_PX = 1.0
+# the residuals of neighbouring pixels are not independent (the blur and the codec spread each error): the image's
+# evidence on the tilt is counted once per this many pixels against the prior.  Counted per pixel, unseen106's
+# 44-64 px pads came out 0.25 % off in height in the median (held: 0.14 %), at 10 0.18 %; unseen104's as well
+TILT_PIXELS_PER_SAMPLE = 10.0
 LUMA = (0.299, 0.587, 0.114)  # an RGB frame is compared in this mix of its written channels (OpenCV's grey, JPEG's luma)
 
 
@@ -122,16 +137,33 @@ def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.nda
 
 
 def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``T`` (``T_P_C``) turned by ``q[3]`` about the pad's normal and moved by ``q[:3]`` (pad frame)."""
+    """``T`` (``T_P_C``) turned by ``q[3]`` about the pad's normal and moved by ``q[:3]`` (pad frame),
+    then tilted by ``q[6:8]`` (radians about the pad's x and y axes, where given): the camera carried
+    round the pad's centre, so that a tilt changes how the pad is foreshortened, not where it lies."""
     Rz = so3_exp(np.array([0.0, 0.0, q[3]]))
     out = T.copy()
     out[:3, :3] = Rz @ T[:3, :3]
     out[:3, 3] = Rz @ T[:3, 3] + q[:3]
+    if len(q) > 6 and (q[6] or q[7]):
+        Rt = so3_exp(np.array([q[6], q[7], 0.0]))
+        out[:3, :3] = Rt @ out[:3, :3]
+        out[:3, 3] = Rt @ out[:3, 3]
     return out
 
 
+def _tilt_to(T: np.ndarray, up_C) -> np.ndarray:
+    """``(2,)``: the tilt (:func:`_posed`'s ``q[6:8]``) that turns the pad's normal in the camera, as
+    ``T`` (``T_P_C``) has it, onto ``up_C``."""
+    u = T[:3, :3] @ (np.asarray(up_C, np.float64) / np.linalg.norm(up_C))  # up_C in the pad's frame
+    n = math.hypot(u[0], u[1])
+    if n < 1e-12:
+        return np.zeros(2)
+    return math.atan2(n, u[2]) * np.array([u[1], -u[0]]) / n
+
+
 def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None,
-                       max_side_px: float = MAX_SIDE_PX) -> tuple:
+                       max_side_px: float = MAX_SIDE_PX, up_C: np.ndarray | None = None,
+                       up_sigma_deg: float | None = None) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
@@ -148,7 +180,13 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     and the mask's overshoot on the side it falls.  Unknown, sRGB's exponent is taken and a
     sharpening is fitted in light, which stands in for it (far_wide's renders: a camera's exponent
     2.02 or 2.40 and a 0.35-0.45 mask put the pad 0.3-0.9 % too near from the labelled pose;
-    known, 0.0-0.5 %, as an unsharpened sRGB camera's)."""
+    known, 0.0-0.5 %, as an unsharpened sRGB camera's).
+
+    ``up_C``, ``up_sigma_deg``: the IMU's up in the camera and how far the pad's normal may lie from it
+    (one sigma).  Where the pad is :data:`TILT_MIN_SIDE_PX` or more across and sharp enough
+    (:data:`TILT_MAX_BLUR_PX`), the pad's tilt is then fitted too, weighed against that prior, once
+    the pose with the start's tilt held has settled (``info["tilt_deg"]``: how far it moved from the
+    start's, about the pad's x and y axes).  Without them the start's tilt is held."""
     info: dict = {}
     half = synth.pad.side_m / 2.0
     outer = np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
@@ -195,7 +233,10 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     depth = max(float(invert(cam2pad)[2, 3]), 1e-3)
     m_per_px = depth / camera.fx
     # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
-    steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6)])
+    # (and the tilt's: about a tenth of a px at the pad's corners on the foreshortening)
+    steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6),
+                      0.1 / max(side_px / 2.0, 1e-6), 0.1 / max(side_px / 2.0, 1e-6)])
+    POSE = (0, 1, 2, 3, 6, 7)  # q's pose parameters (4, 5: the blur and the sharpening)
     ideal = np.column_stack([grid[sel].astype(np.float64), np.ones(int(sel.sum()))])  # the modelled pixels' ideal places
 
     def written(t):
@@ -232,11 +273,11 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         light = np.maximum(A @ g, LIGHT_FLOOR)  # (the tone curve's slope is unbounded at black)
         return seen - (written(light ** (1.0 / tone)) @ luma)[at], A, g, light
 
-    def jacobian(q, DB, A, g, light):
-        """``(n, 6)``: the residuals' derivatives.  The pose's four from the drawing's gradient and
-        the image motion each parameter causes at each pixel's pad point; the blur's from the
-        drawings' Laplacians (a Gaussian's width grows as the heat equation says); the sharpening's
-        from the two blurs' difference.  Each carries the change of the brightness solved with it
+    def jacobian(q, DB, A, g, light, tilt):
+        """``(n, 8)``: the residuals' derivatives.  The pose's four (six with the ``tilt``) from
+        the drawing's gradient and the image motion each parameter causes at each pixel's pad point;
+        the blur's from the drawings' Laplacians (a Gaussian's width grows as the heat equation
+        says); the sharpening's from the two blurs' difference.  Each carries the change of the brightness solved with it
         (the gains are least squares in light, not in the residual's terms: held fixed, the
         Jacobian's columns correlated 0.2-0.5 with the residual's true change)."""
         _, B1, B2 = DB
@@ -266,56 +307,87 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             dg = AtA_inv @ (dAc.T @ lit - Ac.T @ (dAc @ g))  # the gains' change (the normal equations')
             return -(written(slope * (dA @ g + A @ dg)) @ luma)[at]
 
-        J = np.empty((n, 6))
-        for k in range(4):  # each pose parameter moves the pad points' ideal images
-            dq = np.zeros(6)
-            dq[k] = steps[k]
+        J = np.zeros((n, len(q)))
+        for i, k in enumerate(POSE):  # each pose parameter moves the pad points' ideal images
+            if k >= 6 and not tilt:
+                continue
+            dq = np.zeros(len(q))
+            dq[k] = steps[i]
             moved = X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
-            flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[k]
+            flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[i]
             J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
         J[:, 4] = of(lap)
         J[:, 5] = of((B1 - B2)[sel].astype(np.float64))
         return J
 
-    q = np.array([0.0, 0.0, 0.0, 0.0, BLUR_START_PX, 0.0])
+    def descend(state, tilt: bool):
+        """Levenberg-Marquardt from ``state`` (``(q, DB, r, A, g, light)``), the tilt (``q[6:8]``)
+        fitted or held; returns the last state, the iterations taken and the tilt's doubt (radians,
+        one sigma along its worst axis: the normal equations' inverse with the image's evidence
+        counted per :data:`TILT_PIXELS_PER_SAMPLE` pixels and the prior's; ``None`` when held)."""
+        q, DB, r, A, g, light = state
+        # the tilt's prior (centred on the IMU's, ``q0``), in the residuals' units: their robust variance
+        # per sample (TILT_PIXELS_PER_SAMPLE)
+        prior = TILT_PIXELS_PER_SAMPLE / math.radians(up_sigma_deg) ** 2 if tilt else 0.0
+        lam = 1e-3
+        it = 0
+        doubt = None
+        for it in range(1, ITERATIONS + 1):
+            s = 1.4826 * float(np.median(np.abs(r))) + 1e-9
+            w = np.where(np.abs(r) <= HUBER_K * s, 1.0, HUBER_K * s / np.maximum(np.abs(r), 1e-12))
+            J = jacobian(q, DB, A, g, light, tilt)
+            N = J.T @ (J * w[:, None])
+            b = J.T @ (w * r)
+            pw = prior * s * s
+            N[6:8, 6:8] += pw * np.eye(2)
+            b[6:8] += pw * (q[6:8] - q0)
+            cost = float(np.sum(w * r * r)) + pw * float((q[6:8] - q0) @ (q[6:8] - q0))
+            # a camera parameter at the end of its range that the descent would push past is held there
+            # this step: clipped after the solve, its step would spoil the others' (the pose stopped
+            # where it started whenever the sharpening sat at 0)
+            free = np.ones(len(q), bool)
+            for k, (lo, hi) in ((4, BLUR_RANGE_PX), (5, SHARPEN_RANGE)):
+                free[k] = not ((q[k] <= lo and b[k] > 0) or (q[k] >= hi and b[k] < 0))
+            free[5] &= not known  # (a known sharpening is the camera's, in its written values)
+            free[6:8] = tilt
+            if tilt:
+                try:
+                    C = np.linalg.inv(N[np.ix_(free, free)] / (TILT_PIXELS_PER_SAMPLE * s * s))
+                    doubt = math.sqrt(float(np.linalg.eigvalsh(C[-2:, -2:]).max()))
+                except np.linalg.LinAlgError:
+                    doubt = None
+            moved = False
+            for _ in range(8):
+                dq = np.zeros(len(q))
+                try:
+                    Nf = N[np.ix_(free, free)]
+                    dq[free] = -np.linalg.solve(Nf + lam * np.diag(np.diag(Nf) + 1e-12), b[free])
+                except np.linalg.LinAlgError:
+                    break
+                qn = q + dq
+                qn[4] = float(np.clip(qn[4], *BLUR_RANGE_PX))
+                qn[5] = float(np.clip(qn[5], *SHARPEN_RANGE))
+                DBn = drawn(qn)
+                rn, An, gn, ln = toned(DBn[0][sel].astype(np.float64))
+                if float(np.sum(w * rn * rn)) + pw * float((qn[6:8] - q0) @ (qn[6:8] - q0)) < cost:
+                    q, DB, r, A, g, light, moved = qn, DBn, rn, An, gn, ln, True
+                    lam = max(lam / 10.0, 1e-9)
+                    break
+                lam *= 10.0
+            if not moved or (np.all(np.abs(dq[list(POSE)]) < 0.1 * steps) and np.all(np.abs(dq[4:6]) < 0.02)):  # settled
+                break
+        return (q, DB, r, A, g, light), it, doubt
+
+    q = np.array([0.0, 0.0, 0.0, 0.0, BLUR_START_PX, 0.0, 0.0, 0.0])
+    q0 = np.zeros(2)
     DB = drawn(q)
-    r, A, g, light = toned(DB[0][sel].astype(np.float64))
-    lam = 1e-3
-    it = 0
-    for it in range(1, ITERATIONS + 1):
-        s = 1.4826 * float(np.median(np.abs(r))) + 1e-9
-        w = np.where(np.abs(r) <= HUBER_K * s, 1.0, HUBER_K * s / np.maximum(np.abs(r), 1e-12))
-        J = jacobian(q, DB, A, g, light)
-        N = J.T @ (J * w[:, None])
-        b = J.T @ (w * r)
-        cost = float(np.sum(w * r * r))
-        # a camera parameter at the end of its range that the descent would push past is held there
-        # this step: clipped after the solve, its step would spoil the others' (the pose stopped
-        # where it started whenever the sharpening sat at 0)
-        free = np.ones(len(q), bool)
-        for k, (lo, hi) in ((4, BLUR_RANGE_PX), (5, SHARPEN_RANGE)):
-            free[k] = not ((q[k] <= lo and b[k] > 0) or (q[k] >= hi and b[k] < 0))
-        free[5] &= not known  # (a known sharpening is the camera's, in its written values)
-        moved = False
-        for _ in range(8):
-            dq = np.zeros(len(q))
-            try:
-                Nf = N[np.ix_(free, free)]
-                dq[free] = -np.linalg.solve(Nf + lam * np.diag(np.diag(Nf) + 1e-12), b[free])
-            except np.linalg.LinAlgError:
-                break
-            qn = q + dq
-            qn[4] = float(np.clip(qn[4], *BLUR_RANGE_PX))
-            qn[5] = float(np.clip(qn[5], *SHARPEN_RANGE))
-            DBn = drawn(qn)
-            rn, An, gn, ln = toned(DBn[0][sel].astype(np.float64))
-            if float(np.sum(w * rn * rn)) < cost:
-                q, DB, r, A, g, light, moved = qn, DBn, rn, An, gn, ln, True
-                lam = max(lam / 10.0, 1e-9)
-                break
-            lam *= 10.0
-        if not moved or (np.all(np.abs(dq[:4]) < 0.1 * steps) and np.all(np.abs(dq[4:]) < 0.02)):  # settled
-            break
+    state, it, _ = descend((q, DB) + toned(DB[0][sel].astype(np.float64)), False)
+    q, doubt = state[0], None
+    if up_C is not None and up_sigma_deg and side_px >= TILT_MIN_SIDE_PX and q[4] <= TILT_MAX_BLUR_PX:
+        q0 = _tilt_to(_posed(cam2pad, q), up_C)
+        state, more, doubt = descend(state, True)
+        q, it = state[0], it + more
+    r = state[2]
     on = inside[mask] > 0  # the correlation on the pad alone
     d = (seen - r)[on]  # the drawing's luma
     t = seen[on]
@@ -323,6 +395,10 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     t = t - t.mean()
     ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
     info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it}
+    if q[6] or q[7]:
+        info["tilt_deg"] = [round(math.degrees(float(x)), 3) for x in q[6:8]]
+        info["tilt_sigma_deg"] = round(math.degrees(min(doubt, math.radians(up_sigma_deg))), 4) \
+            if doubt is not None and math.isfinite(doubt) else up_sigma_deg
     if not np.isfinite(q).all() or ncc < MIN_NCC:
         info["why"] = f"the drawing matches the frame poorly (correlation {ncc:.2f} < {MIN_NCC})"
         return None, info
