@@ -850,36 +850,48 @@ DESIGN_VOTE_AGREE_DEG = 20.0  # votes whose pad headings lie this close agree (a
 DESIGN_VOTE_SIDE_SHARE = 0.2  # votes weighed together are of outlines this alike in size (another quad is another object)
 # named by the design fitted from each naming (HierarchicalLocalizer._named_by_fit): the next one's RMS this many times the best's
 FIT_NAMING_RATIO = 1.3
+# ... or by such namings over frames (DesignVotes, each vote's lead the log of its ratio, the bar the single frame's):
+# a naming leading by a smaller ratio than this is no vote.  Fitted from the labelled pose's gravity on the found
+# outlines of 16-33 px of the dusk deck and unseen105 (scratch/s66/nf_small.txt): the 3 of 50 whose best fit was
+# the wrong naming led by 1.008-1.025; the right ones by 1.011-2.24, all but one by 1.044 or more
+FIT_VOTE_RATIO = 1.04
 
 
 class DesignVotes:
     """A cold start's namings by the pad's design, frame by frame, each as the heading of the pad in
-    the world it gives (:data:`DESIGN_SURE_NCC` ... :data:`DESIGN_VOTE_SIDE_SHARE`)."""
+    the world it gives (:data:`DESIGN_SURE_NCC` ... :data:`DESIGN_VOTE_SIDE_SHARE`).  ``name``: what
+    names the pad (``"pad design"``: the correlation's namings, leads in correlation; the fits' leads
+    are the log of their RMS ratio, :data:`FIT_NAMING_RATIO`); ``sure_best``, ``sure_lead``: a naming
+    taken alone; ``vote_lead``: a vote at least; ``enough``: the agreeing votes' leads, less the others',
+    that name the pad."""
 
-    def __init__(self):
+    def __init__(self, name: str = "pad design", sure_best: float = DESIGN_SURE_NCC,
+                 sure_lead: float = DESIGN_SURE_LEAD, vote_lead: float = DESIGN_VOTE_LEAD,
+                 enough: float = ph.DESIGN_MIN_LEAD):
+        self.name, self.sure_best, self.sure_lead, self.vote_lead, self.enough = name, sure_best, sure_lead, vote_lead, enough
         self.votes: list = []  # (t, heading rad, side px, lead)
 
     def cast(self, t: float, heading: float | None, side_px: float, best: float, lead: float) -> str | None:
         """This frame's naming, its correlation ``best`` leading the next naming's by ``lead``, giving
-        the pad's world heading ``heading`` (``None`` without an attitude): ``"pad design"`` where it is
-        taken alone, ``"pad design over frames"`` where an earlier vote of a like-sized outline agrees
-        with it and the leads of those that agree, this one's included, less those that disagree add
-        up to :data:`hvloc.phases.DESIGN_MIN_LEAD`, else ``None``; it is kept as a vote either way."""
-        if not (best >= ph.DESIGN_MIN_NCC and lead >= DESIGN_VOTE_LEAD):
+        the pad's world heading ``heading`` (``None`` without an attitude): the ``name`` (``"pad
+        design"``) where it is taken alone, ``"pad design over frames"`` where an earlier vote of a
+        like-sized outline agrees with it and the leads of those that agree, this one's included, less
+        those that disagree add up to ``enough``, else ``None``; it is kept as a vote either way."""
+        if not (best >= ph.DESIGN_MIN_NCC and lead >= self.vote_lead):
             return None
-        sure = best >= DESIGN_SURE_NCC and lead >= DESIGN_SURE_LEAD
+        sure = best >= self.sure_best and lead >= self.sure_lead
         if not (math.isfinite(t) and math.isfinite(side_px) and side_px > 0 and heading is not None
                 and math.isfinite(heading)):  # no vote to weigh (no attitude, or no time to weigh it at)
-            return "pad design" if sure else None
+            return self.name if sure else None
         if sure:
-            taken = "pad design"
+            taken = self.name
         else:
             self.votes = [v for v in self.votes if 0.0 <= t - v[0] <= DESIGN_VOTE_WINDOW_S]
             like = [v for v in self.votes if abs(v[2] / side_px - 1.0) <= DESIGN_VOTE_SIDE_SHARE]
             turn = [abs(math.atan2(math.sin(v[1] - heading), math.cos(v[1] - heading))) for v in like]
             agree = [v[3] for v, d in zip(like, turn) if d <= math.radians(DESIGN_VOTE_AGREE_DEG)]
             against = [v[3] for v, d in zip(like, turn) if d > math.radians(DESIGN_VOTE_AGREE_DEG)]
-            taken = ("pad design over frames" if agree and lead + sum(agree) - sum(against) >= ph.DESIGN_MIN_LEAD
+            taken = (f"{self.name} over frames" if agree and lead + sum(agree) - sum(against) >= self.enough
                      else None)
         self.votes.append((t, heading, side_px, lead))
         return taken
@@ -1097,7 +1109,9 @@ class HierarchicalLocalizer:
         self.gyro_t: float | None = None         # the IMU time of the last gyro row taken into it
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
-        self.design_votes = DesignVotes()        # a cold start's namings by the pad's design
+        self.design_votes = DesignVotes()        # a cold start's namings by the pad's design ...
+        self.fit_votes = DesignVotes("pad design fitted", ph.DESIGN_MIN_NCC, math.log(FIT_NAMING_RATIO),
+                                     math.log(FIT_VOTE_RATIO), math.log(FIT_NAMING_RATIO))  # ... fitted from each naming
         self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s, self.config.ahrs_tilt_sigma_deg)
         cfg = self.config
@@ -1901,12 +1915,12 @@ class HierarchicalLocalizer:
         return None, (f"its {how} names image corner {k} the pad's TL, its design corner {best} "
                       f"(correlations {np.round(scores, 2).tolist()}): no first pose from either")
 
-    def _named_by_fit(self, found, rgb, up_C) -> int | None:
-        """Image corner ``k`` of ``found`` that is the pad's TL corner where the pad's design fitted from
-        each of the outline's four namings (:func:`hvloc.texfit.fit_pose_to_design`, with the IMU's
-        gravity) fits one clearly best: the next naming's residual RMS at least
-        :data:`FIT_NAMING_RATIO` times its own; ``None`` otherwise, or without gravity, or for a pad
-        the fit does not take.
+    def _named_by_fit(self, found, rgb, up_C) -> tuple | None:
+        """``(k, ratio)``: image corner ``k`` of ``found`` is the pad's TL corner where the pad's design
+        fitted from each of the outline's four namings (:func:`hvloc.texfit.fit_pose_to_design`, with the
+        IMU's gravity) fits best, the next naming's residual RMS ``ratio`` times its own (named alone
+        from :data:`FIT_NAMING_RATIO`, a vote from :data:`FIT_VOTE_RATIO`); ``None`` without gravity,
+        or for a pad the fit does not take.
 
         The correlation of the design resampled through the outline (:func:`hvloc.phases.name_by_design`)
         reads a 17-30 px pad's three markers as blots, and at dusk under JPEG 45 it leads by 0.01-0.05:
@@ -1927,9 +1941,9 @@ class HierarchicalLocalizer:
             rms[j], fits[j] = info.get("rms", np.inf), fitted is not None  # (a drawing that matched poorly: its RMS)
         k = int(np.argmin(rms))
         o = np.sort(rms)
-        if not (fits[k] and np.isfinite(o[1]) and o[1] >= FIT_NAMING_RATIO * o[0]):
+        if not (fits[k] and np.isfinite(o[1]) and o[0] > 0):
             return None
-        return k
+        return k, float(o[1] / o[0])
 
     def _named_by_design(self, found, gray, t: float, R_W_B, up_C, why: str, scores=None, rgb=None) -> tuple:
         """``(Detection | None, reason)``: a cold start's outline named by the pad's whole design
@@ -1940,22 +1954,34 @@ class HierarchicalLocalizer:
             _, scores = ph.name_by_design(gray, found.quad_px, self.geometry, self.camera, self._design())
         k = int(np.argmax(scores))
         o = np.sort(scores)
-        heading = None
-        if R_W_B is not None and up_C is not None:
-            pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
-                                     gravity_sigma_deg=self.up_sigma_deg)
-            if pose is not None:
-                R_W_P = R_W_B @ self.T_B_C[:3, :3] @ pose.cam2pad[:3, :3].T
-                heading = math.atan2(R_W_P[1, 0], R_W_P[0, 0])
         side_px = float(np.mean(np.linalg.norm(found.quad_px - np.roll(found.quad_px, 1, axis=0), axis=1)))
-        taken = self.design_votes.cast(t, heading, side_px, float(o[-1]), float(o[-1] - o[-2]))
+        taken = self.design_votes.cast(t, self._heading_named(found, k, R_W_B, up_C), side_px, float(o[-1]),
+                                       float(o[-1] - o[-2]))
         if taken is None:
             # (where the design's correlation says it is there at all: the fits cost 10-40 ms each)
             fit = self._named_by_fit(found, rgb, up_C) if o[-1] >= ph.DESIGN_MIN_NCC else None
-            if fit is None:
-                return None, why + f"; nor does its design name it (correlations {np.round(scores, 2).tolist()})"
-            k, taken = fit, "pad design fitted"
+            if fit is not None:  # named alone where its ratio is sure, else a vote (FIT_VOTE_RATIO)
+                k = fit[0]
+                taken = self.fit_votes.cast(t, self._heading_named(found, k, R_W_B, up_C), side_px, float(o[-1]),
+                                            math.log(fit[1]))
+            if taken is None:
+                return None, why + (f"; nor does its design name it (correlations {np.round(scores, 2).tolist()}"
+                                    + ("" if fit is None else f"; fitted, the best naming's RMS {fit[1]:.3f} times lower")
+                                    + ")")
         return ph.name_outline(found, self.geometry, found.quad_px[k], hint_from=taken, use_cue=False)
+
+    def _heading_named(self, found, k: int, R_W_B, up_C) -> float | None:
+        """The pad's heading in the world (radians) where image corner ``k`` of ``found`` is its TL
+        corner: the outline's pose so named, with the IMU's gravity, and the AHRS; ``None`` without
+        an attitude or a pose."""
+        if R_W_B is None or up_C is None:
+            return None
+        pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
+                                 gravity_sigma_deg=self.up_sigma_deg)
+        if pose is None:
+            return None
+        R_W_P = R_W_B @ self.T_B_C[:3, :3] @ pose.cam2pad[:3, :3].T
+        return math.atan2(R_W_P[1, 0], R_W_P[0, 0])
 
     def _try(self, method: str, rgb, gray, up_C, t: float, R_W_B=None, by_prior: bool = False):
         """``by_prior``: markers only, two of them may be named by the last pose, or on a cold start by the

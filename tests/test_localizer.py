@@ -2464,6 +2464,63 @@ def test_a_weak_design_naming_is_taken_only_where_frames_agree_on_the_pads_headi
     assert e.ok and e.extras.get("yaw_from") == "pad design", (e.status, e.reason, e.extras)
 
 
+def test_a_far_pads_design_fits_that_lead_a_little_name_it_where_frames_agree(pad, monkeypatch):
+    """The design fitted from each of a cold start's four namings names the pad alone where the best
+    fit's residual is 1.3 times below the next; at 18-28 px (a dusk deck, a wide cheap lens) the right
+    naming led by 1.04-1.25, and the cold start waited seconds.  Such leads are votes for the pad's
+    heading in the world (the AHRS carries the camera's turn between frames), summed in log as
+    :class:`hvloc.localizer.DesignVotes` sums the correlation's: named where frames agree up to the
+    single frame's 1.3; a lead under 1.04 (the wrong best fits led by 1.008-1.025) is no vote, and a
+    vote for another heading counts against.  Here the fits' ratios are set, their namings real
+    (or turned a quarter) and the correlation's votes silenced."""
+    import hvloc.localizer as L
+
+    geo = pad.geometry
+    cfg = LocalizerConfig(use_markers=False)
+    h = CAM.fx * geo.side_m / 30.0
+    real_fit, real_design = L.HierarchicalLocalizer._named_by_fit, L.ph.name_by_design
+    mode = {"ratio": 1.1, "turn": 0}
+
+    def fit(self, found, rgb, up_C):
+        got = real_fit(self, found, rgb, up_C)
+        return None if got is None else ((got[0] + mode["turn"]) % 4, mode["ratio"])
+
+    monkeypatch.setattr(L.HierarchicalLocalizer, "_named_by_fit", fit)
+    monkeypatch.setattr(L.ph, "name_by_design", lambda *a: (None, np.full(4, 0.7)))  # no lead: no vote of its own
+
+    def run(loc, t, yaw_deg, **m):
+        mode.update({"ratio": 1.1, "turn": 0}, **m)
+        G = tilted(0.3 + 0.2 * t, -0.2, h, math.radians(yaw_deg), 0.02, -0.01)
+        return G, loc.process(_no_cue(pad, G, warp_pad_view(pad, CAM, G, GROUND, in_light=False)), t, _imu_from(G))
+
+    # leading by 1.1: two frames are not enough (log 1.1 twice < log 1.3), the third names it, right
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    for t, yaw in ((0.0, 40.0), (0.3, 44.0)):
+        _, e = run(loc, t, yaw)
+        assert not e.ok and "1.100 times lower" in e.reason, (t, e.status, e.reason)
+    G, e = run(loc, 0.6, 47.0)
+    assert e.ok and e.extras.get("yaw_from") == "pad design fitted over frames", (e.status, e.reason, e.extras)
+    assert pose_error(e.cam2pad, G)[0] < 0.02 * h and pose_error(e.cam2pad, G)[1] < 3.0, pose_error(e.cam2pad, G)
+    # leads under 1.04 are no votes, however many
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    for k in range(5):
+        _, e = run(loc, 0.2 * k, 40.0 + k, ratio=1.03)
+        assert not e.ok, (k, e.status, e.extras)
+    # a quarter turn's vote counts against the right ones while it is recent
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    _, e = run(loc, 0.0, 40.0, ratio=1.2, turn=1)
+    for t, yaw in ((0.3, 42.0), (0.6, 44.0), (0.9, 46.0), (1.2, 48.0)):  # (without it the third named it)
+        _, e = run(loc, t, yaw)
+        assert not e.ok, (t, e.status, e.extras)
+    G, e = run(loc, 1.5, 50.0)  # 5 log 1.1 - log 1.2 > log 1.3
+    assert e.ok and e.extras.get("yaw_from") == "pad design fitted over frames", (e.status, e.reason, e.extras)
+    assert pose_error(e.cam2pad, G)[1] < 3.0, pose_error(e.cam2pad, G)
+    # a sure fit names it alone, on its first frame
+    loc = HierarchicalLocalizer(pad, CAM, cfg)
+    _, e = run(loc, 0.0, 40.0, ratio=1.5)
+    assert e.ok and e.extras.get("yaw_from") == "pad design fitted", (e.status, e.reason, e.extras)
+
+
 def test_design_votes_weigh_only_like_sized_recent_outlines_and_never_need_a_clock_to_take_a_sure_one():
     """:class:`hvloc.localizer.DesignVotes` on its own: a sure naming is taken with no attitude or
     an odd timestamp (NaN, inf), a weak one is not; a weak vote agrees only with votes of outlines
