@@ -79,6 +79,11 @@ def main(argv: list) -> int:
 
         res = score_dataset(a.dataset, a.results)
         print(phase_table({"estimates": res["summary"]}))
+        if res["by_pad_px"]:
+            from .report import size_table
+
+            print("\nby the pad's size in the image (its labelled corners; frames with the whole pad in view):\n")
+            print(size_table(res["by_pad_px"]))
         for note in res["notes"]:
             print(f"note: {note}")
         return 0

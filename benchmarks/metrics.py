@@ -71,7 +71,41 @@ def frame_errors(gt_cols: dict, est_cols: dict) -> dict:
             "height_m": np.asarray(gt_cols["tz"], float), "t_s": np.asarray(gt_cols["t"], float),
             "status": np.asarray(est_cols["status"]), "phase_est": np.asarray(est_cols["phase"]),
             "phase_gt": np.asarray(gt_cols["phase_gt"]), "ms": np.asarray(est_cols["ms"], float),
-            "pos_nees": nees, "in_scope": in_scope(gt_cols)}
+            "pos_nees": nees, "in_scope": in_scope(gt_cols), "pad_px": pad_px(gt_cols)}
+
+
+# the pad's side in the image (px) at which ``hvloc bench score`` splits its frames: where a camera's
+# availability is set by how many pixels the pad spans (a 1 m pad is 14 px from 20 m under a 120 degree
+# lens at 960x540; hvloc does not try under 16 px), not by the conditions
+PAD_PX_BINS = (16.0, 20.0, 30.0, 45.0, 64.0, 140.0)
+
+
+def pad_px(gt_cols: dict) -> np.ndarray:
+    """(N,) the pad's mean side in the image (px) from its labelled corners where all four are in
+    view (``c0u`` ... ``c3_visible``); NaN elsewhere, and for a dataset without those columns."""
+    n = len(gt_cols["frame"])
+    cols = [f"c{i}{a}" for i in range(4) for a in "uv"] + [f"c{i}_visible" for i in range(4)]
+    if not all(c in gt_cols for c in cols):
+        return np.full(n, np.nan)
+    c = np.stack([np.column_stack([np.asarray(gt_cols[f"c{i}u"], float), np.asarray(gt_cols[f"c{i}v"], float)])
+                  for i in range(4)], axis=1)  # (N, 4, 2)
+    seen = np.all([np.asarray(gt_cols[f"c{i}_visible"], float) > 0.5 for i in range(4)], axis=0)
+    side = np.linalg.norm(c - np.roll(c, 1, axis=1), axis=2).mean(axis=1)
+    return np.where(seen & np.isfinite(side), side, np.nan)
+
+
+def size_scopes(fe: dict) -> dict:
+    """``{"16-20 px": metrics, ...}``: the metrics over the frames whose whole pad spans so many
+    pixels in the image (:data:`PAD_PX_BINS`; labelled corners), bins without frames left out."""
+    px = fe["pad_px"]
+    edges = (0.0,) + PAD_PX_BINS + (math.inf,)
+    out = {}
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (px >= lo) & (px < hi)
+        if m.any():
+            name = f"under {hi:g} px" if lo == 0 else f"{lo:g} px and more" if math.isinf(hi) else f"{lo:g}-{hi:g} px"
+            out[name] = score(fe, m)
+    return out
 
 
 def in_scope(gt_cols: dict) -> np.ndarray:

@@ -44,6 +44,20 @@ def phase_table(summary: dict, dataset: str | None = None) -> str:
     return "\n".join(lines)
 
 
+def size_table(by_size: dict) -> str:
+    """Markdown rows of :func:`benchmarks.metrics.size_scopes`: per the pad's side in the image, its
+    frames (the whole pad in view), availability, the error's median (% of the height), the height's
+    signed median and the false accepts."""
+    lines = ["| pad in the image | frames | availability | pos median % h | height median % h | false accepts |",
+             "|---|---|---|---|---|---|"]
+    for size, m in by_size.items():
+        lines.append("| " + " | ".join([
+            size, str(m["frames"]), _f(m.get("availability"), 100, "{:.1f} %"),
+            _f(m.get("pos_err_pct_median"), 1, "{:.2f}"), _f(m.get("height_err_pct_median"), 1, "{:+.2f}"),
+            str(m["false_accepts"] if m.get("false_accepts") is not None else "-")]) + " |")
+    return "\n".join(lines)
+
+
 def glance_table(summary: dict, datasets: list) -> str:
     """Markdown rows, one per localizer and dataset, the weakest first (availability in scope,
     then false accepts): what a suite of many conditions shows at a glance, each dataset's own

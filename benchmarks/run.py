@@ -326,8 +326,10 @@ def _localize_dataset(ds, out: Path, config, use_imu, show_progress, kind, mavli
 
 def score_dataset(root, results) -> dict:
     """A localizer's estimates (``hvloc localize --out results``) scored against a dataset's ground
-    truth, per ground-truth phase: ``{"summary": {scope: metrics}, "notes": [...]}``.  Frames without
-    ground truth (an imported flight may have none) count toward availability only, and a note says so."""
+    truth, per ground-truth phase: ``{"summary": {scope: metrics}, "by_pad_px": {size: metrics},
+    "notes": [...]}`` (``by_pad_px``: by the pad's side in the image, :func:`benchmarks.metrics.size_scopes`).
+    Frames without ground truth (an imported flight may have none) count toward availability only,
+    and a note says so."""
     from render.dataset import Dataset
 
     from . import metrics as M
@@ -348,7 +350,7 @@ def score_dataset(root, results) -> dict:
     summary = M.phase_scopes(fe)
     if not np.isfinite(fe["height_m"]).any():  # nothing to judge a pose by: unknown, not zero
         summary["all"].update(false_accepts=None, rejections_right=None, rejections_wrong=None)
-    return {"summary": summary, "notes": notes}
+    return {"summary": summary, "by_pad_px": M.size_scopes(fe), "notes": notes}
 
 
 ESTIMATE_TEXT_COLUMNS = ("phase", "status", "method", "reason")

@@ -42,6 +42,43 @@ def test_position_rmse_matches_an_independent_computation_from_tum_files(smoke):
         assert rmse == pytest.approx(ours, rel=1e-9, abs=1e-12)
 
 
+def test_score_splits_its_frames_by_the_pads_size_in_the_image(smoke):
+    """``hvloc bench score`` prints, under its phase table, the frames whose whole pad is in view by
+    the pad's side in the image (the labelled corners' mean side): a camera's availability is set by
+    how many pixels the pad spans.  Checked against frames.csv and estimates.csv read here."""
+    import csv
+
+    from benchmarks.metrics import PAD_PX_BINS
+    from tests.conftest import run_cli
+
+    out, _ = smoke
+    ds = next(p for p in (out / "datasets").iterdir() if p.name.startswith("tiny-"))
+    est = out / "estimates" / "hierarchical" / ds.name
+    r = run_cli("bench", "score", ds, est)
+    assert r.returncode == 0, r.stderr
+    assert "by the pad's size in the image" in r.stdout, r.stdout
+    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:-1]]
+            for ln in r.stdout.split("by the pad's size")[1].splitlines() if ln.startswith("| ") and "px" in ln}
+    expect = {}
+    edges = (0.0,) + PAD_PX_BINS + (math.inf,)
+    for seq_dir in sorted(p for p in ds.iterdir() if p.name.startswith("seq_")):
+        gt = list(csv.DictReader(open(seq_dir / "frames.csv")))
+        st = [e["status"] for e in csv.DictReader(open(est / seq_dir.name / "estimates.csv"))]
+        for g, status in zip(gt, st):
+            if not all(float(g[f"c{i}_visible"]) > 0.5 for i in range(4)):
+                continue
+            c = np.array([[float(g[f"c{i}u"]), float(g[f"c{i}v"])] for i in range(4)])
+            side = float(np.mean(np.linalg.norm(c - np.roll(c, 1, axis=0), axis=1)))
+            k = int(np.searchsorted(edges, side, side="right")) - 1
+            n, ok = expect.get(k, (0, 0))
+            expect[k] = (n + 1, ok + (status == "ok"))
+    assert len(rows) == len(expect) >= 2, (rows, expect)
+    for (k, (n, ok)), (name, cells) in zip(sorted(expect.items()), rows.items()):
+        lo, hi = edges[k], edges[k + 1]
+        assert name == (f"under {hi:g} px" if lo == 0 else f"{lo:g} px and more" if math.isinf(hi) else f"{lo:g}-{hi:g} px")
+        assert int(cells[0]) == n and cells[1] == f"{100 * ok / n:.1f} %", (name, cells, n, ok)
+
+
 def test_results_schema_and_provenance(smoke):
     out, res = smoke
     r = json.loads((out / "results.json").read_text())
