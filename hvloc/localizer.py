@@ -1110,8 +1110,9 @@ class HierarchicalLocalizer:
         self.gates = FalsePoseGates(self.config, self.T_B_C)
         self.heading_t: float | None = None      # when the gates' vision-IMU offset (the pad's heading) was last confirmed
         self.design_votes = DesignVotes()        # a cold start's namings by the pad's design ...
-        self.fit_votes = DesignVotes("pad design fitted", ph.DESIGN_MIN_NCC, math.log(FIT_NAMING_RATIO),
-                                     math.log(FIT_VOTE_RATIO), math.log(FIT_NAMING_RATIO))  # ... fitted from each naming
+        self.fit_votes = DesignVotes("pad design fitted", sure_best=ph.DESIGN_MIN_NCC,  # ... fitted from each naming
+                                     sure_lead=math.log(FIT_NAMING_RATIO), vote_lead=math.log(FIT_VOTE_RATIO),
+                                     enough=math.log(FIT_NAMING_RATIO))
         self.unposed = 0                         # frames since the last accepted pose (this one included)
         self.ahrs = AHRSTiltBias(self.config.ahrs_bias_time_s, self.config.ahrs_tilt_sigma_deg)
         cfg = self.config
@@ -1937,7 +1938,7 @@ class HierarchicalLocalizer:
             start = solve_planar_pose(self.camera, pts, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
             if start is None:
                 continue
-            fitted, info = self._design_fit(pts, px, start, rgb, up_C)
+            fitted, info = self._design_fit(start.cam2pad, rgb, up_C, ("design fit", array_key(pts), array_key(px)))
             rms[j], fits[j] = info.get("rms", np.inf), fitted is not None  # (a drawing that matched poorly: its RMS)
         k = int(np.argmin(rms))
         o = np.sort(rms)
@@ -2135,28 +2136,24 @@ class HierarchicalLocalizer:
         ok[ok] = (transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0) & (np.abs(P[ok, :2]).max(axis=1) <= self.pad.side_m / 2)
         return P[ok] if ok.sum() >= 4 else None
 
-    def _design_fit(self, pts_P, px, start, rgb: np.ndarray, up_C) -> tuple:
-        """``(cam2pad | None, info)``: :func:`hvloc.texfit.fit_pose_to_design` of the outline's
-        correspondences ``pts_P``, ``px`` from their pose ``start`` (with the IMU's gravity ``up_C``),
-        asked of the image work by all they depend on; pads up to :data:`hvloc.texfit.MAX_SIDE_PX`,
-        or :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` where the frame's chroma is at half resolution (its
-        colour edges smear).  The pad's tilt is fitted too where the pad is large and sharp enough
-        (:data:`hvloc.texfit.TILT_MIN_SIDE_PX`), weighed against the IMU's (:attr:`up_sigma_deg`)."""
+    def _design_fit(self, cam2pad: np.ndarray, rgb: np.ndarray, up_C, key: tuple) -> tuple:
+        """``(cam2pad | None, info)``: :func:`hvloc.texfit.fit_pose_to_design` from the pose ``cam2pad``
+        (its tilt the IMU's ``up_C``), asked of the image work by ``key`` (what made ``cam2pad``) and
+        all else it depends on; pads up to :data:`hvloc.texfit.MAX_SIDE_PX`, or
+        :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` where the frame's chroma is at half resolution (its
+        colour edges smear).  The pad's tilt is fitted too, weighed against the IMU's
+        (:attr:`up_sigma_deg`), where the pad is large and sharp enough
+        (:data:`hvloc.texfit.TILT_MIN_SIDE_PX`) and the frame's motion, where known, smears its outer
+        corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure."""
         from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
-        tilt_up = None if self._smeared_past(start.cam2pad, pts_P, TILT_MAX_SMEAR_PX) else up_C
-        return self.work(lambda: ("design fit", array_key(pts_P), array_key(px), array_key(up_C), self.up_sigma_deg,
-                                  self.response, top, array_key(tilt_up)),
-                         fit_pose_to_design, rgb, self.camera, self._drawing(), start.cam2pad, self.response, top,
-                         tilt_up, self.up_sigma_deg)
-
-    def _smeared_past(self, cam2pad: np.ndarray, pts_P, limit_px: float) -> bool:
-        """Whether the frame's motion (:meth:`_motion`) smears some of ``pts_P``, seen from ``cam2pad``,
-        more than ``limit_px`` over the exposure; ``False`` where no motion or exposure is known."""
-        d = self._image_motion(cam2pad, self._motion(), pts_P)
-        return d is not None and bool(np.nanmax(np.linalg.norm(d, axis=1)) > limit_px)
+        d = self._image_motion(cam2pad, self._motion(), self.outer_P)
+        tilt = d is None or not bool(np.nanmax(np.linalg.norm(d, axis=1)) > TILT_MAX_SMEAR_PX)
+        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt),
+                         fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
+                         up_C if tilt else None, self.up_sigma_deg)
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
@@ -2174,7 +2171,7 @@ class HierarchicalLocalizer:
         square = _rms_share(start.rms_px, det.info) <= self.config.max_outline_rms_share
         if not (square or rescue):
             return det
-        fitted, info = self._design_fit(det.pts_P, det.px, start, rgb, up_C)
+        fitted, info = self._design_fit(start.cam2pad, rgb, up_C, ("design fit", array_key(det.pts_P), array_key(det.px)))
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)
@@ -2463,8 +2460,8 @@ class HierarchicalLocalizer:
         """``((pose, n, extras) | None, reason)``: a pad predicted too small for its smeared drawing to
         be aligned (:data:`hvloc.synthesis.MIN_PAD_PX`), yet large enough for its printed design to
         be fitted (:data:`hvloc.texfit.MIN_SIDE_PX`), posed by that design fitted from the predicted
-        pose ``T`` (:meth:`_predicted_pose`; its position and yaw, the tilt the AHRS's:
-        :func:`hvloc.texfit.fit_pose_to_design`), where the pose lands where the velocity filter
+        pose ``T`` (:meth:`_predicted_pose`; its position and yaw, and its tilt where :meth:`_design_fit`
+        fits it), where the pose lands where the velocity filter
         foresaw it (:func:`foreseen`).  Its outer corners stand in for the outline's, each as noisy
         as the blur the fit found (:data:`DESIGN_SIGMA_PER_BLUR`).  ``(None, why)`` otherwise.
 
@@ -2473,18 +2470,14 @@ class HierarchicalLocalizer:
         odds: the conditions suite's far, dusk and deck scenes) the frame was lost, though the
         filter knew where the pad was to 1-3 % of the height."""
         from .synthesis import MIN_PAD_PX
-        from .texfit import MIN_SIDE_PX, fit_pose_to_design
+        from .texfit import MIN_SIDE_PX
 
         if self.pad is None:
             return None, why
         quad = self.camera.project_from(T, self.outer_P)
         if quad is None or not np.isfinite(quad).all() or not MIN_SIDE_PX <= ph._mean_side(quad) < MIN_PAD_PX:
             return None, why
-        tilt_up = None if self._smeared_past(T, self.outer_P, TILT_MAX_SMEAR_PX) else up_C
-        fitted, info = self.work(lambda: ("design at the prediction", array_key(T), self.response, array_key(tilt_up),
-                                          self.up_sigma_deg),
-                                 fit_pose_to_design, rgb, self.camera, self._drawing(), T, self.response,
-                                 up_C=tilt_up, up_sigma_deg=self.up_sigma_deg)
+        fitted, info = self._design_fit(T, rgb, up_C, ("design at the prediction", array_key(T)))
         px = None if fitted is None else self.camera.project_from(fitted, self.outer_P)
         if px is None or not np.isfinite(px).all():
             return None, f"{why}; its design fitted from the predicted pose: {info.get('why', 'out of view')}"

@@ -138,13 +138,13 @@ def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.nda
 
 def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
     """``T`` (``T_P_C``) turned by ``q[3]`` about the pad's normal and moved by ``q[:3]`` (pad frame),
-    then tilted by ``q[6:8]`` (radians about the pad's x and y axes, where given): the camera carried
+    then tilted by ``q[6:8]`` (radians about the pad's x and y axes): the camera carried
     round the pad's centre, so that a tilt changes how the pad is foreshortened, not where it lies."""
     Rz = so3_exp(np.array([0.0, 0.0, q[3]]))
     out = T.copy()
     out[:3, :3] = Rz @ T[:3, :3]
     out[:3, 3] = Rz @ T[:3, 3] + q[:3]
-    if len(q) > 6 and (q[6] or q[7]):
+    if q[6] or q[7]:
         Rt = so3_exp(np.array([q[6], q[7], 0.0]))
         out[:3, :3] = Rt @ out[:3, :3]
         out[:3, 3] = Rt @ out[:3, 3]
@@ -234,8 +234,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     m_per_px = depth / camera.fx
     # the pose parameters' steps for the image motion they cause: a tenth of a px at the pad
     # (and the tilt's: about a tenth of a px at the pad's corners on the foreshortening)
-    steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, 0.1 / max(side_px / 2.0, 1e-6),
-                      0.1 / max(side_px / 2.0, 1e-6), 0.1 / max(side_px / 2.0, 1e-6)])
+    turn = 0.1 / max(side_px / 2.0, 1e-6)
+    steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, turn, turn, turn])
     POSE = (0, 1, 2, 3, 6, 7)  # q's pose parameters (4, 5: the blur and the sharpening)
     ideal = np.column_stack([grid[sel].astype(np.float64), np.ones(int(sel.sum()))])  # the modelled pixels' ideal places
 
