@@ -955,6 +955,42 @@ def test_an_ahrs_error_is_scaled_against_the_labels_and_each_localizer_gets_its_
     assert all(any(np.array_equal(p, q) for q in imu[:, 7:11]) for p in plain[:3])
 
 
+def test_fit_bias_fits_each_far_pad_from_its_labelled_pose(smoke, capsys):
+    """``benchmarks.fit_bias``: every frame whose whole pad spans 16-140 px (its labelled corners,
+    read here) is fitted from its labelled pose, each row's height error is that of the design fit
+    called on its own, the size rows count them all, and on the tiny renders the fit's heights lie
+    within half a percent of the labels in the median."""
+    import csv
+
+    from benchmarks.fit_bias import by_size, fit_rows, main
+    from hvloc.synthesis import PadSynthesis
+    from hvloc.texfit import HALVED_MAX_SIDE_PX, fit_pose_to_design
+    from render.dataset import Dataset
+
+    out, _ = smoke
+    root = next(p for p in (out / "datasets").iterdir() if p.name.startswith("tiny-"))
+    rows = fit_rows(root, every=2)
+    sides = {}
+    for seq_dir in sorted(root.glob("seq_*")):
+        for r in csv.DictReader(open(seq_dir / "frames.csv")):
+            c = np.array([[float(r[f"c{i}u"]), float(r[f"c{i}v"])] for i in range(4)])
+            whole = all(float(r[f"c{i}_visible"]) > 0.5 for i in range(4))
+            sides[(seq_dir.name, int(r["frame"]))] = np.linalg.norm(c - np.roll(c, 1, axis=0), axis=1).mean() if whole else 0.0
+    wanted = {key for key, side in sides.items() if 16.0 <= side < 140.0 and key[1] % 2 == 0}
+    assert len(rows) > 10 and {(r[0], r[1]) for r in rows} <= wanted and len(rows) >= 0.8 * len(wanted)
+    seq_id, k = rows[len(rows) // 2][:2]
+    seq = Dataset(root)[seq_id]
+    G = seq.cam2pad_at(k)
+    fitted, _ = fit_pose_to_design(seq.image(k), seq.camera, PadSynthesis(seq.pad), G, seq.response, HALVED_MAX_SIDE_PX)
+    assert rows[len(rows) // 2][3] == pytest.approx(100.0 * (fitted[2, 3] - G[2, 3]) / G[2, 3], abs=1e-9)
+    table = by_size(rows)
+    assert sum(t["frames"] for t in table) == len(rows)
+    assert abs(float(np.median([r[3] for r in rows]))) < 0.5, table
+    assert main([str(root), "--every", "2"]) == 0
+    printed = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("| ") and "px" not in ln and "---" not in ln]
+    assert [ln.split("|")[1].strip() for ln in printed] == [t["pad_px"] for t in table]
+
+
 def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known():
     """``benchmarks.blur_bias``: on exact views of a sharp 150 px pad the outline's corners lie where
     the view put them and the drawing, predicted 7 % off either way, comes back to the true scale;
