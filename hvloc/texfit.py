@@ -55,6 +55,13 @@ HALVED_MAX_SIDE_PX = 140.0
 # At 16-20 px it stands in for the white field's corners, which a camera summing light puts 7-9 % of the
 # field's side too large there (the checker averages to a bright grey): README, "A far pad placed by its drawn design"
 MIN_SIDE_PX = 16.0
+# Each pixel is drawn as the mean of this many x this many points spread over it, as a camera's pixel sums the
+# light over its area.  Drawn at its centre alone from the level whose texels are no larger than a pixel, the
+# drawing was blurred by 0.25-0.5 px, and unlike a blur, by how far that level's texels were from a pixel's
+# size: the fitted pad's height went off in a sawtooth with the level, 0.4 % low at 16-20 px and 0.3 % at
+# 20-30, 0.1 % high at 45-64 px, from the labelled pose on renders whose pixels average 3 x 3 samples; drawn
+# from 2 x 2 points, 0.06 % or less at every size (3 x 3: 0.07 %).  The fit takes 0.9-1.3 times as long.
+SUBSAMPLES = 2
 MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
 BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
 BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in
@@ -125,15 +132,21 @@ def _design_levels(synth) -> list:
     return levels
 
 
-def _draw(levels: list, synth, camera: Camera, grid: np.ndarray, cam2pad: np.ndarray) -> np.ndarray:
-    """``(h, w, 4)``: the design's channels (:func:`_design_levels`) seen from ``cam2pad`` at the
-    window ``grid`` (each pixel's ideal pinhole place: :meth:`PadSynthesis.window`), 0 off the pad;
-    read from the level whose texels are the finest no smaller than a pixel (as a pixel averages)."""
+def _draw(levels: list, synth, camera: Camera, points: np.ndarray, cam2pad: np.ndarray,
+          per_px: int = 1) -> np.ndarray:
+    """``(h, w, 4)``: the design's channels (:func:`_design_levels`) seen from ``cam2pad`` over the
+    window's pixels, 0 off the pad: each pixel the mean of its ``per_px`` x ``per_px`` points of
+    ``points`` (their ideal pinhole places: :meth:`PadSynthesis.window` at that scale), each read
+    from the level whose texels are the finest no smaller than the points' spacing."""
     H = pad_plane_homography(camera, cam2pad)  # pad (x, y) m -> ideal pixel
-    tex, ppm = level_for(levels, synth.pad.side_m, H)
+    tex, ppm = level_for(levels, synth.pad.side_m, H, per_px)
     M = np.linalg.inv(H @ texture_to_pad(synth.pad.side_m, ppm))  # ideal pixel -> texel
-    uv = cv2.perspectiveTransform(np.ascontiguousarray(grid).reshape(-1, 1, 2), M).reshape(grid.shape)
-    return cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    uv = cv2.perspectiveTransform(np.ascontiguousarray(points).reshape(-1, 1, 2), M).reshape(points.shape)
+    d = cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    if per_px == 1:
+        return d
+    # (an integer factor's INTER_AREA is the blocks' mean; numpy's mean over two strided axes took 5 times as long)
+    return cv2.resize(d, (points.shape[1] // per_px, points.shape[0] // per_px), interpolation=cv2.INTER_AREA)
 
 
 def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -202,12 +215,13 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         return None, {"why": "pad out of view"}
     if not MIN_SIDE_PX <= side_px <= max_side_px:
         return None, {"why": f"the pad is {side_px:.0f} px across (fitted at {MIN_SIDE_PX:.0f}-{max_side_px:.0f})"}
-    grid = synth.window(camera, box, 1.0, own=True)  # (a far pad's window: a few thousand pixels)
+    grid = synth.window(camera, box, 1.0, own=True)  # (a far pad's window: a few thousand pixels) ...
+    fine = synth.window(camera, box, float(SUBSAMPLES), own=True)  # ... and the points each pixel is drawn from
     img = np.asarray(image[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
     img = img.reshape(img.shape[0], img.shape[1], -1)
     luma = np.array(LUMA) if img.shape[2] == 3 else np.full(img.shape[2], 1.0 / img.shape[2])  # a grey camera: its one channel
     levels = _design_levels(synth)
-    inside = (_draw(levels, synth, camera, grid, cam2pad)[..., 3] > 0.5).astype(np.uint8)
+    inside = (_draw(levels, synth, camera, fine, cam2pad, SUBSAMPLES)[..., 3] > 0.5).astype(np.uint8)
     # compared: the pad and a ring of ground around it (the border's outer edge is seen against
     # the ground, whose mean brightness is fitted with the pad's), within the window
     ring = int(math.ceil(3.0 * BLUR_START_PX)) + 1
@@ -250,7 +264,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     def drawn(q):
         """``(D, B1, B2)``, each ``(h, w, 4)``: the design's channels at q's pose blurred as the camera
         does (:func:`blurred`)."""
-        return blurred(_draw(levels, synth, camera, grid, _posed(cam2pad, q)), q)
+        return blurred(_draw(levels, synth, camera, fine, _posed(cam2pad, q), SUBSAMPLES), q)
 
     def blurred(d, q):
         """``(D, B1, B2)``: drawn channels ``d`` blurred as the camera does, ``D = B1 + a (B1 - B2)``:
@@ -286,7 +300,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         # the drawing's gradient in the ideal image, from drawings a quarter px off each way, blurred
         # once (the blur is linear): the grid's own differences of a drawing blurred by under a px are
         # not its derivative (the pose's columns correlated 0.6-0.7 with the residual's true change)
-        off = [_draw(levels, synth, camera, grid + np.float32(o), T)
+        off = [_draw(levels, synth, camera, fine + np.float32(o), T, SUBSAMPLES)
                for o in ((GRAD_PX, 0.0), (-GRAD_PX, 0.0), (0.0, GRAD_PX), (0.0, -GRAD_PX))]
         grad = blurred(np.concatenate([off[0] - off[1], off[2] - off[3]], axis=2) / np.float32(2 * GRAD_PX), q)[0]
         gx, gy = grad[..., :4][sel].astype(np.float64), grad[..., 4:][sel].astype(np.float64)
