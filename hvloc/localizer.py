@@ -60,6 +60,10 @@ TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
 # the fit's blur is isotropic, and a smear along one way is taken up by the tilt.  On unseen100 (1-4 px of
 # motion smear) the fitted tilt put 44-100 px pads 0.14-0.39 % of the height off in the median, held 0.08-0.24
 TILT_MAX_SMEAR_PX = 1.0
+# ... and not fitted at all where it smears a corner over this share of the pad's side: the isotropic blur stands
+# in for a smear of up to ~a quarter of the side (views of 24-100 px pads smeared a quarter of their side, fitted
+# from the labelled pose: 0.5-2.4 % of the height off at worst; half their side: up to 21 %)
+DESIGN_FIT_MAX_SMEAR_SHARE = 0.3
 # ORB's keypoints (a texture pose its drawing did not refine) land anywhere along a smear: a uniform spread
 # over it, 1/sqrt(12) of its length (unseen84/85, at 0.2-0.28 m under 31-52 px: 3.9-5.8 mm off stating 1.9-2.4)
 KEYPOINT_SMEAR_DOUBT = 0.29
@@ -2144,13 +2148,20 @@ class HierarchicalLocalizer:
         colour edges smear).  The pad's tilt is fitted too, weighed against the IMU's
         (:attr:`up_sigma_deg`), where the pad is large and sharp enough
         (:data:`hvloc.texfit.TILT_MIN_SIDE_PX`) and the frame's motion, where known, smears its outer
-        corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure."""
+        corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure; nothing is fitted where it smears
+        one over :data:`DESIGN_FIT_MAX_SMEAR_SHARE` of the pad's side (``(None, {"why": ...})``)."""
         from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
         d = self._image_motion(cam2pad, self._motion(), self.outer_P)
-        tilt = d is None or not bool(np.nanmax(np.linalg.norm(d, axis=1)) > TILT_MAX_SMEAR_PX)
+        smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
+        quad = self.camera.project_from(cam2pad, self.outer_P)
+        side = ph._mean_side(quad) if quad is not None else math.inf
+        if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
+            return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what "
+                                 f"its drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
+        tilt = not smear > TILT_MAX_SMEAR_PX
         return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt),
                          fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
                          up_C if tilt else None, self.up_sigma_deg)

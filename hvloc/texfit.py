@@ -64,7 +64,10 @@ MIN_SIDE_PX = 16.0
 SUBSAMPLES = 2
 MIN_PIXELS = 120       # compared pixels needed (the pad and its ring of ground, in view)
 BLUR_START_PX = 0.7    # the blur's first guess (frame px) ...
-BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in
+BLUR_RANGE_PX = (0.25, 3.0)  # ... and the range it is kept in: a fit whose blur ends at the top fails, the frame
+# blurred past what the drawing models (a motion smear of over half a far pad's side: views smeared 16-24 px fitted
+# 24-60 px pads 3-21 % of the height off, all at the top; conditions' snow scene, a 26 px smear from a 4 rad/s
+# jolt, a 102 px pad 10.6 % off, "ok"; under 12 px of smear no view's blur reached it)
 TONE = 2.2             # the tone curve's exponent (written = light ** (1 / it)): sRGB's, as cameras write, unless the
                        # camera's response is known.  Not fitted: the colour gains leave only the edges' profiles to
                        # fix it, and a fitted one took up the model's errors (far_wide's renders: 0.15-0.3 low)
@@ -417,5 +420,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             if doubt is not None and math.isfinite(doubt) else up_sigma_deg
     if not np.isfinite(q).all() or ncc < MIN_NCC:
         info["why"] = f"the drawing matches the frame poorly (correlation {ncc:.2f} < {MIN_NCC})"
+        return None, info
+    if q[4] >= BLUR_RANGE_PX[1]:
+        info["why"] = f"blurred past what the drawing models (its blur at the top of its range, {BLUR_RANGE_PX[1]:g} px)"
         return None, info
     return _posed(cam2pad, q), info
