@@ -110,7 +110,10 @@ def policy_height(last_height: float | None, last_t: float, t: float, cfg: Local
 OUTER_AGREE_PX = 0.45  # the pad's outer corners join a markers pose when the markers' own fit puts them this close (RMS)
 # the least pad (px, as its white field's corners put it) that those corners alone may place (HierarchicalLocalizer._small_field_refused)
 FIELD_MIN_SIDE_PX = 20.0
-DESIGN_FIT_MAX_MOVE = 0.1  # the design's fit may move the outline's corners by this share of its side at most
+# the design's fit may move the outline's corners by this share of its side at most: further, the two measures of
+# one pad disagree and neither is taken (far_wide JPEG 50: a 21 px pad's corners 2.6 px from its design's, kept, 11.5 %
+# of the height off, "ok"; the only such pose of four wide-lens scenes', 1,585)
+DESIGN_FIT_MAX_MOVE = 0.1
 MARKER_SIGMA_PER_RMS = 3.0  # a three-marker pose's pixel noise: this times its image-only residual RMS
 MARKER_MIN_SIGMA_PX = 0.1  # ... and at least this
 MARKER_SHARED_PER_SIGMA = 1.0  # fewer markers: the shift and swell their corners share, in units of their own noise
@@ -2077,6 +2080,9 @@ class HierarchicalLocalizer:
                                      method=cfg.binarization, rgb=use_rgb, up_C=up_C, prior=named_by, design=design)
             if det is not None and det.kind == "outline" and cfg.design_fit:
                 det = self._design_fitted(det, rgb, up_C)
+                if "design_disagrees" in det.info:  # (neither is taken: far_wide's 21 px pad, its corners kept, 11.5 % off)
+                    det, why = None, (f"its design, fitted from its corners, moved one {det.info['design_disagrees']:.1f} px "
+                                      f"(> {DESIGN_FIT_MAX_MOVE:g} of its side): neither is sure")
             if det is not None and det.kind == "outline":
                 det, why = self._small_field_refused(det, why)
             if det is not None:
@@ -2190,7 +2196,7 @@ class HierarchicalLocalizer:
             return det
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
-            return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px"))
+            return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px", design_disagrees=moved))
         return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info),
                                              **({} if square else {"rescued": "design fit"})))
 

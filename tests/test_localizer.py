@@ -5044,6 +5044,35 @@ def test_the_localizer_fits_a_far_pads_design_when_asked():
     assert np.mean(errs[True]) < 0.5 * np.mean(errs[False]), errs
 
 
+def test_an_outline_whose_design_fit_lies_far_from_its_corners_is_not_taken(monkeypatch):
+    """The design fitted from an outline's pose is a second measure of the same pad.  Where it moves
+    a corner by over :data:`hvloc.localizer.DESIGN_FIT_MAX_MOVE` of the side, the two disagree and
+    neither is sure: the outline's corners were kept instead, and on far_wide (JPEG 50) a 21 px
+    pad's were 11.5 % of the height off, "ok".  Such an outline is refused, saying why; a fit a
+    twentieth of the side away is taken."""
+    import hvloc.localizer as hl
+
+    real = hl.HierarchicalLocalizer._design_fit
+    for pad, crop, cam, fr in _far_pad_clean()[:2]:
+        G = np.array(fr["cam2pad"])
+        side_px = float(np.mean(np.linalg.norm(np.diff(np.array(fr["corners_px"] + fr["corners_px"][:1]), axis=0), axis=1)))
+        for share in (0.05, 0.2):
+            def moved(self, cam2pad, rgb, up_C, key, share=share):
+                fitted, info = real(self, cam2pad, rgb, up_C, key)
+                if fitted is not None:  # the fit's pose carried across the pad by ``share`` of its side
+                    fitted = fitted.copy()
+                    fitted[0, 3] += share * pad.geometry.side_m
+                return fitted, info
+
+            monkeypatch.setattr(hl.HierarchicalLocalizer, "_design_fit", moved)
+            loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_markers=False, use_flow=False), T_B_C=np.eye(4))
+            e = loc.process(crop, 0.0, imu=G[:3, :3])
+            if share < hl.DESIGN_FIT_MAX_MOVE:
+                assert e.status == "ok" and isinstance(e.extras.get("design_fit"), dict), (fr["frame"], e.reason)
+            else:
+                assert e.status != "ok" and "neither is sure" in e.reason, (fr["frame"], side_px, e.status, e.reason)
+
+
 def test_a_small_pad_summed_in_light_is_posed_by_its_design_not_its_swollen_field():
     """light_twins' dusk scene rendered in light, as a camera sums it (kept losslessly in tests/data:
     21-23 px pads on a grey deck at dusk, a 115 degree lens 20 degrees off nadir, JPEG 45).  The
