@@ -2155,16 +2155,20 @@ class HierarchicalLocalizer:
         (:attr:`up_sigma_deg`), where the pad is large and sharp enough
         (:data:`hvloc.texfit.TILT_MIN_SIDE_PX`) and the frame's motion, where known, smears its outer
         corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure; nothing is fitted where it smears
-        one over :data:`DESIGN_FIT_MAX_SMEAR_SHARE` of the pad's side (``(None, {"why": ...})``)."""
+        one over :data:`DESIGN_FIT_MAX_SMEAR_SHARE` of the pad's side (``(None, {"why": ...})``), the
+        motion known with a velocity from the last poses."""
         from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         top = HALVED_MAX_SIDE_PX if halved else MAX_SIDE_PX
-        d = self._image_motion(cam2pad, self._motion(), self.outer_P)
+        motion = self._motion()
+        d = self._image_motion(cam2pad, motion, self.outer_P)
         smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
         quad = self.camera.project_from(cam2pad, self.outer_P)
         side = ph._mean_side(quad) if quad is not None else math.inf
-        if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
+        # (only with a velocity from the last poses, as _edge_fit_outrun: a descent's first frame has one gyro
+        # row, which read 1.19 rad/s on nested_deck_pitched where the frame was smeared 2.8 px)
+        if motion.v_P is not None and smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
             return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what "
                                  f"its drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         tilt = not smear > TILT_MAX_SMEAR_PX
