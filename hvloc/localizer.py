@@ -2164,13 +2164,14 @@ class HierarchicalLocalizer:
         motion = self._motion()
         d = self._image_motion(cam2pad, motion, self.outer_P)
         smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
-        quad = self.camera.project_from(cam2pad, self.outer_P)
-        side = ph._mean_side(quad) if quad is not None else math.inf
         # (only with a velocity from the last poses, as _edge_fit_outrun: a descent's first frame has one gyro
         # row, which read 1.19 rad/s on nested_deck_pitched where the frame was smeared 2.8 px)
-        if motion.v_P is not None and smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
-            return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what "
-                                 f"its drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
+        if motion.v_P is not None and smear > TILT_MAX_SMEAR_PX:
+            quad = self.camera.project_from(cam2pad, self.outer_P)
+            side = ph._mean_side(quad) if quad is not None else math.inf
+            if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
+                return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
+                                     f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         tilt = not smear > TILT_MAX_SMEAR_PX
         return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt),
                          fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
@@ -2179,7 +2180,9 @@ class HierarchicalLocalizer:
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
         (:func:`hvloc.texfit.fit_pose_to_design`), started from the outline's pose with the IMU's
-        gravity; ``det`` as it is without gravity, without the design, or when the fit fails.
+        gravity; ``det`` as it is without gravity, without the design, or when the fit fails, and
+        with ``info["design_disagrees"]`` (px) where the fit moved a corner over
+        :data:`DESIGN_FIT_MAX_MOVE` of the side (the caller refuses it: neither measure is sure).
         ``rescue``: corners that are no square's are fitted too (``info["rescued"]``), with
         :attr:`LocalizerConfig.design_fit` on or off (the caller asks only where the pad was foreseen)."""
         if up_C is None or self.pad is None:
