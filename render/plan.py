@@ -91,16 +91,6 @@ def platform_side(spec: DatasetSpec) -> float:
     return float(spec.platform.size_m) if spec.platform.height_m > 0 else 0.0
 
 
-def drawn_ground_kinds(spec: DatasetSpec) -> set:
-    """The ground kinds the spec's sequences draw (as plan_sequence draws them, without the rest)."""
-    kinds = set()
-    for i in range(spec.sequences):
-        rng = np.random.default_rng(sequence_seed(spec.seed, i))
-        rng.integers(2**63)  # the trajectory's seed, drawn first
-        kinds.add(_scene_draw(spec, rng).ground)
-    return kinds
-
-
 def _sequence_trajectory(spec: DatasetSpec, index: int) -> tuple:
     """``(rng, family, trajectory)`` of sequence ``index``: its generator after the trajectory's draw."""
     from .scene import PAD_THICKNESS_M

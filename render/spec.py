@@ -64,39 +64,19 @@ from pad_design.spec import PadSpec
 #  13: the camera's sharpening clips its undershoot at black, as a camera does: it was written as its
 #      absolute value, a grey halo (38 of 255 beside white under a 0.5 mask) on the dark side of every strong
 #      edge, the finder markers' black modules brighter along their white.  Only specs that sharpen move.
-RENDER_REVISION = 13
-HARD_SURFACES = frozenset({"asphalt", "concrete"})  # the kinds revision 6 changed
-GRASSES = frozenset({"grass", "dry_grass"})  # the kinds whose rasterised texture revision 7 changed
-ASPHALT = frozenset({"asphalt"})  # the kind revision 8 changed
+#  14: flights are joined from minimum-snap moves, not minimum-jerk ones: the body's rate follows the
+#      jerk, which stepped at every join (keyframes, the end of a lateral move, the gusts' fade), so the
+#      rate jumped by up to 4.7 rad/s between two IMU rows and one frame was smeared 30 px behind a
+#      sharp one.  Every descent's height profile is such a move, so every spec moves,
+#      and the per-spec revisions of 2-13 (each kept by the specs a change did not reach) are gone.
+RENDER_REVISION = 14
 
 
 def render_revision(spec: "DatasetSpec") -> int:
-    """The last renderer revision that changed what ``spec`` renders (what its identity includes)."""
-    if spec.degradations.sharpen[1] > 0:
-        return 13
-    if spec.camera.mix_in_light:
-        return 12
-    d = spec.environment.distractors
-    drawn_at_random = max(d.boxes[1], d.decoy_patches[1], d.decoy_markers[1]) > 0
-    if drawn_at_random and spec.platform.height_m > 0 and d.keep_clear_m < spec.platform.size_m / math.sqrt(2.0):
-        return 11
-    if any(spec.platform.velocity_mps) and drawn_at_random:
-        return 10
-    if spec.environment.shadows and spec.platform.height_m > 0:
-        return 9  # the drone's shadow past a platform's edge; a turning deck's platform shadow
-    drawn = set()
-    if (HARD_SURFACES | GRASSES) & set(spec.environment.ground):
-        from .plan import drawn_ground_kinds
-
-        drawn = drawn_ground_kinds(spec)
-    if ASPHALT & drawn:
-        return 8
-    if spec.environment.ground_detail or GRASSES & drawn:
-        return 7
-    if HARD_SURFACES & drawn:
-        return 6
-    m = spec.pad_material
-    return 5 if m.relief_m[1] > 0 or m.gloss[1] > 0 else 2
+    """The last renderer revision that changed what ``spec`` renders (what its identity includes).
+    Revision 14 changed every spec's flight; a later revision that moves only some specs returns 14
+    for the others."""
+    return RENDER_REVISION
 
 
 def _range_ok(v):

@@ -19,14 +19,19 @@ from hvloc.geometry import GRAVITY_MPS2 as GRAVITY, make_transform, so3_log
 MAX_TILT_DEG = 90.0  # how far a planned flight may tilt the body: past it the thrust points down, the drone upside down
 
 
-def min_jerk(tau):
-    """Rest-to-rest minimum-jerk profile on [0, 1] (0 -> 1 with zero velocity and acceleration)."""
+def min_snap(tau):
+    """Rest-to-rest minimum-snap profile on [0, 1]: 0 -> 1 with zero velocity, acceleration and jerk
+    at both ends.  The attitude follows the acceleration, so the body's rate follows the jerk: joined
+    end to end (keyframes, a move that ends before the descent does), these profiles keep the rate
+    continuous.  Minimum-jerk ones (render revisions up to 13) end with a jerk of 60 x the move over
+    its duration cubed: the rate stepped at every join (4.7 rad/s between two 200 Hz IMU rows on a
+    hover-and-correct descent), an angular acceleration no multirotor makes."""
     t = np.clip(tau, 0.0, 1.0)
-    return t**3 * (10 - 15 * t + 6 * t * t)
+    return t**4 * (35 - 84 * t + 70 * t * t - 20 * t**3)
 
 
 class KeyframePath:
-    """Piecewise rest-to-rest minimum-jerk between keyframes ``(t, x, y, z, yaw)``."""
+    """Piecewise rest-to-rest minimum-snap between keyframes ``(t, x, y, z, yaw)``."""
 
     def __init__(self, keys):
         k = np.asarray(keys, np.float64)
@@ -43,7 +48,7 @@ class KeyframePath:
         k = self.k
         i = np.clip(np.searchsorted(k[:, 0], t, side="right") - 1, 0, len(k) - 2)
         t0, t1 = k[i, 0], k[i + 1, 0]
-        s = min_jerk((t - t0) / (t1 - t0))[..., None]
+        s = min_snap((t - t0) / (t1 - t0))[..., None]
         v = k[i, 1:] + s * (k[i + 1, 1:] - k[i, 1:])
         return v[..., :3], v[..., 3]
 
@@ -64,8 +69,8 @@ class Gusts:
         # the envelope is a product of two smooth ramps: smooth also where they overlap (descents
         # shorter than fade-in plus fade-out).  It used to ramp a product of a linear ramp, whose
         # kink then reached the acceleration as a spike: a 54 deg tilt for one frame of a 4 s descent.
-        ramp_in = min_jerk(np.clip(t[..., 0, 0] / max(self.fade_in, 1e-9), 0, 1))
-        ramp_out = min_jerk(1 - min_jerk((t[..., 0, 0] - self.fade_out_start)
+        ramp_in = min_snap(np.clip(t[..., 0, 0] / max(self.fade_in, 1e-9), 0, 1))
+        ramp_out = min_snap(1 - min_snap((t[..., 0, 0] - self.fade_out_start)
                                          / max(self.fade_out_end - self.fade_out_start, 1e-9)))
         return d * (ramp_in * ramp_out)[..., None]
 
@@ -220,8 +225,8 @@ class Trajectory:
 # ----------------------------------------------------------------------------- families
 
 def _descent_profile(tau, h0, h1):
-    """Height with a quick start and a slow, careful end (min-jerk in a warped time)."""
-    return h1 + (h0 - h1) * (1.0 - min_jerk(np.clip(tau, 0, 1) ** 0.8))
+    """Height with a quick start and a slow, careful end (min-snap in a warped time)."""
+    return h1 + (h0 - h1) * (1.0 - min_snap(np.clip(tau, 0, 1) ** 0.8))
 
 
 def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam: float,
@@ -249,24 +254,24 @@ def make_trajectory(spec, rng: np.random.Generator, family: str, body_above_cam:
     if family == "straight":
         def path(t):
             tau = np.asarray(t, np.float64) / D
-            s_lat = min_jerk(tau / 0.7)
+            s_lat = min_snap(tau / 0.7)
             x = x0 + (xf - x0) * s_lat
             y = y0 + (yf - y0) * s_lat
             z = _descent_profile(tau, h0, h1)
-            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_jerk(tau)
+            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_snap(tau)
         duration = D
     elif family == "spiral":
         turns = u(tr.spiral_turns)
         r_start = max(r0, 1.0)
         def path(t):  # noqa: E306
             tau = np.asarray(t, np.float64) / D
-            s = min_jerk(tau / 0.85)
+            s = min_snap(tau / 0.85)
             r = r_start * (1 - s)
             th = a0 + 2 * math.pi * turns * s
             x = r * np.cos(th) + xf * s
             y = r * np.sin(th) + yf * s
             z = _descent_profile(tau, h0, h1)
-            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_jerk(tau) + 2 * math.pi * turns * s * 0.5
+            return np.stack([x, y, z], axis=-1), yaw0 + dyaw * min_snap(tau) + 2 * math.pi * turns * s * 0.5
         duration = D
     elif family == "hover_correct":
         n = int(rng.integers(tr.hover_steps[0], tr.hover_steps[1] + 1))

@@ -372,27 +372,13 @@ def test_a_lens_that_folds_back_before_the_corners_is_refused():
         validate_model(DatasetSpec, {"camera": {"model": "fisheye", "dist": [0, 0, 0, 0, 0]}})
     # the lens model is part of a spec's identity; a pinhole without distortion is the default spec,
     # whose identity is the renderer's revision alone (RENDER_REVISION: what an old cache was made by;
-    # revision 12 mixes light, which every default spec does)
+    # revision 14 flies every spec's descent otherwise)
     plain = validate_model(DatasetSpec, {}).sha256()
     assert plain == validate_model(DatasetSpec, {"camera": {"model": "pinhole", "dist": [0, 0, 0, 0, 0]}}).sha256()
-    assert plain == hashlib.sha256(json.dumps({"render_revision": 12}, separators=(",", ":")).encode()).hexdigest()
-    # a spec that mixes display values, as revisions up to 11 did, keeps the revision that last
-    # changed what it draws (revision 7 the ground detail every such default spec draws)
-    display = {"camera": {"mix_in_light": False}}
+    assert plain == hashlib.sha256(json.dumps({"render_revision": 14}, separators=(",", ":")).encode()).hexdigest()
+    display = {"camera": {"mix_in_light": False}}  # a field away from its default is in it, sorted
     assert validate_model(DatasetSpec, display).sha256() == hashlib.sha256(json.dumps(
-        {"camera": {"mix_in_light": False}, "render_revision": 7}, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
-    # revisions 3 (glare on a wrinkled pad's facets) and 4 (a glossy or wrinkled pad's light at
-    # its edge's pixels by their share) moved only the specs that can draw such a pad (seen on
-    # sand without ground detail, which revisions 6 and 7 left alone)
-    bare = {**display, "environment": {"ground_detail": False, "ground": ["sand"]}}
-    wrinkled = {**bare, "pad_material": {"relief_m": [0.01, 0.01]}}
-    glossy = {**bare, "pad_material": {"gloss": [0.3, 0.3]}}
-    both = {**bare, "pad_material": {"relief_m": [0.01, 0.01], "gloss": [0.3, 0.3]}}
-    dirty = {**bare, "pad_material": {"dirt": [0.2, 0.2]}}
-    from render.spec import render_revision
-
-    assert [render_revision(validate_model(DatasetSpec, v)) for v in (wrinkled, glossy, both, dirty)] == [5, 5, 5, 2]
-    assert {render_revision(validate_model(DatasetSpec, {**v, "camera": {}})) for v in (wrinkled, dirty)} == {12}
+        {"camera": {"mix_in_light": False}, "render_revision": 14}, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
     assert plain != validate_model(DatasetSpec, {"camera": {"model": "fisheye", "hfov_deg": 60}}).sha256()
 
 
@@ -483,48 +469,6 @@ def test_blur_flow_of_a_ray_leaving_a_strong_lens_does_not_run_away():
     assert np.all(np.isfinite(u)) and np.abs(np.column_stack([u, v]) - px).max() < 3000
     kept = [0, 2]  # rays that stay in the field: exactly the lens model
     assert np.allclose(np.column_stack([u, v])[kept], raw[kept], atol=1e-9)
-
-
-def test_ground_revisions_moved_only_the_specs_that_draw_what_they_changed():
-    """Render revision 6 changed asphalt and concrete, revision 7 the ground detail and the grasses'
-    rasterised texture, revision 8 asphalt (detail or not): a spec's identity takes a revision only
-    when one of its sequences draws what it changed (as plan_sequence draws its scene), so every
-    other cached dataset stays valid.  (Specs that mix display values, as those revisions drew: revision
-    12, light, moved every other.)"""
-    DISPLAY = {"camera": {"mix_in_light": False}}
-    from render.plan import drawn_ground_kinds, plan_sequence
-    from render.spec import render_revision
-
-    seen = {}
-    for seed in range(16):
-        spec = DatasetSpec.model_validate({**DISPLAY, "seed": seed, "sequences": 2,
-                                           "environment": {"ground": ["asphalt", "grass", "sand"], "ground_detail": False}})
-        kinds = drawn_ground_kinds(spec)
-        assert kinds == {plan_sequence(spec, i).scene_draw.ground for i in range(2)}
-        seen[frozenset(kinds)] = render_revision(spec)
-    assert seen[frozenset({"sand"})] == 2 and seen[frozenset({"asphalt"})] == 8, seen
-    assert seen[frozenset({"grass"})] == 7 and seen[frozenset({"asphalt", "sand"})] == 8, seen
-    assert seen[frozenset({"asphalt", "grass"})] == 8, seen
-    def revision(**env):
-        return render_revision(DatasetSpec.model_validate({**DISPLAY, "environment": env}))
-
-    assert revision(ground=["sand"], ground_detail=False) == 2
-    assert revision(ground=["concrete"], ground_detail=False) == 6
-    assert revision(ground=["dry_grass"], ground_detail=False) == 7
-    assert revision(ground=["sand"]) == 7  # ground detail, on by default, is drawn on every kind
-    assert revision(ground=["concrete"]) == 7 and revision(ground=["asphalt"]) == 8
-    # revision 9: the drone's shadow past a platform's edge, a turning deck's platform's shadow
-    # (a spec with a platform and shadows, whatever its ground)
-    platform = {**DISPLAY, "platform": {"height_m": 0.5}}
-    assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"]}})) == 9
-    assert render_revision(DatasetSpec.model_validate({**platform, "environment": {"ground": ["sand"], "shadows": False,
-                                                                                   "ground_detail": False}})) == 2
-    # revision 10: distractors clear of a moving platform's whole path (a platform velocity and
-    # distractors drawn at random; none drawn: nothing moved)
-    moving = {**DISPLAY, "platform": {"height_m": 0.5, "velocity_mps": [0.5, 0.0]}}
-    assert render_revision(DatasetSpec.model_validate(moving)) == 10
-    assert render_revision(DatasetSpec.model_validate({**moving, "environment": {"distractors": {
-        "boxes": [0, 0], "decoy_patches": [0, 0], "decoy_markers": [0, 0]}}})) == 9
 
 
 @pytest.mark.parametrize("kind", ["asphalt", "concrete"])
@@ -682,10 +626,9 @@ def test_the_cameras_sharpening_clips_at_black_and_moves_only_the_specs_that_sha
     """The camera's unsharp mask undershoots beside a bright edge; a camera clips that at black.
     Written as its absolute value (OpenCV's convertScaleAbs), a black pixel beside white read 38
     of 255 under a 0.5 mask: a grey halo on the dark side of every strong edge.  Where nothing
-    undershoots, the sharpening is as it was; the specs that sharpen take render revision 13."""
+    undershoots, the sharpening is as it was (render revision 13)."""
     from hvloc.geometry import Camera
     from render.imaging import WHITE_LEVEL, ImageFormation, ImagingParams
-    from render.spec import render_revision
 
     cam = Camera(64, 24, 60.0, 60.0, 31.5, 11.5)
 
@@ -705,10 +648,6 @@ def test_the_cameras_sharpening_clips_at_black_and_moves_only_the_specs_that_sha
     assert row[31] < soft[31] - 10 and row[32] > soft[32] + 10 and row[31] > 0, (row, soft)
     assert abs(row[31] - 255.0 * (disp[1] - step)) <= 1.5 and abs(row[32] - 255.0 * (disp[2] + step)) <= 1.5, (row, soft, step)
     assert (row[:20] == soft[:20]).all() and (row[44:] == soft[44:]).all()  # far from the edge: untouched
-    sharp = DatasetSpec.model_validate({"degradations": {"sharpen": [0.2, 0.4]}})
-    assert render_revision(sharp) == 13 and render_revision(DatasetSpec.model_validate({})) == 12
-    assert render_revision(DatasetSpec.model_validate({"camera": {"mix_in_light": False},
-                                                      "degradations": {"sharpen": [0.0, 0.1]}})) == 13
 
 
 def test_a_known_camera_response_is_written_with_the_frames_it_made_and_read_back(tmp_path):
