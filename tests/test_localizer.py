@@ -5084,6 +5084,55 @@ def test_an_outline_whose_design_fit_lies_far_from_its_corners_is_not_taken(monk
                 assert e.status != "ok" and "neither is sure" in e.reason, (fr["frame"], side_px, e.status, e.reason)
 
 
+def test_corners_the_gates_take_are_placed_by_the_design_whatever_the_start_said(monkeypatch):
+    """An outline's design is fitted only where its corners are a square's (else a drawing fitted
+    from there would hide what they showed, and the gates refuse them).  The start that judged it
+    (the corners' pose with the IMU's gravity) and the refined pose the gates judge measure nearly
+    but not quite the same: on unseen47 at render revision 14 a 26 px pad's field corners, 13 % too
+    large, were no square's to the start by a hair (2.002 % of the side) and square to the gates
+    (1.996 %), so they were taken unchecked, the pose 12 % of the height off, "ok"; placed by its
+    design, 0.2 %.  Here every start is judged just past the bar: corners the gates take must still
+    be placed by the design, and a design fit that lies far from them still refuses them."""
+    import hvloc.localizer as hl
+
+    real_share, real_fitted, real_fit = hl._rms_share, hl.HierarchicalLocalizer._design_fitted, hl.HierarchicalLocalizer._design_fit
+    inside = []
+
+    def share(rms, info):  # the start's verdict (the first, not rescuing, call): just past the bar
+        return LocalizerConfig().max_outline_rms_share * 1.001 if inside == [False] else real_share(rms, info)
+
+    def fitted(self, det, rgb, up_C, rescue=False):
+        inside.append(rescue)
+        try:
+            return real_fitted(self, det, rgb, up_C, rescue)
+        finally:
+            inside.pop()
+
+    monkeypatch.setattr(hl, "_rms_share", share)
+    monkeypatch.setattr(hl.HierarchicalLocalizer, "_design_fitted", fitted)
+    views = _far_pad_clean()[:3]
+    for pad, crop, cam, fr in views:
+        G = np.array(fr["cam2pad"])
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_markers=False, use_flow=False), T_B_C=np.eye(4))
+        e = loc.process(crop, 0.0, imu=G[:3, :3])
+        assert e.status == "ok" and isinstance(e.extras.get("design_fit"), dict), (fr["frame"], e.status, e.reason)
+        assert abs(e.cam2pad[2, 3] - G[2, 3]) < 0.01 * fr["height_m"], (fr["frame"], e.cam2pad[2, 3], G[2, 3])
+
+    def far(self, cam2pad, rgb, up_C, key):  # the fit's pose carried a fifth of the side across the pad
+        f, info = real_fit(self, cam2pad, rgb, up_C, key)
+        if f is not None:
+            f = f.copy()
+            f[0, 3] += 0.2 * pad.geometry.side_m
+        return f, info
+
+    monkeypatch.setattr(hl.HierarchicalLocalizer, "_design_fit", far)
+    for pad, crop, cam, fr in views:
+        G = np.array(fr["cam2pad"])
+        loc = HierarchicalLocalizer(pad, cam, LocalizerConfig(use_markers=False, use_flow=False), T_B_C=np.eye(4))
+        e = loc.process(crop, 0.0, imu=G[:3, :3])
+        assert e.status != "ok" and "neither is sure" in e.reason, (fr["frame"], e.status, e.reason)
+
+
 def test_a_small_pad_summed_in_light_is_posed_by_its_design_not_its_swollen_field():
     """light_twins' dusk scene rendered in light, as a camera sums it (kept losslessly in tests/data:
     21-23 px pads on a grey deck at dusk, a 115 degree lens 20 degrees off nadir, JPEG 45).  The
