@@ -2081,8 +2081,7 @@ class HierarchicalLocalizer:
             if det is not None and det.kind == "outline" and cfg.design_fit:
                 det = self._design_fitted(det, rgb, up_C)
                 if "design_disagrees" in det.info:  # (neither is taken: far_wide's 21 px pad, its corners kept, 11.5 % off)
-                    det, why = None, (f"its design, fitted from its corners, moved one {det.info['design_disagrees']:.1f} px "
-                                      f"(> {DESIGN_FIT_MAX_MOVE:g} of its side): neither is sure")
+                    det, why = None, _design_disagrees(det)
             if det is not None and det.kind == "outline":
                 det, why = self._small_field_refused(det, why)
             if det is not None:
@@ -2090,13 +2089,15 @@ class HierarchicalLocalizer:
                 square = res is not None and _rms_share(res[0].rms_px, det.info) <= cfg.max_outline_rms_share
                 if res is not None and det.kind == "outline" and (
                         (not square and foreseen(res[0], self.vfilter.position(t)))
-                        or (square and "design_checked_px" in det.info)):
+                        or (square and det.info.get("unsquare_start"))):
                     # corners that are no square's, which the gates refuse: where the velocity filter
                     # foresaw the pad, placed by its design instead (the gates then judge that pose);
                     # and corners the start found no square's but the refined pose, which the gates
-                    # judge, finds square: placed by the design that checked them, as any square outline
+                    # judge, finds square: placed by their design, as any square outline's
                     fitted = self._design_fitted(det, rgb, up_C, rescue=True)
-                    if fitted is not det and isinstance(fitted.info.get("design_fit"), dict):  # placed by the design
+                    if "design_disagrees" in fitted.info:
+                        res, why = None, _design_disagrees(fitted)
+                    elif fitted is not det and isinstance(fitted.info.get("design_fit"), dict):  # placed by the design
                         res, why = self._posed(fitted, why, prior, up_C, r is not None)
                 if res is not None:
                     return res, why
@@ -2196,21 +2197,22 @@ class HierarchicalLocalizer:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
         # there would hide what the corners showed (unless the pad was foreseen there: ``rescue``).  The
-        # design still checks them: the gates measure the squareness on the refined pose, not on this
-        # start, and on unseen47 a 26 px pad's field corners, 13 % too large, were no square's here by a
-        # hair (2.002 % of the side) and square there (1.996 %), taken unchecked (12 % of the height off)
+        # gates judge the squareness on the refined pose, not on this start: flagged, so the caller asks
+        # for the fit where that pose is square (on unseen47 a 26 px pad's field corners, 13 % too large,
+        # were no square's here by a hair, 2.002 % of the side, and square there, 1.996 %: taken
+        # unchecked, 12 % of the height off)
         square = _rms_share(start.rms_px, det.info) <= self.config.max_outline_rms_share
+        if not (square or rescue):
+            return replace(det, info=dict(det.info, unsquare_start=True))
         fitted, info = self._design_fit(start.cam2pad, rgb, up_C, ("design fit", array_key(det.pts_P), array_key(det.px)))
         if fitted is None:
-            return replace(det, info=dict(det.info, design_fit=info.get("why", "failed"))) if square or rescue else det
+            return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
         px = self.camera.project_from(fitted, det.pts_P)
         if px is None or not np.isfinite(px).all():
             return det
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px", design_disagrees=moved))
-        if not (square or rescue):
-            return replace(det, info=dict(det.info, design_checked_px=round(moved, 2)))
         return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info),
                                              **({} if square else {"rescued": "design fit"})))
 
@@ -2587,6 +2589,12 @@ class HierarchicalLocalizer:
         if f.kf is not None and f.kf.serial != serial:  # a keyframe from this frame: the motion it was exposed under
             f.kf.motion = self._motion()
             f.kf.drawn = est.extras.get("by") == "synthesis"
+
+
+def _design_disagrees(det) -> str:
+    """Why an outline whose design fit moved a corner past :data:`DESIGN_FIT_MAX_MOVE` of its side is refused."""
+    return (f"its design, fitted from its corners, moved one {det.info['design_disagrees']:.1f} px "
+            f"(> {DESIGN_FIT_MAX_MOVE:g} of its side): neither is sure")
 
 
 def ahrs_off_deg(est: "Estimate") -> float:
