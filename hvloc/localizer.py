@@ -998,7 +998,9 @@ class PadHeading:
     a twentieth of the way toward each pose, lagged a deck yawing 20 degrees in 9 s past the jump's
     bar (unseen78: 91 of 383 frames refused, all right), and a rate fitted to the last two seconds'
     poses lagged it too (the rate grows 10 degrees a second each second).  Of a still pad it follows
-    the poses' own heading noise, a few tenths of a degree: a quarter-turn misnaming still jumps."""
+    the poses' own heading noise, a few tenths of a degree: a quarter-turn misnaming still jumps.
+    Each offset counts with its pose's heading variance and the scatter the recent offsets show
+    beyond what their poses state (:meth:`unexplained_var`: the AHRS's own heading noise)."""
 
     def __init__(self):
         w = 2.0 * math.pi / PAD_YAW_PERIOD_S
