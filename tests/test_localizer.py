@@ -621,6 +621,56 @@ def test_bad_localizer_config_exits_2(tmp_path):
     assert r.returncode == 2 and "adjust_hieght_m: unknown key" in r.stderr, r.stderr
 
 
+def test_a_marker_found_in_part_lends_the_others_no_error(monkeypatch):
+    """A marker found by one of its squares alone, 4 px off (a square taken from something else), is
+    left out of the markers pose; its offset is its own finding's, not an error the markers found
+    whole share.  Lent to them (as 4/sqrt(3) px of shared shift and swell), the pose of the two left
+    was free to swell and slid 17-26 % of the height off, "ok" (a random scene found it: a nested
+    pad's centre set at 0.9 m, JPEG 60, 20 % high).  A descent over the nested pad to 0.44 m, the
+    corners found with 0.3 px of noise and 0.3 px more each marker shares, one marker of each set
+    found by its outer square alone, shifted: every pose that left it out within 5 % of the height."""
+    import dataclasses
+
+    import hvloc.phases as phm
+
+    nested = make_pad({"variant": "nested"}, ppm=2000)
+    cam = Camera.from_hfov(640, 480, math.radians(60))
+    real, on = phm.detect_markers, [False]
+    rng = np.random.default_rng(1)
+
+    def found_in_part(*a, **kw):
+        det, why = real(*a, **kw)
+        if det is None or not on[0]:
+            return det, why
+        P, px = det.pts_P, det.px + rng.normal(0.0, 0.3, det.px.shape)
+        whole = {i: np.all(np.abs(P[:, :2] - m.center[:2]) <= m.size_m / 2 + 1e-9, axis=1)
+                 for i, m in enumerate(a[1].markers)}
+        whole = {i: w for i, w in whole.items() if w.sum() >= 8}
+        if len(whole) < 3:
+            return det, why
+        for w in whole.values():
+            px[w] += rng.normal(0.0, 0.3, 2)
+        i = sorted(whole)[1]
+        d = np.abs(P[:, :2] - a[1].markers[i].center[:2])
+        outer = whole[i] & (np.abs(d - d[whole[i]].max()) < 1e-9).all(axis=1)  # its outer square's corners
+        px[outer] += [4.0, 0.0]
+        keep = ~whole[i] | outer
+        return dataclasses.replace(det, pts_P=P[keep], px=px[keep]), why
+
+    monkeypatch.setattr(phm, "detect_markers", found_in_part)
+    loc = HierarchicalLocalizer(nested, cam, LocalizerConfig())
+    left_out = []
+    for k in range(40):
+        h = 2.0 - 0.04 * k
+        G = tilted(0.03, -0.02, h, 0.4 + 0.01 * k, 0.03, -0.02)
+        on[0] = k >= 10
+        ahrs = so3_exp([math.radians(0.3), math.radians(-0.3), 0.0])  # an AHRS a little off
+        e = loc.process(warp_pad_view(nested, cam, G, GROUND), 0.1 * k, _imu_from(G, extra=ahrs))
+        if e.ok and e.extras.get("marker_dropped"):
+            left_out.append(pose_error(e.cam2pad, G)[0] / h)
+    assert len(left_out) >= 20 and max(left_out) < 0.05, (len(left_out), max(left_out, default=None))
+
+
 def test_nested_variant_gives_both_marker_sets(pad):
     from pad_design import make_pad
 
