@@ -16,7 +16,9 @@ def _executor_args(p) -> None:
 
 # subcommands whose module has its own command line (also runnable as ``python -m benchmarks.X``)
 DELEGATED = {"leaderboard": ("benchmarks.leaderboard", "rewrite a frozen suite's committed leaderboard (LEADERBOARD*.md) from its run"),
-             "diagnose": ("benchmarks.diagnose", "per phase: why a dataset's frames were lost or rejected")}
+             "diagnose": ("benchmarks.diagnose", "per phase: why a dataset's frames were lost or rejected"),
+             "fuzz": ("benchmarks.fuzz", "random scenes from the whole spec space, rendered, localized, every false "
+                                         "accept listed")}
 
 
 def main(argv: list) -> int:

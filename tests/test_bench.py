@@ -1018,3 +1018,33 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     with pytest.raises(SystemExit) as bad:
         main(["--views", "0"])
     assert bad.value.code == 2
+
+
+def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_path, capsys):
+    """benchmarks.fuzz: a seed's scene is drawn from the whole spec space (the same seed, the same
+    scene), rendered, localized and scored; its spec is kept beside it; the report lists each false
+    accept, counted as the scorer counts them.  A tilting deck's scene tells the localizer its tilt."""
+    from benchmarks import fuzz
+    from benchmarks import metrics as M
+    from benchmarks.run import read_estimates
+    from pad_design.errors import validate_model
+    from render.dataset import Dataset
+    from render.spec import DatasetSpec
+
+    assert fuzz.random_scene(5, small=True) == fuzz.random_scene(5, small=True)
+    big = validate_model(DatasetSpec, fuzz.random_scene(5))
+    assert big.camera.width in fuzz.SIZES and 6.0 <= big.trajectory.start_height_m <= 12.0
+    assert big.pad.variant in ("paper", "nested") and big.sequences == 1
+    assert fuzz.config_for(big).pad_tilt_deg == (max(big.platform.roll_deg, big.platform.pitch_deg) + 3.0
+                                                 if max(big.platform.roll_deg, big.platform.pitch_deg) > 0 else 0.0)
+    assert fuzz.main(["--seeds", "5:6", "--out", str(tmp_path), "--small"]) == 0
+    (row,) = json.loads((tmp_path / "fuzz.json").read_text())
+    spec = validate_model(DatasetSpec, json.loads((tmp_path / "fz5" / "spec.json").read_text()))
+    assert spec.name == "fz5" and row["seed"] == 5 and row["frames"] > 0
+    seq = next(iter(Dataset(tmp_path / "fz5" / "data")))
+    fe = M.frame_errors(seq.columns, read_estimates(tmp_path / "fz5" / "estimates" / seq.id / "estimates.csv"))
+    assert len(row["false_accepts"]) == M.score_sequence(fe)["all"]["false_accepts"]
+    assert "| 5 | " in (tmp_path / "fuzz.md").read_text() and "1 scenes" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as e:
+        fuzz.main(["--seeds", "7", "--out", str(tmp_path)])
+    assert e.value.code == 2

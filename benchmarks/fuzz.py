@@ -1,0 +1,161 @@
+"""Random scenes nobody wrote the localizer for: each seed draws a whole dataset spec from the spec
+space the property test draws from (``tests/spec_space.py``: every field of the spec, from lens and
+mount to deck, airframe, ground, light, codec and IMU), at a camera's size and a real descent's
+length, renders one descent, localizes it with hvloc's hierarchical localizer (told the deck's tilt
+where the deck tilts, as a user would be) and reports its availability and every false accept.
+
+    python -m benchmarks.fuzz --seeds 100:112 --out DIR [--small]
+
+A development tool for finding what breaks, not a frozen benchmark: the spec space grows with the
+spec, so a seed's scene may change between commits (its spec is written beside its render,
+``DIR/fz<seed>/spec.json``, so that a scene worth keeping can be kept).  ``--small``: scenes at the
+property test's size (160-224 px, 3-5 m), for a quick look.  Twelve seeds at camera size take
+~12 min on 2 cores; seeds 100-111 at b6447e6's parent found a false accept (README: a marker
+found in part).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .suite import REPO
+
+SIZES = (480, 640, 800)  # camera widths drawn (4:3)
+
+
+def random_scene(seed: int, small: bool = False) -> dict:
+    """The spec (a dict) of seed ``seed``'s scene: a random spec (``tests.spec_space.random_spec``),
+    one descent of hvloc's own pads at a camera's size, 5 or 10 Hz, from 6-12 m in 10-16 s (with
+    ``small``: as drawn, the property test's quick size)."""
+    if str(REPO) not in sys.path:
+        sys.path.insert(0, str(REPO))
+    from pad_design.errors import InputError, validate_model
+    from render.spec import DatasetSpec
+    from tests.spec_space import random_spec, set_path
+
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        d = random_spec(rng)
+        if not small:
+            w = int(rng.choice(SIZES))
+            set_path(d, "camera.width", w)
+            set_path(d, "camera.height", w * 3 // 4)
+            set_path(d, "camera.fps", float(rng.choice([5.0, 10.0])))
+            set_path(d, "camera.supersample", 1)
+            set_path(d, "trajectory.start_height_m", float(rng.uniform(6.0, 12.0)))
+            set_path(d, "trajectory.duration_s", sorted(float(x) for x in rng.uniform(10.0, 16.0, 2)))
+            set_path(d, "phase_rule.min_module_px", 2.0)
+        set_path(d, "pad.variant", str(rng.choice(["paper", "paper", "nested"])))  # hvloc's own pads
+        d["name"], d["sequences"] = f"fz{seed}", 1
+        try:
+            validate_model(DatasetSpec, d)
+            return d
+        except InputError:
+            continue
+    raise RuntimeError(f"seed {seed}: no valid scene in 50 draws")
+
+
+def config_for(spec):
+    """The localizer's config for a scene: told how far a tilting deck tilts (3 degrees more than
+    its larger amplitude), as the README tells a user to; the default otherwise."""
+    from hvloc.config import LocalizerConfig
+
+    tilt = max(spec.platform.roll_deg, spec.platform.pitch_deg)
+    return LocalizerConfig(pad_tilt_deg=tilt + 3.0) if tilt > 0 else LocalizerConfig()
+
+
+def run_seed(seed: int, out, small: bool = False) -> dict:
+    """Render, localize and score seed ``seed``'s scene into ``out/fz<seed>``; a row of the report.
+    A scene the generator refuses (an unflyable draw) is a row that says why."""
+    from benchmarks import metrics as M
+    from pad_design.errors import InputError, validate_model
+    from render.dataset import Dataset
+    from render.generate import generate
+    from render.spec import DatasetSpec
+
+    from .run import localize_dataset, read_estimates
+
+    d = random_scene(seed, small)
+    spec = validate_model(DatasetSpec, d)
+    root = Path(out) / f"fz{seed}"
+    row = {"seed": seed, "scene": describe(spec)}
+    try:
+        generate(spec, root / "data", show_progress=False)
+    except InputError as e:
+        return {**row, "refused": str(e)}
+    (root / "spec.json").write_text(json.dumps(d, indent=1) + "\n")
+    localize_dataset(root / "data", root / "estimates", config_for(spec), show_progress=False)
+    seq = next(iter(Dataset(root / "data")))
+    fe = M.frame_errors(seq.columns, read_estimates(root / "estimates" / seq.id / "estimates.csv"))
+    h, ok = fe["height_m"], fe["status"] == "ok"
+    wrong = ok & ((fe["pos_err_m"] > M.FALSE_ACCEPT_REL * h) | (fe["rot_err_deg"] > M.FALSE_ACCEPT_DEG))
+    scope = fe["in_scope"]
+    return {**row, "frames": int(len(h)), "in_scope": int(scope.sum()),
+            "available_in_scope": float(ok[scope].mean()) if scope.any() else None,
+            "false_accepts": [{"frame": int(k), "height_m": round(float(h[k]), 3), "phase": str(fe["phase_gt"][k]),
+                               "pos_err_m": round(float(fe["pos_err_m"][k]), 4),
+                               "rot_err_deg": round(float(fe["rot_err_deg"][k]), 2)} for k in np.nonzero(wrong)[0]]}
+
+
+def describe(spec) -> str:
+    """What makes a scene hard, in one line."""
+    c, p, t = spec.camera, spec.platform, spec.trajectory
+    deck = []
+    if any(abs(v) > 0 for v in p.velocity_mps):
+        deck.append(f"deck {np.hypot(*p.velocity_mps):.1f} m/s")
+    if max(p.roll_deg, p.pitch_deg) > 0:
+        deck.append(f"tilting {max(p.roll_deg, p.pitch_deg):g} deg")
+    if p.yaw_deg > 0:
+        deck.append(f"yawing {p.yaw_deg:g} deg")
+    return (f"{c.width}x{c.height} {c.model} {c.hfov_deg:.0f} deg k1 {c.dist[0]:g}, mount {c.mount.rpy_deg[0] - 180:+.0f} deg, "
+            f"{c.fps:.1f} Hz, {1000 * c.exposure_s:g} ms{', rolling' if c.rolling_shutter_line_s else ''}"
+            f"{f', JPEG {spec.degradations.jpeg_quality}' if spec.degradations.jpeg_quality else ''}"
+            f"{', grey' if c.mono else ''}; {spec.pad.variant} pad {spec.pad.side_m:.2f} m; "
+            f"{'; '.join(deck) + '; ' if deck else ''}{t.families[0]} from {t.start_height_m:.1f} m")
+
+
+def table(rows: list) -> str:
+    lines = ["| seed | frames | in scope | available in scope | false accepts | scene |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        if "refused" in r:
+            lines.append(f"| {r['seed']} | - | - | - | - | refused: {r['refused'][:80]} |")
+            continue
+        av = "-" if r["available_in_scope"] is None else f"{100 * r['available_in_scope']:.1f} %"
+        fa = ", ".join(f"frame {f['frame']} at {f['height_m']} m: {1000 * f['pos_err_m']:.0f} mm" for f in r["false_accepts"])
+        lines.append(f"| {r['seed']} | {r['frames']} | {r['in_scope']} | {av} | {len(r['false_accepts'])}"
+                     f"{' (' + fa + ')' if fa else ''} | {r['scene']} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None, prog: str = "python -m benchmarks.fuzz") -> int:
+    from pad_design.errors import ArgumentParser
+
+    p = ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
+    p.add_argument("--seeds", required=True, help="A:B, the seeds A to B-1")
+    p.add_argument("--out", required=True, help="a folder: fz<seed>/{data,estimates,spec.json}, fuzz.json, fuzz.md")
+    p.add_argument("--small", action="store_true", help="scenes at the property test's size (quick)")
+    a = p.parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        lo, hi = (int(x) for x in a.seeds.split(":"))
+    except ValueError:
+        p.error(f"--seeds: {a.seeds!r} is not A:B")
+    if not 0 <= lo < hi:
+        p.error(f"--seeds: {a.seeds!r} holds no seed")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for seed in range(lo, hi):
+        rows.append(run_seed(seed, out, a.small))
+        print(table(rows[-1:]).splitlines()[-1], flush=True)
+    (out / "fuzz.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (out / "fuzz.md").write_text(table(rows))
+    fas = sum(len(r.get("false_accepts", [])) for r in rows)
+    print(f"{len(rows)} scenes, {fas} false accepts: {out / 'fuzz.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
