@@ -45,10 +45,11 @@ def random_scene(seed: int, small: bool = False) -> dict:
             set_path(d, "camera.height", w * 3 // 4)
             set_path(d, "camera.fps", float(rng.choice([5.0, 10.0])))
             set_path(d, "camera.supersample", 1)
+        set_path(d, "pad.variant", str(rng.choice(["paper", "paper", "nested"])))  # hvloc's own pads
+        if not small:
             set_path(d, "trajectory.start_height_m", float(rng.uniform(6.0, 12.0)))
             set_path(d, "trajectory.duration_s", sorted(float(x) for x in rng.uniform(10.0, 16.0, 2)))
             set_path(d, "phase_rule.min_module_px", 2.0)
-        set_path(d, "pad.variant", str(rng.choice(["paper", "paper", "nested"])))  # hvloc's own pads
         d["name"], d["sequences"] = f"fz{seed}", 1
         try:
             validate_model(DatasetSpec, d)
