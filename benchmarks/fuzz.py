@@ -92,7 +92,7 @@ def run_seed(seed: int, out, small: bool = False) -> dict:
     seq = next(iter(Dataset(root / "data")))
     fe = M.frame_errors(seq.columns, read_estimates(root / "estimates" / seq.id / "estimates.csv"))
     h, ok = fe["height_m"], fe["status"] == "ok"
-    wrong = ok & ((fe["pos_err_m"] > M.FALSE_ACCEPT_REL * h) | (fe["rot_err_deg"] > M.FALSE_ACCEPT_DEG))
+    wrong = ok & M.wrong_poses(fe)
     scope = fe["in_scope"]
     return {**row, "frames": int(len(h)), "in_scope": int(scope.sum()),
             "available_in_scope": float(ok[scope].mean()) if scope.any() else None,

@@ -137,6 +137,12 @@ def longest_gap_s(t: np.ndarray, ok: np.ndarray) -> float:
     return float(np.max(np.diff(marks)))
 
 
+def wrong_poses(fe: dict) -> np.ndarray:
+    """(N,) the frames whose pose, were it accepted, would be a false accept: off by more than
+    :data:`FALSE_ACCEPT_REL` of the height or :data:`FALSE_ACCEPT_DEG` (NaN errors are not)."""
+    return (fe["pos_err_m"] > FALSE_ACCEPT_REL * fe["height_m"]) | (fe["rot_err_deg"] > FALSE_ACCEPT_DEG)
+
+
 def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     """All metrics over the frames in ``mask`` (default all)."""
     m = np.ones_like(fe["pos_err_m"], bool) if mask is None else mask
@@ -148,7 +154,7 @@ def score(fe: dict, mask: np.ndarray | None = None) -> dict:
     rej = (fe["status"] == "rejected") & m
     h = fe["height_m"]
     pe, re = fe["pos_err_m"], fe["rot_err_deg"]
-    wrong = (pe > FALSE_ACCEPT_REL * h) | (re > FALSE_ACCEPT_DEG)
+    wrong = wrong_poses(fe)
     out["availability"] = float(ok.sum() / n)
     # in scope: touchdown, or the pad whole or two markers in view (frames where a pose can be made)
     scope = fe["in_scope"] & m
