@@ -757,8 +757,11 @@ def corner_sigma_px(info: dict) -> np.ndarray:
     (``px_sigma_scale``, per correspondence): whatever moved the lines, the smear too.  (unseen51's
     cut pad under 9.7 px of smear: a hidden corner 7 px out where its sides' corners in view were
     3.8 px, 2.7 times less sure by its stretches, was stated 1.3 px with the smear's noise unscaled.)
-    A white field placed by a loose fit carries its lines' scatter (``px_sigma_field``)."""
-    base = math.hypot(PIXEL_SIGMA, info.get("px_sigma_blur") or 0.0, info.get("px_sigma_field") or 0.0)
+    A white field placed by a loose fit carries its lines' scatter (``px_sigma_field``).  Corners of
+    a design fit that held the found corners' tilt carry how far those were from the design
+    (``px_sigma_held``: :meth:`HierarchicalLocalizer._design_fitted`)."""
+    base = math.hypot(PIXEL_SIGMA, info.get("px_sigma_blur") or 0.0, info.get("px_sigma_field") or 0.0,
+                      info.get("px_sigma_held") or 0.0)
     return base * np.asarray(info.get("px_sigma_scale", 1.0))
 
 
@@ -2249,7 +2252,12 @@ class HierarchicalLocalizer:
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px", design_disagrees=moved))
-        return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info),
+        # a fit that held the start's tilt (the pad too small for the design to fix it) gives corners
+        # that carry that tilt, the found corners' with their error, however well it placed the rest:
+        # they are as noisy as the found corners showed themselves against the design (px_sigma_held)
+        held = {} if "tilt_deg" in info else {
+            "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
+        return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info), **held,
                                              **({} if square else {"rescued": "design fit"})))
 
     def _small_field_refused(self, det, why: str) -> tuple:
