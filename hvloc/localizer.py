@@ -2080,12 +2080,7 @@ class HierarchicalLocalizer:
             # the image work is asked by everything it depends on (hvloc.work): the region, the gravity,
             # the corners found; the prior only names the corners or breaks IPPE's tie without gravity
             if method == "outline":
-                if grey and self.deck is not None and not self.deck_tracked:
-                    # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
-                    # deck_mono (both of IPPE's minima), stating 2.5; wait for the deck's tilt to be tracked
-                    found, why = None, ("grey outline: its four corners do not fix a tilting deck's tilt, "
-                                        "and the deck's is not tracked yet")
-                elif grey:  # the pad by its design, not its colour
+                if grey:  # the pad by its design, not its colour
                     found, why = self.work(lambda: ("grey outline", r), ph.find_grey_outline, rgb, gray, self.geometry,
                                            self.camera, r, self._design())
                 else:
@@ -2121,6 +2116,13 @@ class HierarchicalLocalizer:
                 det = self._design_fitted(det, rgb, up_C)
                 if "design_disagrees" in det.info:  # (neither is taken: far_wide's 21 px pad, its corners kept, 11.5 % off)
                     det, why = None, _design_disagrees(det)
+            if det is not None and grey and self.deck is not None and not self.deck_tracked and "fitted_up_C" not in det.info:
+                # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
+                # deck_mono (both of IPPE's minima), stating 2.5.  Its design, where it fits the tilt
+                # (hvloc.texfit.TILT_MIN_SIDE_PX and sharp), fixes it as on a colour camera's frame;
+                # else the deck's tilt must be tracked first
+                det, why = None, ("grey outline: its four corners do not fix a tilting deck's tilt, the deck's is "
+                                  f"not tracked yet, and its design did not fit it ({_design_note(det)})")
             if det is not None and det.kind == "outline":
                 det, why = self._small_field_refused(det, why)
             if det is not None:
@@ -2647,6 +2649,15 @@ def _design_disagrees(det) -> str:
     """Why an outline whose design fit moved a corner past :data:`DESIGN_FIT_MAX_MOVE` of its side is refused."""
     return (f"its design, fitted from its corners, moved one {det.info['design_disagrees']:.1f} px "
             f"(> {DESIGN_FIT_MAX_MOVE:g} of its side): neither is sure")
+
+
+def _design_note(det) -> str:
+    """What the design fit of an outline said, for a reason: why it failed or did not fit the tilt."""
+    fit = det.info.get("design_fit", "not fitted")
+    if not isinstance(fit, dict):
+        return str(fit)
+    side = det.info.get("side_px")
+    return f"a {side:.0f} px pad: its tilt held" if side else "its tilt held"
 
 
 def ahrs_off_deg(est: "Estimate") -> float:
