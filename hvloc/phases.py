@@ -1260,6 +1260,18 @@ GREY_MAX_CANDIDATES = 60  # the largest blobs of that shape, at most, are read a
 GREY_MIN_SIDE_PX = 24.0   # the outer square's least mean side (px)
 GREY_MIN_NCC = 0.8
 GREY_MIN_LEAD = 0.08
+# The lead is the design's asymmetric part (what a quarter turn changes: the three finder markers, the
+# texture) diluted by its symmetric part (the white field in its dark ring), whose contrast a dim or
+# soft view keeps while its markers fade: a 39-56 px paper pad on a platform in a grey frame read 0.93-0.95,
+# leading by 0.058-0.074, and was lost for 24 frames (fuzz seed 127).  That part alone (the samples less
+# their mean over the four quarter turns, the design's likewise) names it undiluted: over every bright
+# quad of seven random grey scenes (scratch/s71/asym_all.py, every second frame) the pad's own, read at
+# GREY_MIN_NCC, correlated 0.51 or more in 95 % (median 0.73); quads of the pad misplaced by 12-27 % of
+# its side 0.47 at most, leading by 0.61; ground and decoys 0.25.  A quad that reads at GREY_MIN_NCC, is
+# named alike by both and whose asymmetric part correlates this much, leading the next naming's by as
+# much again, reads as the pad where its lead alone falls short
+GREY_MIN_ASYM_NCC = 0.55
+GREY_MIN_ASYM_LEAD = 0.4
 
 
 def is_grey(rgb: np.ndarray, step: int = 7, tol: int = 2) -> bool:
@@ -1380,7 +1392,15 @@ def _reads_as_design(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, came
     the pad's design, at :data:`GREY_MIN_NCC` and leading the next naming by :data:`GREY_MIN_LEAD`."""
     k, scores = name_by_design(gray, outer, geo, camera, design)
     o = np.sort(scores)
-    return bool(k is not None and o[-1] >= GREY_MIN_NCC and o[-1] - o[-2] >= GREY_MIN_LEAD), float(o[-1])
+    if k is None or o[-1] < GREY_MIN_NCC:
+        return False, float(o[-1])
+    if o[-1] - o[-2] >= GREY_MIN_LEAD:
+        return True, float(o[-1])
+    a = asymmetric_design_scores(gray, outer, geo, camera, design)
+    if a is None:
+        return False, float(o[-1])
+    ao = np.sort(a)
+    return bool(int(np.argmax(a)) == k and ao[-1] >= GREY_MIN_ASYM_NCC and ao[-1] - ao[-2] >= GREY_MIN_ASYM_LEAD), float(o[-1])
 
 
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:
@@ -1517,6 +1537,43 @@ DESIGN_MIN_LEAD = 0.04  # ... and its lead over the next naming's
 _DESIGN_TURN = -1       # np.rot90's direction that takes naming 0's samples to naming k's
 
 
+def _design_samples(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:
+    """``(v, seen, n)``: the image sampled at the design's ``n`` x ``n`` cells (:func:`_design_cells`,
+    a cell per pixel across the pad, 12-64) as the quad's own order names them, row by row, and which
+    of them lie in the image; ``None`` for a quad not finite or not in front of the camera.  The grid
+    is the same under a quarter turn, so naming k compares it with the design turned k quarters."""
+    quad_px = np.asarray(quad_px, np.float64)
+    if not np.isfinite(quad_px).all():
+        return None
+    side_px = float(np.mean(np.linalg.norm(quad_px - np.roll(quad_px, 1, axis=0), axis=1)))
+    n = int(np.clip(round(side_px), 12, 64)) if math.isfinite(side_px) else 64
+    px = _through_quad(quad_px, geo, camera, _design_cells(geo.side_m, n))
+    if px is None:
+        return None
+    v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
+                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    return v, _seen(px, gray.shape), n
+
+
+def _asymmetric(a: np.ndarray) -> np.ndarray:
+    """An (n, n) grid less its mean over the four quarter turns: what a quarter turn changes."""
+    return a - (a + np.rot90(a, 1) + np.rot90(a, 2) + np.rot90(a, 3)) / 4.0
+
+
+def asymmetric_design_scores(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                             design: PadDesign) -> np.ndarray | None:
+    """(4,) the correlation, per naming as :func:`name_by_design`'s, of the image's part through
+    ``quad_px`` that a quarter turn changes with the design's (:data:`GREY_MIN_ASYM_NCC`): the finder
+    markers and the texture without the field and ring that every naming shares.  ``None`` where
+    any of the pad lies outside the image (the turns would compare it with nothing)."""
+    got = _design_samples(gray, quad_px, geo, camera)
+    if got is None or not got[1].all():
+        return None
+    v, _, n = got
+    va, da = _asymmetric(v.reshape(n, n)).ravel(), _asymmetric(design.at(n))
+    return np.array([_ncc(va, np.rot90(da, _DESIGN_TURN * k).ravel()) for k in range(4)])
+
+
 def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None,
                    design: PadDesign) -> tuple:
     """``(k | None, scores)``: image corner ``k`` of ``quad_px`` is the pad's TL corner, read from the
@@ -1534,22 +1591,13 @@ def name_by_design(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     fisheye), the best naming was the right one in every view; a wrong one correlates 0.6-0.85
     where the right one reaches 0.8-0.99."""
     scores = np.full(4, -1.0)
-    quad_px = np.asarray(quad_px, np.float64)
-    if not np.isfinite(quad_px).all():
+    got = _design_samples(gray, quad_px, geo, camera)
+    if got is None:
         return None, scores
-    side_px = float(np.mean(np.linalg.norm(quad_px - np.roll(quad_px, 1, axis=0), axis=1)))
-    n = int(np.clip(round(side_px), 12, 64)) if math.isfinite(side_px) else 64
-    pts = _design_cells(geo.side_m, n)
-    # the image sampled once, at the design's cells as the quad's own order names them; the grid is
-    # the same under a quarter turn, so naming k compares it with the design turned k quarters
-    px = _through_quad(quad_px, geo, camera, pts)
-    if px is None:
-        return None, scores
-    seen = _seen(px, gray.shape)
+    v, seen, n = got
     if seen.mean() < 0.6:  # mostly outside the image: too little of the design to tell
         return None, scores
-    v = cv2.remap(gray, px[:, 0].astype(np.float32)[None], px[:, 1].astype(np.float32)[None],
-                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)[seen]
+    v = v[seen]
     for k in range(4):
         scores[k] = _ncc(v, np.rot90(design.at(n), _DESIGN_TURN * k).ravel()[seen])
     o = np.sort(scores)
