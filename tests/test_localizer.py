@@ -5152,6 +5152,27 @@ def test_a_near_pad_on_an_untracked_deck_is_posed_by_its_design_fitted_with_its_
         assert dp < 0.005 * h and dr < 0.5, (trial, side, dp / h, dr)
 
 
+def test_a_pads_stated_relief_is_not_taken_for_a_loosely_fixed_tilt():
+    """On a tilting deck a pose whose covariance puts its sideways position more than
+    :data:`hvloc.localizer.MAX_SIDEWAYS_SIGMA` of the height loose is refused: its tilt is fixed too
+    loosely.  The pad's stated relief (``pad_relief_m``) is in every pose's covariance too, half of it
+    per axis, whatever fixes the tilt: near the ground it alone passed that bar (a random scene's
+    19 mm relief, fuzz seed 107, refused its touchdown flow poses at 0.2-0.28 m, 0.2-1 mm right
+    otherwise).  It is not counted as looseness; a tilt loose beyond it still is."""
+    from hvloc.localizer import MAX_SIDEWAYS_SIGMA, Estimate, loose_tilt_refusal
+
+    h, relief = 0.28, 0.02
+    cov = np.diag([1e-8] * 3 + [1e-6] * 3)
+    cov[:3, :3] += np.eye(3) * (relief / 2.0) ** 2  # as the localizer adds it
+    est = Estimate(0.0, "touchdown", "ok", tilted(0.0, 0.0, h, 0.3), n_corr=40, cov=cov, method="flow")
+    told = LocalizerConfig(pad_tilt_deg=7.0, pad_relief_m=relief)
+    assert relief / 2.0 > MAX_SIDEWAYS_SIGMA * h  # the premise: the relief alone is past the bar
+    assert loose_tilt_refusal(est, told, True) == ""
+    loose = cov.copy()
+    loose[0, 0] += (1.5 * MAX_SIDEWAYS_SIGMA * h) ** 2
+    assert "too loosely" in loose_tilt_refusal(dataclasses.replace(est, cov=loose), told, True)
+
+
 def test_a_far_pads_tilt_is_held_where_the_frames_motion_smears_it(pad):
     """The design fit's blur is isotropic, and motion smears a pad one way: a tilt fitted there takes
     up the smear (unseen100, 1-4 px of it: heights 0.14-0.39 % off fitted, 0.08-0.24 held).  Where
