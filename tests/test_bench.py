@@ -1037,6 +1037,9 @@ def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_pa
     assert big.pad.variant in ("paper", "nested") and big.sequences == 1
     assert fuzz.config_for(big).pad_tilt_deg == (max(big.platform.roll_deg, big.platform.pitch_deg) + 3.0
                                                  if max(big.platform.roll_deg, big.platform.pitch_deg) > 0 else 0.0)
+    for seed in range(100, 104):  # a wrinkled pad's relief is told too (these four are wrinkled)
+        s = validate_model(DatasetSpec, fuzz.random_scene(seed))
+        assert fuzz.config_for(s).pad_relief_m == s.pad_material.relief_m[1], seed
     assert fuzz.main(["--seeds", "5:6", "--out", str(tmp_path), "--small"]) == 0
     (row,) = json.loads((tmp_path / "fuzz.json").read_text())
     spec = validate_model(DatasetSpec, json.loads((tmp_path / "fz5" / "spec.json").read_text()))
@@ -1044,6 +1047,7 @@ def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_pa
     seq = next(iter(Dataset(tmp_path / "fz5" / "data")))
     fe = M.frame_errors(seq.columns, read_estimates(tmp_path / "fz5" / "estimates" / seq.id / "estimates.csv"))
     assert len(row["false_accepts"]) == M.score_sequence(fe)["all"]["false_accepts"]
+    assert row["beyond_cov_3sigma"] == M.score_sequence(fe)["all"]["beyond_cov_3sigma"]
     assert "| 5 | " in (tmp_path / "fuzz.md").read_text() and "1 scenes" in capsys.readouterr().out
     with pytest.raises(SystemExit) as e:
         fuzz.main(["--seeds", "7", "--out", str(tmp_path)])
