@@ -64,6 +64,20 @@ TILT_MAX_SMEAR_PX = 1.0
 # in for a smear of up to ~a quarter of the side (views of 24-100 px pads smeared a quarter of their side, fitted
 # from the labelled pose: 0.5-2.4 % of the height off at worst; half their side: up to 21 %)
 DESIGN_FIT_MAX_SMEAR_SHARE = 0.3
+# on a tilting deck whose tilt is not tracked, the design fit fits the pad's tilt from this size (px), where
+# elsewhere it holds the IMU's below hvloc.texfit.TILT_MIN_SIDE_PX: held there, the pad's four corners fix its
+# tilt too loosely and the pose is refused (fuzz seeds 114, 117, 142: 35-47 far frames each)
+UNTRACKED_TILT_MIN_SIDE_PX = 24.0
+# ... and a tilt fitted there, below TILT_MIN_SIDE_PX, is believed only as far as the fits of the frames before
+# agree: the deck swells over seconds, and successive fits of a slowly tilting pad scatter by their own error
+# (times sqrt 2), whatever its cause: the RMS step over sqrt 2 is the sigma of the worst axis where one axis
+# dominates (a far pad's flat one), sqrt 2 more than each axis's where both scatter alike.  A stained 39 px pad under a fisheye (fuzz seed 117) was fitted 8-9
+# degrees off in single frames stating 2, its fits stepping 1.5-11 degrees from frame to frame; a clean
+# 46-60 px one (seed 114) 0-2 degrees off, stepping 0.1-2.  Until FAR_TILT_STEPS such steps are seen (each
+# within FAR_TILT_GAP_S of the last), the tilt is doubted as the deck's swing.
+FAR_TILT_STEPS = 3
+FAR_TILT_GAP_S = 0.5
+FAR_TILT_KEEP = 8  # the last so many steps judged
 # ORB's keypoints (a texture pose its drawing did not refine) land anywhere along a smear: a uniform spread
 # over it, 1/sqrt(12) of its length (unseen84/85, at 0.2-0.28 m under 31-52 px: 3.9-5.8 mm off stating 1.9-2.4)
 KEYPOINT_SMEAR_DOUBT = 0.29
@@ -1153,6 +1167,8 @@ class HierarchicalLocalizer:
         self.frame_dt: float | None = None       # the usual time between frames (a running estimate)
         self.gap = False                         # this frame follows a gap (dropped or missing frames)
         self.attitude: np.ndarray | None = None  # the AHRS's attitude R_W_B this frame (its own, as read)
+        self.frame_t: float | None = None        # ... and this frame's time
+        self.far_tilts: list = []                # (t, normal W) of far pads' tilts fitted on an untracked deck (_far_tilt_doubt)
         self.last_attitude: np.ndarray | None = None  # ... at the last accepted pose (_predicted)
         self.turn_B: np.ndarray | None = None    # the gyro's turn of the body since the last accepted pose (gyro_turn)
         self.gyro_t: float | None = None         # the IMU time of the last gyro row taken into it
@@ -1275,6 +1291,7 @@ class HierarchicalLocalizer:
         """``R_W_B``: the attitude the phases and gates use (the AHRS's, its learnt tilt error taken
         out); ``R_W_B_raw``: the AHRS's own, which that error is learnt against."""
         self.attitude = R_W_B_raw if R_W_B_raw is not None else R_W_B
+        self.frame_t = t
         rgb, gray, why = self.work(lambda: ("image",), check_image, image, copy_result=False)
         if gray is None:
             return Estimate(t, self.phase, "lost", None, reason=why)
@@ -2195,6 +2212,34 @@ class HierarchicalLocalizer:
         ok[ok] = (transform_points(invert(cam2pad), P[ok])[:, 2] > 0.0) & (np.abs(P[ok, :2]).max(axis=1) <= self.pad.side_m / 2)
         return P[ok] if ok.sum() >= 4 else None
 
+    def _untracked_deck(self) -> bool:
+        """Whether the pad lies on a tilting deck whose tilt is not tracked this frame (and the frame is
+        a global shutter's, the design's drawing)."""
+        return self.deck is not None and not self.deck_tracked and not self.shutter.active
+
+    def _far_tilt_doubt(self, normal_C: np.ndarray, sigma_deg: float) -> tuple:
+        """``(sigma deg, scatter deg | None)``: the doubt of a far pad's tilt fitted by its design on an
+        untracked deck (``normal_C``, the pad's normal in the camera; its fit's ``sigma_deg``), at least
+        how far the run of such fits up to this frame scatter (:data:`FAR_TILT_STEPS`: the RMS of their
+        steps over sqrt 2, the pad's normal turned into the world by the AHRS); the deck's swing
+        (:attr:`up_sigma_deg`) until that run is long enough."""
+        t, R = self.frame_t, self.attitude
+        if R is None or t is None or not math.isfinite(t):
+            return max(sigma_deg, self.up_sigma_deg), None
+        n = R @ self.T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
+        run = [(t, n / np.linalg.norm(n))]
+        for tt, nn in reversed(self.far_tilts):  # (an earlier fit of this frame is replaced)
+            if tt < run[-1][0] and run[-1][0] - tt <= FAR_TILT_GAP_S and len(run) <= FAR_TILT_KEEP:
+                run.append((tt, nn))
+            elif tt < t:
+                break
+        self.far_tilts = run[::-1]
+        steps = [math.acos(min(1.0, float(a[1] @ b[1]))) for a, b in zip(run, run[1:])]
+        if len(steps) < FAR_TILT_STEPS:
+            return max(sigma_deg, self.up_sigma_deg), None
+        scatter = math.degrees(math.sqrt(float(np.mean(np.square(steps))) / 2.0))
+        return max(sigma_deg, scatter), scatter
+
     def _design_fit(self, cam2pad: np.ndarray, rgb: np.ndarray, up_C, key: tuple) -> tuple:
         """``(cam2pad | None, info)``: :func:`hvloc.texfit.fit_pose_to_design` from the pose ``cam2pad``
         (its tilt the IMU's ``up_C``), asked of the image work by ``key`` (what made ``cam2pad``) and
@@ -2206,7 +2251,7 @@ class HierarchicalLocalizer:
         corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure; nothing is fitted where it smears
         one over :data:`DESIGN_FIT_MAX_SMEAR_SHARE` of the pad's side (``(None, {"why": ...})``), the
         motion known with a velocity from the last poses."""
-        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, fit_pose_to_design
+        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, TILT_MIN_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         # ... and on a deck whose tilt is not tracked, where only the design fixes it: a 66-130 px pad's
@@ -2215,8 +2260,13 @@ class HierarchicalLocalizer:
         # Not under a rolling shutter: the drawing is a global shutter's, and a frame's turn while its rows
         # are read skews the pad as a tilt does (fuzz seed 112: 73-100 px pads at 5 Hz, 18 ms of readout,
         # fitted 2-3 degrees off stating 0.4, the poses 3.5 % of the height off at 8 of their sigmas)
-        untracked = self.deck is not None and not self.deck_tracked and not self.shutter.active
+        untracked = self._untracked_deck()
         top = HALVED_MAX_SIDE_PX if halved or untracked else MAX_SIDE_PX
+        # ... and there its tilt is fitted from UNTRACKED_TILT_MIN_SIDE_PX, not only where the image tells it
+        # better than an AHRS does: what else fixes it is the deck's whole swing, and the fit's doubt (with
+        # the drawing's own error, hvloc.texfit.DESIGN_MODEL_PX, and the scatter of the fits before it,
+        # _far_tilt_doubt) says whether it is fixed well enough
+        least = UNTRACKED_TILT_MIN_SIDE_PX if untracked else TILT_MIN_SIDE_PX
         motion = self._motion()
         d = self._image_motion(cam2pad, motion, self.outer_P)
         smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
@@ -2229,9 +2279,9 @@ class HierarchicalLocalizer:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         tilt = not smear > TILT_MAX_SMEAR_PX
-        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt),
+        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least),
                          fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
-                         up_C if tilt else None, self.up_sigma_deg)
+                         up_C if tilt else None, self.up_sigma_deg, least)
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
@@ -2269,7 +2319,13 @@ class HierarchicalLocalizer:
         # they are as noisy as the found corners showed themselves against the design (px_sigma_held)
         held = {} if "tilt_deg" in info else {
             "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
-        return replace(det, px=px, info=dict(det.info, design_fit=info, **_fitted_up(fitted, info), **held,
+        from .texfit import TILT_MIN_SIDE_PX
+
+        up = _fitted_up(fitted, info)
+        if up and det.info["side_px"] < TILT_MIN_SIDE_PX and self._untracked_deck():  # (UNTRACKED_TILT_MIN_SIDE_PX)
+            sigma, scatter = self._far_tilt_doubt(up["fitted_up_C"], up["fitted_up_sigma_deg"])
+            up = dict(up, fitted_up_sigma_deg=sigma, far_tilt_scatter_deg=scatter)
+        return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
                                              **({} if square else {"rescued": "design fit"})))
 
     def _small_field_refused(self, det, why: str) -> tuple:

@@ -92,6 +92,15 @@ TILT_MAX_BLUR_PX = 1.0
 # evidence on the tilt is counted once per this many pixels against the prior.  Counted per pixel, unseen106's
 # 44-64 px pads came out 0.25 % off in height in the median (held: 0.14 %), at 10 0.18 %; unseen104's as well
 TILT_PIXELS_PER_SAMPLE = 10.0
+# ... and however many pixels it counts, the drawing is not the pad: stains, glare, wear and relief the design
+# does not show move its edges' fitted places by about this much (px) together, which the residuals' scatter
+# does not tell.  A tilt shows only in the pad's foreshortening, about its side squared over the focal length
+# per radian in px, so that error alone tilts a pad of ``side`` px by DESIGN_MODEL_PX * f / side**2 radians.
+# (Random scenes, their design fitted with its tilt from 24 px on untracked tilting decks, 346 fits of 7 scenes:
+# the tilt was 3.8 times its stated doubt off at 24-32 px in the median, 1.3-1.8 at 32-300 px, and a dirty
+# pad's 31 px view, fitted from the labelled pose, went 3.5 degrees off stating 0.9, 0.6 off its stains
+# removed; with this error as well, 0.6-1.3 times in the median at every size, 0-3 % beyond three)
+DESIGN_MODEL_PX = 0.1
 LUMA = (0.299, 0.587, 0.114)  # an RGB frame is compared in this mix of its written channels (OpenCV's grey, JPEG's luma)
 
 
@@ -179,7 +188,7 @@ def _tilt_to(T: np.ndarray, up_C) -> np.ndarray:
 
 def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None,
                        max_side_px: float = MAX_SIDE_PX, up_C: np.ndarray | None = None,
-                       up_sigma_deg: float | None = None) -> tuple:
+                       up_sigma_deg: float | None = None, tilt_min_side_px: float = TILT_MIN_SIDE_PX) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
@@ -199,10 +208,12 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     known, 0.0-0.5 %, as an unsharpened sRGB camera's).
 
     ``up_C``, ``up_sigma_deg``: the IMU's up in the camera and how far the pad's normal may lie from it
-    (one sigma).  Where the pad is :data:`TILT_MIN_SIDE_PX` or more across and sharp enough
-    (:data:`TILT_MAX_BLUR_PX`), the pad's tilt is then fitted too, weighed against that prior, once
-    the pose with the start's tilt held has settled (``info["tilt_deg"]``: how far it moved from the
-    start's, about the pad's x and y axes).  Without them the start's tilt is held."""
+    (one sigma).  Where the pad is ``tilt_min_side_px`` (:data:`TILT_MIN_SIDE_PX` unless given) or
+    more across and sharp enough (:data:`TILT_MAX_BLUR_PX`), the pad's tilt is then fitted too, weighed
+    against that prior, once the pose with the start's tilt held has settled (``info["tilt_deg"]``: how
+    far it moved from the start's, about the pad's x and y axes; ``info["tilt_sigma_deg"]``: its doubt,
+    the image's with the drawing's own error, :data:`DESIGN_MODEL_PX`, and the prior's).  Without them
+    the start's tilt is held."""
     info: dict = {}
     half = synth.pad.side_m / 2.0
     outer = np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
@@ -339,11 +350,25 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         J[:, 5] = of((B1 - B2)[sel].astype(np.float64))
         return J
 
+    model = DESIGN_MODEL_PX * float(camera.fx) / side_px ** 2  # the drawing's own error as a tilt (radians)
+
+    def tilt_doubt(info_matrix: np.ndarray, prior: float):
+        """The tilt's doubt (radians, one sigma along its worst axis) from the normal equations'
+        information (the tilt's two parameters last, with ``prior`` per radian squared of its prior's
+        in them): the image's alone, marginal over the other parameters, with the drawing's own error
+        (``model``) added, then the prior's again; ``None`` where that is singular."""
+        try:
+            C = np.linalg.inv(info_matrix)[-2:, -2:]
+            image = np.linalg.inv(np.linalg.inv(C) - prior * np.eye(2)) + model ** 2 * np.eye(2)
+            worst = float(np.linalg.eigvalsh(np.linalg.inv(np.linalg.inv(image) + prior * np.eye(2))).max())
+        except np.linalg.LinAlgError:
+            return None
+        return math.sqrt(worst) if worst > 0 and math.isfinite(worst) else None
+
     def descend(state, tilt: bool):
         """Levenberg-Marquardt from ``state`` (``(q, DB, r, A, g, light)``), the tilt (``q[6:8]``)
         fitted or held; returns the last state, the iterations taken and the tilt's doubt (radians,
-        one sigma along its worst axis: the normal equations' inverse with the image's evidence
-        counted per :data:`TILT_PIXELS_PER_SAMPLE` pixels and the prior's; ``None`` when held)."""
+        one sigma along its worst axis: :func:`tilt_doubt`; ``None`` when held)."""
         q, DB, r, A, g, light = state
         # the tilt's prior (centred on the IMU's, ``q0``), in the residuals' units: their robust variance
         # per sample (TILT_PIXELS_PER_SAMPLE)
@@ -370,11 +395,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             free[5] &= not known  # (a known sharpening is the camera's, in its written values)
             free[6:8] = tilt
             if tilt:
-                try:
-                    C = np.linalg.inv(N[np.ix_(free, free)] / (TILT_PIXELS_PER_SAMPLE * s * s))
-                    doubt = math.sqrt(float(np.linalg.eigvalsh(C[-2:, -2:]).max()))
-                except np.linalg.LinAlgError:
-                    doubt = None
+                unit = TILT_PIXELS_PER_SAMPLE * s * s  # the residuals' variance per sample
+                doubt = tilt_doubt(N[np.ix_(free, free)] / unit, pw / unit)
             moved = False
             for _ in range(8):
                 dq = np.zeros(len(q))
@@ -402,7 +424,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     DB = drawn(q)
     state, it, _ = descend((q, DB) + toned(DB[0][sel].astype(np.float64)), False)
     q, doubt = state[0], None
-    if up_C is not None and up_sigma_deg and side_px >= TILT_MIN_SIDE_PX and q[4] <= TILT_MAX_BLUR_PX:
+    if up_C is not None and up_sigma_deg and side_px >= tilt_min_side_px and q[4] <= TILT_MAX_BLUR_PX:
         q0 = _tilt_to(_posed(cam2pad, q), up_C)
         state, more, doubt = descend(state, True)
         q, it = state[0], it + more
