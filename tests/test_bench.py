@@ -1020,6 +1020,24 @@ def test_blur_bias_measures_the_outline_and_the_drawing_where_the_truth_is_known
     assert bad.value.code == 2
 
 
+
+def test_fuzz_pools_its_scenes_frames_in_scope():
+    """The fuzz report's last line pools its scenes: frames in scope posed over all of them (not the
+    mean of the scenes' shares), false accepts, and the scenes at 95 % or more; a scene the generator
+    refused counts apart, and one with no frame in scope is in none of the shares."""
+    from benchmarks import fuzz
+
+    fa = {"frame": 3, "height_m": 5.0, "phase": "approaching", "pos_err_m": 0.6, "rot_err_deg": 1.0}
+    rows = [{"seed": 1, "frames": 100, "in_scope": 100, "available_in_scope": 0.96, "false_accepts": []},
+            {"seed": 2, "frames": 50, "in_scope": 20, "available_in_scope": 0.5, "false_accepts": [fa]},
+            {"seed": 3, "frames": 10, "in_scope": 0, "available_in_scope": None, "false_accepts": []},
+            {"seed": 4, "scene": "x", "refused": "no flyable descent"}]
+    s = fuzz.summary(rows)
+    assert (s["scenes"], s["refused"], s["in_scope"], s["posed_in_scope"], s["false_accepts"], s["scenes_at_95"]) == (3, 1, 120, 106, 1, 1)
+    assert s["available_in_scope"] == pytest.approx(106 / 120)
+    assert "106 of 120 frames in scope posed (88.3 %), 1 false accepts, 1 scenes at 95 % or more" in fuzz.summary_line(rows)
+    assert fuzz.summary([])["available_in_scope"] is None
+
 def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_path, capsys):
     """benchmarks.fuzz: a seed's scene is drawn from the whole spec space (the same seed, the same
     scene), rendered, localized and scored; its spec is kept beside it; the report lists each false
@@ -1049,6 +1067,7 @@ def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_pa
     assert len(row["false_accepts"]) == M.score_sequence(fe)["all"]["false_accepts"]
     assert row["beyond_cov_3sigma"] == M.score_sequence(fe)["all"]["beyond_cov_3sigma"]
     assert "| 5 | " in (tmp_path / "fuzz.md").read_text() and "1 scenes" in capsys.readouterr().out
+    assert fuzz.summary_line([row]) in (tmp_path / "fuzz.md").read_text()
     with pytest.raises(SystemExit) as e:
         fuzz.main(["--seeds", "7", "--out", str(tmp_path)])
     assert e.value.code == 2
