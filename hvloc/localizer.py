@@ -2228,11 +2228,10 @@ class HierarchicalLocalizer:
             return max(sigma_deg, self.up_sigma_deg), None
         n = R @ self.T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
         run = [(t, n / np.linalg.norm(n))]
-        for tt, nn in reversed(self.far_tilts):  # (an earlier fit of this frame is replaced)
-            if tt < run[-1][0] and run[-1][0] - tt <= FAR_TILT_GAP_S and len(run) <= FAR_TILT_KEEP:
-                run.append((tt, nn))
-            elif tt < t:
+        for tt, nn in reversed([f for f in self.far_tilts if f[0] < t]):  # (an earlier fit of this frame is replaced)
+            if run[-1][0] - tt > FAR_TILT_GAP_S or len(run) > FAR_TILT_KEEP:
                 break
+            run.append((tt, nn))
         self.far_tilts = run[::-1]
         steps = [math.acos(min(1.0, float(a[1] @ b[1]))) for a, b in zip(run, run[1:])]
         if len(steps) < FAR_TILT_STEPS:
@@ -2314,17 +2313,22 @@ class HierarchicalLocalizer:
         moved = float(np.abs(px - det.px).max())
         if moved > DESIGN_FIT_MAX_MOVE * det.info["side_px"]:  # two measures of one pad this far apart: neither is sure
             return replace(det, info=dict(det.info, design_fit=f"moved the corners {moved:.1f} px", design_disagrees=moved))
-        # a fit that held the start's tilt (the pad too small for the design to fix it) gives corners
-        # that carry that tilt, the found corners' with their error, however well it placed the rest:
-        # they are as noisy as the found corners showed themselves against the design (px_sigma_held)
-        held = {} if "tilt_deg" in info else {
-            "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
         from .texfit import TILT_MIN_SIDE_PX
 
         up = _fitted_up(fitted, info)
-        if up and det.info["side_px"] < TILT_MIN_SIDE_PX and self._untracked_deck():  # (UNTRACKED_TILT_MIN_SIDE_PX)
+        believed = bool(up)
+        if up and info["side_px"] < TILT_MIN_SIDE_PX:  # fitted there only on an untracked deck (_design_fit)
             sigma, scatter = self._far_tilt_doubt(up["fitted_up_C"], up["fitted_up_sigma_deg"])
             up = dict(up, fitted_up_sigma_deg=sigma, far_tilt_scatter_deg=scatter)
+            believed = scatter is not None
+        # a fit that held the start's tilt (the pad too small for the design to fix it) gives corners
+        # that carry that tilt, the found corners' with their error, however well it placed the rest:
+        # they are as noisy as the found corners showed themselves against the design (px_sigma_held).
+        # So do a far fit's before its tilt is believed (_far_tilt_doubt): stated at the corners' 0.3 px,
+        # they carried the tilt the prior no longer did (a 35 px pad seen 30 degrees obliquely, its first
+        # frame: sideways sigma 2.7 % of the height, from the fitted tilt alone)
+        held = {} if believed else {
+            "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
         return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
                                              **({} if square else {"rescued": "design fit"})))
 

@@ -194,7 +194,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
     (:data:`LUMA`), or a grey camera's ``(H, W)``.  ``info``: the blur (px),
     and sharpening fitted, the drawing's correlation with the frame, the residual's RMS, the
-    pixels compared, iterations.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - ``max_side_px`` across,
+    pixels compared, iterations, the pad's side (px) at the start.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - ``max_side_px`` across,
     too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`).
 
     ``response``: the camera's photometric calibration where it is known, ``(gamma, sharpen[,
@@ -435,7 +435,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     a = d - d.mean()
     t = t - t.mean()
     ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
-    info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it}
+    info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it,
+            "side_px": round(side_px, 2)}
     if q[6] or q[7]:
         info["tilt_deg"] = [round(math.degrees(float(x)), 3) for x in q[6:8]]
         info["tilt_sigma_deg"] = round(math.degrees(min(doubt, math.radians(up_sigma_deg))), 4) \
