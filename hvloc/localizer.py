@@ -2242,7 +2242,8 @@ class HierarchicalLocalizer:
     def _design_fit(self, cam2pad: np.ndarray, rgb: np.ndarray, up_C, key: tuple) -> tuple:
         """``(cam2pad | None, info)``: :func:`hvloc.texfit.fit_pose_to_design` from the pose ``cam2pad``
         (its tilt the IMU's ``up_C``), asked of the image work by ``key`` (what made ``cam2pad``) and
-        all else it depends on; pads up to :data:`hvloc.texfit.MAX_SIDE_PX`, or
+        all else it depends on; pads up to :data:`hvloc.texfit.GLOBAL_MAX_SIDE_PX` under a global
+        shutter (:data:`hvloc.texfit.MAX_SIDE_PX` under a rolling one), or
         :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` where the frame's chroma is at half resolution (its
         colour edges smear) or the pad lies on a deck whose tilt is not tracked (only its design fixes it).  The pad's tilt is fitted too, weighed against the IMU's
         (:attr:`up_sigma_deg`), where the pad is large and sharp enough
@@ -2250,7 +2251,7 @@ class HierarchicalLocalizer:
         corners at most :data:`TILT_MAX_SMEAR_PX` over the exposure; nothing is fitted where it smears
         one over :data:`DESIGN_FIT_MAX_SMEAR_SHARE` of the pad's side (``(None, {"why": ...})``), the
         motion known with a velocity from the last poses."""
-        from .texfit import HALVED_MAX_SIDE_PX, MAX_SIDE_PX, TILT_MIN_SIDE_PX, fit_pose_to_design
+        from .texfit import GLOBAL_MAX_SIDE_PX, HALVED_MAX_SIDE_PX, MAX_SIDE_PX, TILT_MIN_SIDE_PX, fit_pose_to_design
 
         halved = self.work(lambda: ("chroma_halved",), ph.chroma_halved, rgb)
         # ... and on a deck whose tilt is not tracked, where only the design fixes it: a 66-130 px pad's
@@ -2260,7 +2261,7 @@ class HierarchicalLocalizer:
         # are read skews the pad as a tilt does (fuzz seed 112: 73-100 px pads at 5 Hz, 18 ms of readout,
         # fitted 2-3 degrees off stating 0.4, the poses 3.5 % of the height off at 8 of their sigmas)
         untracked = self._untracked_deck()
-        top = HALVED_MAX_SIDE_PX if halved or untracked else MAX_SIDE_PX
+        top = HALVED_MAX_SIDE_PX if halved or untracked else MAX_SIDE_PX if self.shutter.active else GLOBAL_MAX_SIDE_PX
         # ... and there its tilt is fitted from UNTRACKED_TILT_MIN_SIDE_PX, not only where the image tells it
         # better than an AHRS does: what else fixes it is the deck's whole swing, and the fit's doubt (with
         # the drawing's own error, hvloc.texfit.DESIGN_MODEL_PX, and the scatter of the fits before it,

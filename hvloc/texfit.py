@@ -51,6 +51,15 @@ MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger on
 # the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
 # luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
 HALVED_MAX_SIDE_PX = 140.0
+# ... and under a global shutter up to this: there the step fit places a pad well but tilts it as the AHRS does
+# (its four corners say little of a few tenths of a degree), and the AHRS's error moves it sideways by the height
+# times that error: bench_v1's sim800 (two descents, an AHRS 0.47 degrees off in the median) at 64-100 px, 1.01 %
+# of the height sideways with the step fit, 0.09 % with the design fitted with its tilt (as at 44-64 px: 0.18 %).
+# Not further: the fit's cost grows with the pad's area (one thread: ~100 ms at 64-100 px against the step fit's
+# ~20, ~300 ms at 100-140 px).  Not under a rolling shutter: the drawing is a global shutter's, and a frame's
+# turn while its rows are read skews the pad as a tilt does (fuzz seed 112, 73-100 px at 5 Hz: its poses 2.6 % of
+# the height off in the median, 6.7 % beyond their 3 sigma)
+GLOBAL_MAX_SIDE_PX = 100.0
 # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off).
 # At 16-20 px it stands in for the white field's corners, which a camera summing light puts 7-9 % of the
 # field's side too large there (the checker averages to a bright grey): README, "A far pad placed by its drawn design"

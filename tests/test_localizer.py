@@ -4949,18 +4949,19 @@ def test_a_far_pad_fitted_with_its_cameras_known_response_is_as_far_as_it_is(pad
         HierarchicalLocalizer(pad, CAM, LocalizerConfig(), response=(-2.2, 0.0, 1.0))
 
 
-def test_a_pad_of_80_to_100_px_in_a_compressed_frame_is_placed_by_its_design(pad, monkeypatch):
+def test_a_pad_of_100_to_130_px_in_a_compressed_frame_is_placed_by_its_design(pad, monkeypatch):
     """Where a frame's chroma is at half resolution (JPEG 50 here), the border's colour edges smear
-    and the outline's step fit puts a 78-100 px pad 0.4-1.4 % of the height off; its design drawn and
-    fitted on the frame's luma (up to :data:`hvloc.texfit.HALVED_MAX_SIDE_PX`) within 0.15 %.  The
-    same views uncompressed keep their outline, which is right there (within 0.05 %), and do not
-    pay for the fit (above :data:`hvloc.texfit.MAX_SIDE_PX`)."""
+    and the outline's step fit puts a 100-130 px pad several tenths of a percent of the height off; its
+    design drawn and fitted on the frame's luma (up to :data:`hvloc.texfit.HALVED_MAX_SIDE_PX`) within
+    0.15 %.  The same views uncompressed keep their outline, which is right there (within 0.05 %), and
+    do not pay for the fit (above :data:`hvloc.texfit.GLOBAL_MAX_SIDE_PX`)."""
     import hvloc.texfit as tf
 
     rng = np.random.default_rng(5)
     step = []
+    near, far = (CAM.fx * pad.geometry.side_m / px for px in (128.0, 102.0))
     for trial in range(3):
-        G, h, frame = _camera_view(pad, rng, (5.5, 8.0), (70, 110, 50))
+        G, h, frame = _camera_view(pad, rng, (near, far), (70, 110, 50))
         jpeg = _jpeg(frame, 50)
 
         def posed(img):
@@ -4975,7 +4976,43 @@ def test_a_pad_of_80_to_100_px_in_a_compressed_frame_is_placed_by_its_design(pad
         with monkeypatch.context() as m:  # the step fit alone, as before
             m.setattr(tf, "HALVED_MAX_SIDE_PX", tf.MAX_SIDE_PX)
             step.append(posed(jpeg)[1])
-    assert np.mean(np.abs(step)) > 0.004, step
+    assert np.mean(np.abs(step)) > 0.002, step
+
+
+def test_a_level_pad_of_64_to_100_px_is_tilted_by_its_design_not_by_the_ahrs(pad, monkeypatch):
+    """Under a global shutter the step fit places a 64-100 px pad well, but tilts it as the AHRS does
+    (its four corners say little of a few tenths of a degree), and the AHRS's error moves the pose
+    sideways by the height times that error: bench_v1's sim800 at 64-100 px, 1.01 % of the height.
+    Its design fitted with its tilt (up to :data:`hvloc.texfit.GLOBAL_MAX_SIDE_PX`), as it is at
+    44-64 px, puts it within a fraction of that (0.09 % there).  Under a rolling shutter it is not
+    fitted there: the drawing is a global shutter's."""
+    import hvloc.phases as ph
+    import hvloc.texfit as tf
+
+    # a frame whose chroma is whole (a plain ground's few colour edges would read as halved, whose
+    # rule is HALVED_MAX_SIDE_PX's)
+    monkeypatch.setattr(ph, "chroma_halved", lambda rgb: False)
+    rng = np.random.default_rng(17)
+    lateral = {"design": [], "step": []}
+    for trial in range(4):
+        side = rng.uniform(tf.MAX_SIDE_PX + 4, tf.GLOBAL_MAX_SIDE_PX - 4)
+        h = CAM.fx * pad.geometry.side_m / side
+        G = tilted(rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), h, rng.uniform(0, 2 * np.pi), 0.02, -0.01)
+        frame = _camera_view(pad, rng, None, (70, 110, 50), G=G)[2]
+        phi = rng.uniform(0, 2 * np.pi)
+        imu = so3_exp(math.radians(0.5) * np.array([math.cos(phi), math.sin(phi), 0.0])) @ G[:3, :3]
+        for kind in ("design", "step"):
+            with monkeypatch.context() as m:
+                if kind == "step":  # as before: the design fitted up to MAX_SIDE_PX
+                    m.setattr(tf, "GLOBAL_MAX_SIDE_PX", tf.MAX_SIDE_PX)
+                e = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4)).process(frame, 0.0, imu=imu)
+            assert e.ok and e.method == "outline", (trial, kind, e.status, e.reason)
+            assert ("tilt_deg" in e.extras.get("design_fit", {})) == (kind == "design"), (trial, kind, e.extras.get("design_fit"))
+            lateral[kind].append(float(np.linalg.norm((e.cam2pad[:3, 3] - G[:3, 3])[:2])) / h)
+        rolling = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4), line_s=2e-5).process(frame, 0.0, imu=imu)
+        assert rolling.ok and not isinstance(rolling.extras.get("design_fit"), dict), rolling.extras.get("design_fit")
+    assert np.mean(lateral["step"]) > 0.005, lateral  # the premise: the AHRS's half degree
+    assert np.mean(lateral["design"]) < 0.3 * np.mean(lateral["step"]), lateral
 
 
 def _pitched_view(pad, rng, side_px, pitch_deg=35.0):
@@ -5136,8 +5173,8 @@ def test_a_grey_cameras_pad_on_a_tilting_deck_is_posed_where_its_design_fits_the
 
 @pytest.mark.parametrize("grey", [False, True])
 def test_a_near_pad_on_an_untracked_deck_is_posed_by_its_design_fitted_with_its_tilt(pad, grey):
-    """The design is fitted on pads up to :data:`hvloc.texfit.MAX_SIDE_PX` (larger ones the step fit
-    places well on level ground), :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` under JPEG's halved chroma.
+    """The design is fitted on pads up to :data:`hvloc.texfit.GLOBAL_MAX_SIDE_PX` (larger ones the step
+    fit places well on level ground), :data:`hvloc.texfit.HALVED_MAX_SIDE_PX` under JPEG's halved chroma.
     On a deck whose tilt is not tracked only the design fixes the tilt: a sharp frame's 66-130 px
     pad on a deck tilting 6 degrees (told 10) was posed by its corners 0.2-1.8 % of the height off
     or refused as loosely fixed (3 of 10); in a grey frame, whose corners are not posed there, every
