@@ -3503,9 +3503,9 @@ def test_clean_markers_outweigh_an_ahrs_a_few_tenths_off(pad):
 
 
 def test_an_ahrs_stated_as_good_is_trusted_as_good_and_the_covariance_says_so(pad):
-    """At 6.5-9 m three markers or the outline know the pad's tilt to about a degree; an AHRS 0.1
-    degrees off is better than that, and a localizer told so (``ahrs_tilt_sigma_deg``) keeps its
-    tilt: the lateral error is then the AHRS's, the same on every view, and the covariance states
+    """At 6.5-9 m three markers or the outline's corners know the pad's tilt to about a degree; an
+    AHRS 0.1 degrees off is better than that, and a localizer told so (``ahrs_tilt_sigma_deg``) keeps
+    its tilt: the lateral error is then the AHRS's, the same on every view, and the covariance states
     about that much.  Told the default 0.5 degrees, the image's noise leaks into the tilt and the
     stated sigma is several times the error made (bench_v1 with its AHRS's error scaled to a third:
     field1080 Adjustment 16.1 mm told 0.5)."""
@@ -3526,7 +3526,9 @@ def test_an_ahrs_stated_as_good_is_trusted_as_good_and_the_covariance_says_so(pa
             stated.append(math.sqrt(e.cov[0, 0] + e.cov[1, 1]) / G[2, 3])
         got[s] = np.array(lat), np.array(stated)
     (lat5, st5), (lat1, st1) = got[0.5], got[0.1]
-    assert np.abs(lat1 / tan_err - 1.0).max() < 0.1, lat1 / tan_err  # the AHRS's tilt, every view
+    # the AHRS's tilt, every view (within a fifth: a 64-100 px pad's design fitted with its tilt,
+    # hvloc.texfit.GLOBAL_MAX_SIDE_PX, weighs its own view of it against the AHRS's 0.1 degrees)
+    assert np.abs(lat1 / tan_err - 1.0).max() < 0.25, lat1 / tan_err
     assert np.std(lat1) < 0.5 * np.std(lat5), (np.std(lat1), np.std(lat5))
     assert 0.4 < np.median(lat1 / st1) < 1.5 and np.median(lat5 / st5) < 0.3, (lat1 / st1, lat5 / st5)
 
