@@ -46,7 +46,8 @@ from .features import srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
 
-MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across: larger ones the step fit places well ...
+MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across (under a rolling shutter; GLOBAL_MAX_SIDE_PX
+# below under a global one): larger ones the step fit places well ...
 # ... unless the frame's chroma is at half resolution (JPEG, H.264): there the border's colour edges smear and
 # the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
 # luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
