@@ -71,8 +71,10 @@ class LocalizerConfig(BaseModel):
     pad_relief_m: float = Field(0.0, ge=0.0, description="how far the pad's surface may stand above the plane it "
                                 "lies on (a paper pad's sag and wrinkles), as the user knows it: every pose is "
                                 "measured to the surface the camera sees, so each pose from the pad carries half "
-                                "this as a standard deviation on each axis of its position (the tracker's poses "
-                                "inherit it from their keyframe); 0 (the default): a flat pad")
+                                "this as a standard deviation on each axis of its position, and the tilt its "
+                                "wrinkles may give the patch seen is solved for beside the pose "
+                                "(hvloc.pose.relief_tilt_rad; the tracker's poses inherit both from their "
+                                "keyframe); 0 (the default): a flat pad")
     design_fit: bool = Field(True, description="with the IMU, place a far pad (20-64 px across) by fitting "
                              "its printed design, drawn in light and blurred, to the frame's luma (position, yaw "
                              "and blur; the tilt held) instead of by its outline's step edges; the outline's "

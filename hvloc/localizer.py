@@ -800,8 +800,10 @@ def loose_tilt_refusal(est: "Estimate", cfg: LocalizerConfig, imu: bool) -> str:
         return ""
     h = max(abs(float(est.cam2pad[2, 3])), 1e-6)
     # (not the pad's stated relief, which every pose from the pad carries whatever fixes its tilt: at
-    # touchdown on a deck a 19 mm relief alone, 9.7 mm per axis, was 3.5 % of a 0.28 m height)
-    relief = (cfg.pad_relief_m / 2.0) ** 2
+    # touchdown on a deck a 19 mm relief alone, 9.7 mm per axis, was 3.5 % of a 0.28 m height; nor
+    # the tilt its wrinkles may give the patch seen, which on a deck nothing fixes better than the
+    # image: with it, random decks' touchdown poses 3-6 % of the height off were refused near 0.2 m)
+    relief = (cfg.pad_relief_m / 2.0) ** 2 + float(est.extras.get("relief_sideways_var", 0.0))
     side = math.sqrt(max(float(est.cov[0, 0]) - relief, float(est.cov[1, 1]) - relief, 0.0))
     if side > MAX_SIDEWAYS_SIGMA * h:
         why = (f"on a deck that may tilt {cfg.pad_tilt_deg:g} deg" if imu else "without the IMU's gravity")
@@ -1353,6 +1355,8 @@ class HierarchicalLocalizer:
             for method, res in self._candidates(method, res, gray, up_C):
                 self.twist = tried_twist
                 pose, n, extras = res
+                if getattr(pose, "relief_tilt_deg", 0.0) > 0:  # what a wrinkle's tilt puts sideways (loose_tilt_refusal)
+                    extras = dict(extras, relief_sideways_var=(pose.cam2pad[2, 3] * math.radians(pose.relief_tilt_deg)) ** 2)
                 est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                                extras=extras)
                 verdict = self._gate(est, R_W_B)
@@ -1951,7 +1955,7 @@ class HierarchicalLocalizer:
         turns = []
         for k in range(4):
             pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
-                                     gravity_sigma_deg=self.up_sigma_deg)
+                                     gravity_sigma_deg=self.up_sigma_deg, relief_m=self.config.pad_relief_m)
             turns.append(rotation_angle(pose.cam2pad[:3, :3], R_P_C) if pose is not None else np.inf)
         k = int(np.argmin(turns))
         if turns[k] > math.radians(30) or np.partition(turns, 1)[1] < math.radians(60):
@@ -2001,7 +2005,8 @@ class HierarchicalLocalizer:
         rms, fits = np.full(4, np.inf), np.zeros(4, bool)
         for j in range(4):
             px = np.roll(quad, -j, axis=0)  # (the named outline's own: with shared image work its fit is not redone)
-            start = solve_planar_pose(self.camera, pts, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
+            start = solve_planar_pose(self.camera, pts, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg,
+                                      relief_m=self.config.pad_relief_m)
             if start is None:
                 continue
             fitted, info = self._design_fit(start.cam2pad, rgb, up_C, ("design fit", array_key(pts), array_key(px)))
@@ -2044,7 +2049,7 @@ class HierarchicalLocalizer:
         if R_W_B is None or up_C is None:
             return None
         pose = solve_planar_pose(self.camera, self.outer_P, np.roll(found.quad_px, -k, axis=0), up_C=up_C,
-                                 gravity_sigma_deg=self.up_sigma_deg)
+                                 gravity_sigma_deg=self.up_sigma_deg, relief_m=self.config.pad_relief_m)
         if pose is None:
             return None
         R_W_P = R_W_B @ self.T_B_C[:3, :3] @ pose.cam2pad[:3, :3].T
@@ -2060,6 +2065,8 @@ class HierarchicalLocalizer:
             if res is None:
                 return None, why
             extras = {"keyframe_anchored": self.flow.kf.anchored, "tilt_noise_scale": res.tilt_noise_scale}
+            if self.flow.kf.relief_var > 0:  # (its keyframe's wrinkle: loose_tilt_refusal)
+                extras["relief_sideways_var"] = self.flow.kf.relief_var
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 def solve(px):
@@ -2174,7 +2181,8 @@ class HierarchicalLocalizer:
             return None
 
         def smear(pts_P, px):
-            start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
+            start = solve_planar_pose(self.camera, pts_P, px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg,
+                                      relief_m=self.config.pad_relief_m)
             return None if start is None else self._smear_plan(start.cam2pad, motion, pts_P)
 
         return smear
@@ -2293,7 +2301,8 @@ class HierarchicalLocalizer:
         :attr:`LocalizerConfig.design_fit` on or off (the caller asks only where the pad was foreseen)."""
         if up_C is None or self.pad is None:
             return det
-        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg)
+        start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg,
+                                  relief_m=self.config.pad_relief_m)
         if start is None:
             return det
         # corners that are no square's are left to the gates, which refuse them: a drawing fitted from
@@ -2410,11 +2419,12 @@ class HierarchicalLocalizer:
             return self.work(lambda: ("pose", array_key(P), array_key(px), array_key(up_C),
                                       array_key(prior) if up_C is None else None,
                                       array_key(level), array_key(s), w,
-                                      None if sh is None else (sh.shift, sh.dilation), up_sigma, up_tolerance),
+                                      None if sh is None else (sh.shift, sh.dilation), up_sigma, up_tolerance,
+                                      self.config.pad_relief_m),
                              solve_planar_pose, self.camera, P, px, up_C=up_C, prev_cam2pad=prior, sigma_px=s,
                              sigma_from_fit=w, shared=None if weigh else sh, level_up_C=level,
                              gravity_sigma_deg=up_sigma, up_tolerance_deg=up_tolerance,
-                             stated_shared=sh if weigh else None)
+                             stated_shared=sh if weigh else None, relief_m=self.config.pad_relief_m)
 
         def refit(keep, weigh=True, share=True):  # the pose of the correspondences ``keep`` alone, with what they are
             s = sigma if np.ndim(sigma) == 0 else np.asarray(sigma)[keep]
@@ -2695,7 +2705,8 @@ class HierarchicalLocalizer:
         serial = None if f.kf is None else f.kf.serial
 
         def anchor():  # a keyframe from this pose, with how far off its image saw the AHRS
-            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est),
+                     relief_var=float(est.extras.get("relief_sideways_var", 0.0)))
 
         if method == "flow":
             f.accept(est.cam2pad, est.rms_px, est.cov)

@@ -2230,6 +2230,9 @@ class Keyframe:
     # how far the IMU's gravity was off, at the least, where its anchoring pose's image fixed the
     # tilt (degrees; 0 where it could not tell): kept by the keyframes chained from it (FlowTracker.gravity_sigma)
     ahrs_off_deg: float = 0.0
+    # the sideways variance (m^2 per axis) a wrinkle's tilt put in its anchoring pose's covariance
+    # (hvloc.pose.relief_tilt_rad), kept by the keyframes chained from it (hvloc.localizer.loose_tilt_refusal)
+    relief_var: float = 0.0
     contrast: np.ndarray | None = None  # its image divided by its local mean (refined_on_keyframe), made when first asked
 
 
@@ -2670,16 +2673,19 @@ class FlowTracker:
         return self.kf is not None and self.prev_gray is not None
 
     def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None,
-               ahrs_off_deg: float | None = None, chained: bool = False) -> bool:
+               ahrs_off_deg: float | None = None, chained: bool = False, relief_var: float | None = None) -> bool:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose; ``ahrs_off_deg``: how far that pose's image saw the
         IMU's gravity off (:attr:`gravity_sigma`), by default the keyframe's it renews (0 for none);
         ``chained``: the pose was tracked from the current keyframe (its error carried in ``cov``),
-        which the new one names as its parent."""
+        which the new one names as its parent; ``relief_var``: :attr:`Keyframe.relief_var`, by default
+        the keyframe's it renews."""
         parent = self.kf.serial if chained and self.kf is not None else None
         tag = self.work.frame if tag is None else tag
         if ahrs_off_deg is None:
             ahrs_off_deg = 0.0 if self.kf is None else self.kf.ahrs_off_deg
+        if relief_var is None:
+            relief_var = 0.0 if self.kf is None else self.kf.relief_var
         corners = None
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
@@ -2696,7 +2702,7 @@ class FlowTracker:
                            unroll=self.unroll)
         if kf is None:
             return False
-        kf.tag, kf.ahrs_off_deg, kf.parent = tag, float(ahrs_off_deg), parent
+        kf.tag, kf.ahrs_off_deg, kf.parent, kf.relief_var = tag, float(ahrs_off_deg), parent, float(relief_var)
         self.keyframes += 1
         kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0

@@ -36,6 +36,8 @@ class PoseResult:
     mirror_normal_img_C: np.ndarray | None = None  # that solution's image-only pad normal in C (with an IMU)
     mirror_chi2_gap: float = float("inf")  # how much worse it fits than the chosen one, in squared noise units
     tilt_noise_scale: float = 1.0          # how much the image's noise was widened for its tilt to meet gravity's
+    relief_tilt_deg: float = 0.0           # on a wrinkled pad: how far the patch the points lie on may tilt (relief_tilt_rad)
+    patch_tilt_deg: float = 0.0            # ... and how far it was found tilted
 
 
 PIXEL_SIGMA = 0.3  # px: how well a found corner is known, at least (the fit's own residuals when larger)
@@ -48,6 +50,46 @@ LEVEL_SIGMA_DEG = 10.0  # without an IMU, how far from level a drone's body is t
 # image's noise is taken to be larger than its residuals show (``solve_planar_pose``'s ``tilt_chi2``):
 # two sigmas of the two together
 TILT_CONSISTENT_CHI2 = 4.0
+
+# A wrinkled pad (``LocalizerConfig.pad_relief_m``) stands 0 to its relief off its plane, and the
+# plane through any of its points tilts with the wrinkles under them (:func:`relief_tilt_rad`).  Its
+# height is taken for a random field: RELIEF_HEIGHT_SHARE of half the relief (one sigma), correlated
+# as exp(-d^2 / 2 RELIEF_CORRELATION_M^2) between points d apart.  Against 120 reliefs drawn as the
+# renderer draws them (render.relief.PadRelief: 3-20 mm, wrinkles 0.15-0.5 m long, a sag) the RMS
+# tilt of the plane through a point set was 0.55-1.0 times what the field states (test:
+# test_a_wrinkles_tilt_is_as_large_as_drawn_reliefs_give): a 10 cm marker's corners 0.72, two
+# markers 0.83, three 0.89, the outer corners 0.73, texture points over 0.2 m 1.0 and over 0.7 m
+# 0.55.  (A plainer rule, a share of half the relief over the points' spread, was off 9-fold
+# between those: it cannot see that points spread over several wrinkles average them out, nor
+# that two markers leave the tilt across them to their own width.)  Longer waves than these (a pad
+# bent over a kerb) tilt wide point sets more than stated.
+RELIEF_HEIGHT_SHARE = 0.5
+RELIEF_CORRELATION_M = 0.04
+MAX_RELIEF_TILT_DEG = 30.0  # (a few points close together: the image says nothing of the pad's tilt)
+RELIEF_POINTS = 200  # at most so many of the points weighed (evenly taken): the field's matrix grows as their square
+
+
+def relief_tilt_rad(pts_P: np.ndarray, relief_m: float) -> float:
+    """How far (one sigma per axis, radians) the plane through pad points ``pts_P`` may be tilted
+    from the pad's own by a relief of ``relief_m`` (the surface 0 to that off the plane): what the
+    image of those points cannot tell from the pad's tilt.  The least-squares plane's slope under
+    the height field of :data:`RELIEF_HEIGHT_SHARE` and :data:`RELIEF_CORRELATION_M`; 0 for a flat
+    pad.  (A variant of `hvloc bench fuzz` seed 143's scene, a 17 mm relief over 0.3-0.47 m
+    wrinkles: below 0.65 m the one nested marker seen lay on a patch 4 degrees off the pad's plane,
+    and its poses, fitted to that patch, were 10 % of the height off, "ok".)"""
+    if not relief_m > 0:
+        return 0.0
+    xy = np.asarray(pts_P, np.float64).reshape(-1, 3)[:, :2]
+    xy = xy[:: max(1, -(-len(xy) // RELIEF_POINTS))]
+    d = xy - xy.mean(axis=0)
+    try:
+        slope = np.linalg.pinv(np.column_stack([d, np.ones(len(d))]))[:2]  # (2, n): the plane's slope from the heights
+    except np.linalg.LinAlgError:
+        return math.radians(MAX_RELIEF_TILT_DEG)
+    gap2 = np.sum((xy[:, None, :] - xy[None, :, :]) ** 2, axis=-1)
+    heights = (RELIEF_HEIGHT_SHARE * relief_m / 2.0) ** 2 * np.exp(-gap2 / (2.0 * RELIEF_CORRELATION_M ** 2))
+    var = float(np.trace(slope @ heights @ slope.T)) / 2.0
+    return min(math.atan(math.sqrt(max(var, 0.0))), math.radians(MAX_RELIEF_TILT_DEG))
 
 
 def _normals_along(cands, up_C: np.ndarray) -> np.ndarray:
@@ -225,15 +267,30 @@ def outlying_points(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: 
     return bad if 0 < len(bad) <= max_share * len(r) else None
 
 
-def _linearised(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, eps: float = 1e-6) -> tuple:
+def _on_patch(pts_P: np.ndarray, delta) -> np.ndarray:
+    """Pad points on a patch of the surface tilted by ``delta`` (rotation about the pad's x and y,
+    radians) about their centroid: where a wrinkle puts them (:func:`relief_tilt_rad`)."""
+    c = pts_P.mean(axis=0)
+    return c + (pts_P - c) @ so3_exp(np.array([delta[0], delta[1], 0.0])).T
+
+
+def _linearised(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, eps: float = 1e-6,
+                delta=None) -> tuple:
     """The reprojection and gravity-prior problems linearised at ``cam2pad`` by forward differences
     over (position, rotation vector of ``R_P_C @ exp(d)``): ``(pixel residuals (2n,), their
-    Jacobian (2n, 6), the pad's normal in C (3,), its Jacobian (3, 6))``."""
+    Jacobian (2n, 6), the pad's normal in C (3,), its Jacobian (3, 6))``.  ``delta``: the points
+    lie on a patch tilted so (:func:`_on_patch`), and the Jacobians have two more columns, for it."""
     Ts = _perturbed(cam2pad, eps)
-    proj = _project_poses(camera, Ts, pts_P)
+    P = pts_P if delta is None else _on_patch(pts_P, delta)
+    proj = _project_poses(camera, Ts, P)
     normal = np.einsum("kji,j->ki", Ts[:, :3, :3], np.array([0.0, 0.0, 1.0]))  # R^T z
-    return ((proj[0] - px).ravel(), ((proj[1:] - proj[0]).reshape(6, -1) / eps).T,
-            normal[0], ((normal[1:] - normal[0]) / eps).T)
+    J, Jn = ((proj[1:] - proj[0]).reshape(6, -1) / eps).T, ((normal[1:] - normal[0]) / eps).T
+    if delta is not None:
+        tilted = [_project_poses(camera, cam2pad[None], _on_patch(pts_P, np.asarray(delta) + eps * e))[0]
+                  for e in np.eye(2)]
+        J = np.column_stack([J] + [((q - proj[0]) / eps).ravel() for q in tilted])
+        Jn = np.column_stack([Jn, np.zeros((3, 2))])
+    return (proj[0] - px).ravel(), J, normal[0], Jn
 
 
 def _row_sigmas(sigma_px, n: int) -> np.ndarray:
@@ -286,26 +343,35 @@ def _whiten(W: np.ndarray, r: np.ndarray, J: np.ndarray) -> tuple:
 
 def pose_covariance(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray,
                     min_sigma_px: float = 0.1, up_C: np.ndarray | None = None,
-                    sigma_up_rad: float | None = None, shared: SharedNoise | None = None) -> np.ndarray:
+                    sigma_up_rad: float | None = None, shared: SharedNoise | None = None,
+                    relief_tilt: float = 0.0, delta=None) -> np.ndarray:
     """6x6 covariance of (camera position in P, rotation vector of ``R_P_C @ exp(d)``, i.e. about
     the camera's axes) from the reprojection Jacobian, scaled by the residual variance (at least
     ``min_sigma_px`` squared: a scalar, or one per point where some are less sure than others).
     With ``up_C`` and ``sigma_up_rad`` it is the covariance of the
     gravity-refined pose (:func:`refine_with_gravity`): the IMU's up direction is information too.
-    ``shared``: errors groups of points share (:class:`SharedNoise`)."""
-    r0, J, Jn = _whitened(camera, cam2pad, pts_P, px, min_sigma_px, shared)
+    ``shared``: errors groups of points share (:class:`SharedNoise`).  ``relief_tilt`` (radians,
+    one sigma): the points lie on a patch of a wrinkled pad that may be tilted so from the pad's
+    plane (:func:`relief_tilt_rad`; ``delta``, the patch's tilt the refinement found), which the
+    image cannot tell from the pad's own tilt: marginalised out."""
+    patch = relief_tilt > 0
+    if patch and delta is None:
+        delta = np.zeros(2)
+    r0, J, Jn = _whitened(camera, cam2pad, pts_P, px, min_sigma_px, shared, delta if patch else None)
     info = J.T @ J / _residual_scale(r0) ** 2
     if up_C is not None and sigma_up_rad:
         info = info + Jn.T @ Jn / sigma_up_rad ** 2
+    if patch:
+        info[6:, 6:] += np.eye(2) / relief_tilt ** 2
     try:
-        return np.linalg.inv(info)
+        return np.linalg.inv(info)[:6, :6]
     except np.linalg.LinAlgError:
         return np.full((6, 6), np.inf)
 
 
-def _whitened(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px, sigma_px, shared) -> tuple:
+def _whitened(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px, sigma_px, shared, delta=None) -> tuple:
     """The pixel residuals and their Jacobian whitened by the noise, and the normal's Jacobian."""
-    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px)
+    r0, J, _, Jn = _linearised(camera, cam2pad, pts_P, px, delta=delta)
     r0, J = _whiten(_whitener(sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared), r0, J)
     return r0, J, Jn
 
@@ -327,24 +393,40 @@ def projection_sigma_px(camera: Camera, cam2pad: np.ndarray, cov: np.ndarray, pt
 
 def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, px: np.ndarray, up_C: np.ndarray,
                         sigma_px: float, sigma_up_rad: float, iterations: int = 4,
-                        shared: SharedNoise | None = None) -> np.ndarray:
+                        shared: SharedNoise | None = None, relief_tilt: float = 0.0) -> np.ndarray:
     """Levenberg-Marquardt on the reprojection error plus a prior that the pad's normal is the IMU's up.
 
     With few, close-together correspondences (the pad outline far away) the tilt of a planar
     target is weakly observed and couples into a lateral position error of height x tilt; the
     AHRS knows roll and pitch to a fraction of a degree, so this prior removes that coupling.
+    ``relief_tilt`` (radians, one sigma): the points lie on a patch of a wrinkled pad, tilted from
+    its plane by as much (:func:`relief_tilt_rad`), solved for alongside (the image fixes the
+    patch's tilt; the IMU's up the pad's).
     """
+    return _refine_with_gravity(camera, cam2pad, pts_P, px, up_C, sigma_px, sigma_up_rad, iterations, shared,
+                                relief_tilt)[0]
+
+
+def _refine_with_gravity(camera, cam2pad, pts_P, px, up_C, sigma_px, sigma_up_rad, iterations=4, shared=None,
+                         relief_tilt=0.0) -> tuple:
+    """:func:`refine_with_gravity`'s pose and the patch's tilt it found (None for a flat pad)."""
     T = cam2pad.copy()
     up = np.asarray(up_C, np.float64) / np.linalg.norm(up_C)
+    patch = relief_tilt > 0
+    delta = np.zeros(2) if patch else None
 
     W = _whitener(sigma_px, np.asarray(px, np.float64).reshape(-1, 2), shared)
 
-    def system(T):  # whitened residuals and Jacobian: pixels, then the normal's distance from up
-        r, J, n, Jn = _linearised(camera, T, pts_P, px)
+    def system(T, delta):  # whitened residuals and Jacobian: pixels, the normal's distance from up, the patch's tilt
+        r, J, n, Jn = _linearised(camera, T, pts_P, px, delta=delta)
         r, J = _whiten(W, r, J)
-        return np.concatenate([r, (n - up) / sigma_up_rad]), np.concatenate([J, Jn / sigma_up_rad], axis=0)
+        rows, Js = [r, (n - up) / sigma_up_rad], [J, Jn / sigma_up_rad]
+        if patch:
+            rows.append(delta / relief_tilt)
+            Js.append(np.column_stack([np.zeros((2, 6)), np.eye(2) / relief_tilt]))
+        return np.concatenate(rows), np.concatenate(Js, axis=0)
 
-    r0, J = system(T)
+    r0, J = system(T, delta)
     lam = 1e-6
     for _ in range(iterations * 3):
         # Levenberg-Marquardt: a disagreement of many sigmas between the image-only tilt and the IMU
@@ -359,18 +441,19 @@ def refine_with_gravity(camera: Camera, cam2pad: np.ndarray, pts_P: np.ndarray, 
             break
         Tn = T.copy()
         Tn[:3, 3] += step[:3]
-        Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:])
-        rn, Jn = system(Tn)
+        Tn[:3, :3] = Tn[:3, :3] @ so3_exp(step[3:6])
+        dn = delta + step[6:] if patch else None
+        rn, Jn = system(Tn, dn)
         if not rn @ rn < r0 @ r0:
             lam *= 10.0
             if lam > 1e6:
                 break
             continue
-        T, r0, J = Tn, rn, Jn
+        T, delta, r0, J = Tn, dn, rn, Jn
         lam = max(lam / 10.0, 1e-9)
         if np.abs(step).max() < 1e-9:
             break
-    return T
+    return T, delta
 
 
 def planar_pose_candidates(camera: Camera, pts_P: np.ndarray, px: np.ndarray, xy: np.ndarray | None = None) -> list:
@@ -404,7 +487,8 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
                       gravity_sigma_deg: float | None = 0.5, sigma_px=PIXEL_SIGMA,
                       sigma_from_fit: tuple | None = None, shared: SharedNoise | None = None,
                       level_up_C: np.ndarray | None = None, tilt_chi2: float | None = None,
-                      up_tolerance_deg: float = 0.0, stated_shared: SharedNoise | None = None) -> PoseResult | None:
+                      up_tolerance_deg: float = 0.0, stated_shared: SharedNoise | None = None,
+                      relief_m: float = 0.0) -> PoseResult | None:
     """Camera pose ``T_P_C`` from pad points (z = 0) and their distorted pixels, each known to
     ``sigma_px`` (a scalar, or one per point).  ``sigma_from_fit = (k, floor)``, with ``up_C`` and a
     scalar ``sigma_px``: the pixel noise is instead ``k`` times the image-only fit's residual RMS,
@@ -430,6 +514,11 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     widened until it does not (:func:`_tilt_noise_scale`), in the refinement and the covariance: the
     image's errors are larger than its residuals show, and smooth (a bias that fits a homography,
     as tracks between frames smeared differently do, leaves no residual).
+
+    ``relief_m``: the pad's surface stands up to this off its plane (a wrinkled pad): the points lie
+    on a patch whose tilt the image cannot tell from the pad's (:func:`relief_tilt_rad`).  It is in
+    the image-only tilt's sigma, solved for beside the pose against the gravity prior, and
+    marginalised out of the covariance.
     """
     pts_P = np.asarray(pts_P, np.float64).reshape(-1, 3)
     px = np.asarray(px, np.float64).reshape(-1, 2)
@@ -479,6 +568,8 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
     image_rms = float("nan")
     noise_scale = 1.0
     prior_up = up_C
+    relief_tilt = relief_tilt_rad(obj, relief_m)
+    delta = None  # the patch's tilt the refinement finds
     if up_C is None and level_up_C is not None and LEVEL_SIGMA_DEG:
         # without an IMU, a drone that flies nearly level has the body's up, seen through the mount,
         # as a soft prior: a far pad's four corners fix its tilt to several degrees, which moves the
@@ -486,17 +577,20 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
         # (not weighed by ``shared``, as that pose is not: weighed so, field1080's markers at 1-3 m,
         # whose tilt the prior cannot move, came out 2.1 -> 5.5 mm off; the covariance holds both)
         prior_up, sigma_up = level_up_C, np.radians(LEVEL_SIGMA_DEG)
-        T = refine_with_gravity(camera, T, obj, px, level_up_C, sigma_px, sigma_up)
+        T, delta = _refine_with_gravity(camera, T, obj, px, level_up_C, sigma_px, sigma_up, relief_tilt=relief_tilt)
     elif up_C is not None:
         image_rms = reprojection_rms(camera, T, obj, px)
         if sigma_from_fit is not None and np.ndim(sigma_px) == 0 and np.isfinite(image_rms):
             sigma_px = max(sigma_from_fit[0] * image_rms, sigma_from_fit[1])
-        tilt = tilt_disagreement(camera, T, obj, px, up_C, sigma_px, shared)
+        angle, image_sigma = tilt_disagreement(camera, T, obj, px, up_C, sigma_px, shared)
+        tilt = (angle, math.hypot(image_sigma, math.degrees(relief_tilt)))  # (how far a wrinkle may tilt the patch too)
         normal_img = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
         if other_T is not None and refine:
             mirror_normal = other_T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
             mirror_gap = _chi2(camera, other_T, obj, px, sigma_px) - _chi2(camera, T, obj, px, sigma_px)
-        k = _tilt_noise_scale(*tilt, gravity_sigma_deg, tilt_chi2) if tilt_chi2 and gravity_sigma_deg else 1.0
+        # (what a wrinkle may tilt is no noise of the image's: it stands with the IMU's doubt)
+        k = _tilt_noise_scale(angle, image_sigma, math.hypot(gravity_sigma_deg, math.degrees(relief_tilt)), tilt_chi2) \
+            if tilt_chi2 and gravity_sigma_deg else 1.0
         if k > 1.0:
             # the tilt's sigma was the noise as the residuals showed it: widened from there
             noise_scale = k * _residual_scale(_whitened(camera, T, obj, px, sigma_px, shared)[0])
@@ -506,14 +600,18 @@ def solve_planar_pose(camera: Camera, pts_P: np.ndarray, px: np.ndarray, up_C: n
                 shared = SharedNoise(shared.groups, shared.shift * noise_scale, shared.dilation * noise_scale)
         if gravity_sigma_deg:
             sigma_up = np.radians(gravity_sigma_deg)
-            T = refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared)
-    rms_best = reprojection_rms(camera, T, obj, px)
+            T, delta = _refine_with_gravity(camera, T, obj, px, up_C, sigma_px, sigma_up, shared=shared,
+                                            relief_tilt=relief_tilt)
+    # (on a wrinkled pad, as the points lie on the patch it found: its tilt is no error of theirs)
+    rms_best = reprojection_rms(camera, T, obj if delta is None else _on_patch(obj, delta), px)
     if stated_shared is not None and shared is None:
         v = float(np.mean(sigma_px))
         shared = SharedNoise(stated_shared.groups, stated_shared.shift * v, stated_shared.dilation * v)
-    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared)
+    cov = pose_covariance(camera, T, obj, px, min_sigma_px=sigma_px, up_C=prior_up, sigma_up_rad=sigma_up, shared=shared,
+                          relief_tilt=relief_tilt, delta=delta)
     return PoseResult(T, rms_best, n, cov, other, choice, *tilt, normal_img, image_rms, sigma_px, other_T,
-                      mirror_normal, mirror_gap, noise_scale)
+                      mirror_normal, mirror_gap, noise_scale, math.degrees(relief_tilt),
+                      0.0 if delta is None else float(np.degrees(np.linalg.norm(delta))))
 
 
 def _tilt_noise_scale(angle_deg: float, sigma_deg: float, gravity_sigma_deg: float, chi2: float) -> float:
