@@ -5866,7 +5866,8 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     """What makes a pad taken for level one that tilts (:meth:`HierarchicalLocalizer._pad_tilt_seen`):
     poses whose image alone fixes the tilt (markers, to a degree), three within 5 s, each further from
     the IMU's up than the tilt gate allows and five sigmas.  Not an AHRS a little off, not the
-    outline's four corners, not a loose markers fit, not three such poses spread over a minute.  It
+    outline's four corners, not a loose markers fit, not three such poses spread over a minute, not
+    poses of a patch of the pad (a marker's corners alone, which a wrinkle tilts as far).  It
     says so in the frame, takes no other pose that frame, and from the next one is a deck tilting 1.5
     times as far, its tilt tracked from those poses, widened as the image shows more; a new track
     (time going back) forgets it.  A deck told too small a tilt is widened where a sure pose lies
@@ -5876,10 +5877,11 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     loc = HierarchicalLocalizer(pad, CAM)
     R_B_C = loc.T_B_C[:3, :3]
 
-    def seen(t, tilt_deg, sigma=0.2, method="markers"):
+    def seen(t, tilt_deg, sigma=0.2, method="markers", spread_m=0.25):  # (three markers' spread)
         n_W = so3_exp([math.radians(tilt_deg), 0.0, 0.0]) @ np.array([0.0, 0.0, 1.0])
         e = Estimate(t, "adjustment", "ok", np.eye(4), 24, 0.3, method=method,
-                     extras={"tilt_err_deg": tilt_deg, "tilt_sigma_deg": sigma, "normal_img_C": R_B_C.T @ n_W})
+                     extras={"tilt_err_deg": tilt_deg, "tilt_sigma_deg": sigma, "normal_img_C": R_B_C.T @ n_W,
+                             "spread_m": spread_m})
         loc._pad_tilt_seen(e, np.eye(3))
         return bool(loc.deck_seen)
 
@@ -5887,6 +5889,7 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     assert not any(seen(0.1 * k, 2.5) for k in range(20))  # an AHRS 2.5 degrees off: within the gate
     assert not any(seen(2.0 + 0.1 * k, 9.0, method="outline") for k in range(5))
     assert not any(seen(3.0 + 0.1 * k, 9.0, sigma=1.5) for k in range(5))  # a loose fit
+    assert not any(seen(5.0 + 0.1 * k, 6.0, spread_m=0.03) for k in range(5))  # one small marker's patch
     assert not any(seen(10.0 + 20.0 * k, 6.0) for k in range(4))  # over a minute
     assert not seen(100.0, 6.0) and not seen(102.0, 7.0) and seen(104.0, 6.5)
     assert "taken for a deck tilting up to 10.5 deg" in loc.deck_note
