@@ -816,8 +816,9 @@ SURE_TILT_DEG = 1.0  # a pose whose image alone fixes the pad's tilt to this (on
 DECK_SEEN_POSES = 3  # so many such poses within DECK_SEEN_WINDOW_S contradicting the IMU's up: the pad tilts (a deck)
 DECK_SEEN_WINDOW_S = 5.0
 DECK_AMPLITUDE_SHARE = 1.5  # a deck seen tilting d is taken to tilt up to this times d
-# ... seen by poses whose points spread (RMS about their centre, per axis) over at least this share of the
-# pad's side: a wrinkle tilts a small patch degrees from the pad's plane, a deck the whole pad.  A variant of
+# ... seen (and a deck's amplitude widened) by poses whose points spread (RMS about their centre, per axis) over
+# at least this share of the pad's side: a wrinkle tilts a small patch degrees from the pad's plane, a deck the
+# whole pad.  A variant of
 # fuzz seed 143's scene (a 17 mm relief, not stated) took its one 8.5 cm nested marker, spread 0.03 m of a
 # 0.85 m pad, tilted 3.5-4 degrees, for a deck: 23 poses followed that patch, 10-11 % of the height off, "ok".
 # The three finder markers spread 0.3 of the side; two adjacent ones 0.2-0.25
@@ -1361,7 +1362,7 @@ class HierarchicalLocalizer:
             for method, res in self._candidates(method, res, gray, up_C):
                 self.twist = tried_twist
                 pose, n, extras = res
-                if getattr(pose, "relief_tilt_deg", 0.0) > 0:  # what a wrinkle's tilt puts sideways (loose_tilt_refusal)
+                if pose.relief_tilt_deg > 0:  # what a wrinkle's tilt puts sideways (loose_tilt_refusal)
                     extras = dict(extras, relief_sideways_var=(pose.cam2pad[2, 3] * math.radians(pose.relief_tilt_deg)) ** 2)
                 est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                                extras=extras)
@@ -1476,7 +1477,9 @@ class HierarchicalLocalizer:
         A deck told too small a ``pad_tilt_deg`` is widened the same way where a sure pose's tilt
         lies three of its sigmas past it (unseen79, a deck tilting to 6.7 degrees told 2: touchdown
         31 % posed, the tracked tilt held to 2 degrees and the tracks' poses refused)."""
-        n_W = self._pad_normal_W(est, R_W_B) if sure_tilt(est) else None
+        # (not from a patch of the pad: a wrinkle tilts it as far as a deck does, DECK_SEEN_MIN_SPREAD)
+        sees_pad = est.extras.get("spread_m", 0.0) >= DECK_SEEN_MIN_SPREAD * self.geometry.side_m
+        n_W = self._pad_normal_W(est, R_W_B) if sure_tilt(est) and sees_pad else None
         if n_W is None:
             return
         tilt = math.degrees(math.acos(float(np.clip(n_W[2], -1.0, 1.0))))
@@ -1497,8 +1500,6 @@ class HierarchicalLocalizer:
             return
         if not image_tilt_contradicts(est, self.config, self.config.max_tilt_error_deg + self.gates.tilt_allowance_deg):
             return
-        if not est.extras.get("spread_m", 0.0) >= DECK_SEEN_MIN_SPREAD * self.geometry.side_m:
-            return  # (a patch of the pad: a wrinkle's tilt, as well as a deck's)
         self.tilted = [r for r in self.tilted if 0.0 <= est.t - r[0] <= DECK_SEEN_WINDOW_S] + [(est.t, n_W, sigma, tilt)]
         if len(self.tilted) < DECK_SEEN_POSES:
             return

@@ -5908,6 +5908,8 @@ def test_a_pad_is_taken_for_a_deck_only_where_sure_poses_show_it_tilting_within_
     loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(pad_tilt_deg=3.0))
     seen(1.0, 3.4)
     assert loc.config.pad_tilt_deg == 3.0
+    seen(1.05, 6.0, spread_m=0.03)  # a small marker's patch: a wrinkle's tilt as well
+    assert loc.config.pad_tilt_deg == 3.0
     seen(1.1, 6.0)
     assert loc.config.pad_tilt_deg == pytest.approx(9.0) and "it was told" in loc.deck_note
     loc.process(blank, 1.2, np.eye(3))
