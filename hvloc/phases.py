@@ -1917,8 +1917,9 @@ _ORDERS = np.array([np.roll(np.arange(4), r) for r in range(4)] + [np.roll(np.ar
 
 
 PAIR_DESIGN_MIN_NCC = 0.7    # the right naming's correlation with the design beyond the two markers
-PAIR_DESIGN_MIN_LEAD = 0.15  # ... and its lead over every other naming's
+PAIR_DESIGN_MIN_LEAD = 0.15  # ... and its lead over every other naming's (on the same square: by what a turn changes)
 PAIR_DESIGN_MIN_SEEN = 0.2   # the share of the pad's cells, beyond the two markers, in view
+PAIR_SAME_SQUARE = 0.25      # readings whose pad centres lie closer than this share of its side put it on one square
 
 
 def _pair_by_design(g: np.ndarray, nests: list, sets: dict, geo: PadGeometry, camera: Camera | None, up_C,
@@ -1976,34 +1977,54 @@ def _pair_by_design(g: np.ndarray, nests: list, sets: dict, geo: PadGeometry, ca
         return None
     cam = _shifted(camera, x0, y0)
     s = geo.side_m
-    scores = []
-    for set_name, quads, module_px in readings:
-        ms = sets[set_name]
-        n = int(np.clip(round(7.0 * module_px * s / ms[next(iter(quads))].size_m), 12, 64))  # the pad's side, px
-        pts = _design_cells(s, n)
-        px = _through_quad(np.concatenate(list(quads.values())), geo, cam, pts,
-                           square=np.concatenate([ms[k].outer_corners for k in quads]))
-        if px is None:
-            scores.append(-1.0)
-            continue
-        beyond = np.ones(len(pts), bool)
-        for name in quads:  # every reading puts a marker where the nests are: they tell nothing
-            half = 0.5 * ms[name].size_m + s / n
-            beyond &= np.abs(pts - ms[name].center[:2]).max(axis=1) > half
-        seen = np.isfinite(px).all(axis=1) & _seen(px, g.shape) & beyond
-        if seen.sum() < PAIR_DESIGN_MIN_SEEN * beyond.sum() or seen.sum() < 16:
-            scores.append(-1.0)
-            continue
-        v = cv2.remap(g, px[seen, 0].astype(np.float32)[None], px[seen, 1].astype(np.float32)[None],
-                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-        scores.append(_ncc(v, design.at(n).ravel()[seen]))
-    ncc = np.array(scores)
+    scored = np.array([_reading_score(g, r, sets, geo, cam, design) for r in readings])  # (R, 4)
+    ncc, turned, centres = scored[:, 0], scored[:, 1], scored[:, 2:]
     best = int(np.argmax(ncc))
-    lead = float(ncc[best] - np.max(np.delete(ncc, best), initial=-1.0))
-    if ncc[best] < PAIR_DESIGN_MIN_NCC or lead < PAIR_DESIGN_MIN_LEAD:
+    # readings that put the pad on the same square (a diagonal pair either way round, an adjacent
+    # pair's quarter turns) sample the same pixels: what every turn of the design shares (the ring,
+    # the white field, the texture's contrast) correlates alike in all of them.  They differ by what
+    # a turn changes (the third marker, the texture's layout): compared on that part alone.  (Fuzz
+    # seeds 131 and 161: a diagonal pair at 2-3 px modules, the right reading 0.87-0.92, the half
+    # turn 0.80-0.86, refused by the plain lead; on the turned part 0.24-0.37 against -0.06-0.0.)
+    quads = readings[best][1]
+    side = float(np.mean([np.linalg.norm(q[0] - q[1]) for q in quads.values()])) * s \
+        / sets[readings[best][0]][next(iter(quads))].size_m  # the pad's side, px
+    others = np.arange(len(ncc)) != best
+    same = others & (np.linalg.norm(centres - centres[best], axis=1) < PAIR_SAME_SQUARE * side)
+    lead = float(ncc[best] - np.max(ncc[others & ~same], initial=-1.0))
+    turn_lead = float(turned[best] - np.max(turned[same], initial=-1.0))
+    if ncc[best] < PAIR_DESIGN_MIN_NCC or min(lead, turn_lead) < PAIR_DESIGN_MIN_LEAD:
         return None
     set_name, quads, module_px = readings[best]
-    return set_name, quads, module_px, {"design_ncc": round(float(ncc[best]), 3), "design_lead": round(lead, 3)}
+    return set_name, quads, module_px, {"design_ncc": round(float(ncc[best]), 3), "design_lead": round(lead, 3),
+                                        "design_turn_lead": round(turn_lead, 3)}
+
+
+def _reading_score(g: np.ndarray, reading: tuple, sets: dict, geo: PadGeometry, cam, design: "PadDesign") -> tuple:
+    """``(ncc, turned ncc, centre x, centre y)`` of a :func:`_pair_by_design` reading ``(set, quads,
+    module px)``: the image beyond its two markers correlated with the design, and with the part of
+    the design a quarter turn changes (:func:`_asymmetric`); the pad's centre where it puts it.
+    -1 (and NaN) where it cannot be placed or too little of the pad is seen."""
+    set_name, quads, module_px = reading
+    ms, s = sets[set_name], geo.side_m
+    n = int(np.clip(round(7.0 * module_px * s / ms[next(iter(quads))].size_m), 12, 64))  # the pad's side, px
+    pts = _design_cells(s, n)
+    px = _through_quad(np.concatenate(list(quads.values())), geo, cam, np.vstack([pts, [[0.0, 0.0]]]),
+                       square=np.concatenate([ms[k].outer_corners for k in quads]))
+    if px is None:
+        return -1.0, -1.0, np.nan, np.nan
+    px, centre = px[:-1], px[-1]
+    beyond = np.ones(len(pts), bool)
+    for name in quads:  # every reading puts a marker where the nests are: they tell nothing
+        half = 0.5 * ms[name].size_m + s / n
+        beyond &= np.abs(pts - ms[name].center[:2]).max(axis=1) > half
+    seen = np.isfinite(px).all(axis=1) & _seen(px, g.shape) & beyond
+    if seen.sum() < PAIR_DESIGN_MIN_SEEN * beyond.sum() or seen.sum() < 16:
+        return -1.0, -1.0, centre[0], centre[1]
+    v = cv2.remap(g, px[seen, 0].astype(np.float32)[None], px[seen, 1].astype(np.float32)[None],
+                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
+    d = design.at(n)
+    return _ncc(v, d.ravel()[seen]), _ncc(v, _asymmetric(d).ravel()[seen]), centre[0], centre[1]
 
 
 def _refine_outline_from(rgb, pad_geometry, predict, x0, y0, camera):
