@@ -2152,6 +2152,8 @@ class HierarchicalLocalizer:
                 det = self._design_fitted(det, rgb, up_C)
                 if "design_disagrees" in det.info:  # (neither is taken: far_wide's 21 px pad, its corners kept, 11.5 % off)
                     det, why = None, _design_disagrees(det)
+            if det is not None and det.info.get("read_after_fit"):
+                det, why = self._read_where_fitted(det, gray, why)
             if det is not None and grey and self.deck is not None and not self.deck_tracked and "fitted_up_C" not in det.info:
                 # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
                 # deck_mono (both of IPPE's minima), stating 2.5.  Its design, where it fits the tilt
@@ -2350,6 +2352,20 @@ class HierarchicalLocalizer:
             "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
         return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
                                              **({} if square else {"rescued": "design fit"})))
+
+    def _read_where_fitted(self, det, gray: np.ndarray, why: str) -> tuple:
+        """``(det | None, reason)``: a grey outline read as the pad's design only at the lower bar
+        (:data:`hvloc.phases.GREY_NEAR_ASYM_NCC`) is taken where its design fit placed it and the image
+        there reads as the design at the full bars (:func:`hvloc.phases._reads_as_design`); refused where
+        its design was not fitted or does not read so."""
+        fit = det.info.get("design_fit")
+        if not isinstance(fit, dict):
+            return None, f"a grey frame's pad read faintly as its design, and its design not fitted ({fit or 'off'})"
+        outer = ph._through_quad(det.px, self.geometry, self.camera, self.outer_P[:, :2], square=det.pts_P)
+        if outer is None or not np.isfinite(outer).all() \
+                or not ph._reads_as_design(gray, outer, self.geometry, self.camera, self._design())[0]:
+            return None, "a grey frame's pad read faintly as its design, and not as it where its design fit puts it"
+        return det, why
 
     def _small_field_refused(self, det, why: str) -> tuple:
         """``(None, reason)`` for an outline placed by its white field's corners alone (its design not
