@@ -229,9 +229,13 @@ class CameraSpec(_Model):
                       (self.height - 1) / 2.0 + self.principal_offset_px[1], tuple(self.dist), self.model)
 
 
+DECK_CLEARANCE_M = 0.02  # a moving deck's top stays this far above the ground at its lowest
+
+
 class PlatformSpec(_Model):
     height_m: float = Field(0.0, ge=0.0, le=50.0, description="pad surface above the ground")
-    size_m: float = Field(1.2, gt=0.0, description="side of the platform's top (0: no platform box)")
+    size_m: float = Field(1.2, gt=0.0, description="side of the platform's top (a box is drawn only where "
+                          "height_m is above 0)")
     velocity_mps: tuple[float, float] = Field((0.0, 0.0), description="constant platform velocity (east, north)")
     # a ship's deck: each motion a sinusoid of its own period, its phase drawn per sequence; the
     # descent follows the heave (heights stay above the pad's centre), not the roll, pitch and yaw
@@ -263,10 +267,13 @@ class PlatformSpec(_Model):
 
     @model_validator(mode="after")
     def _deck(self):
-        if self.deck_moves() and self.max_edge_drop_m() >= self.height_m - 0.02:
-            raise ValueError(f"platform: a deck that heaves {self.heave_m} m, rolls {self.roll_deg} deg and pitches "
-                             f"{self.pitch_deg} deg takes the edge of its {self.size_m} m top {self.max_edge_drop_m():.2f} m "
-                             f"down, into the ground below a platform {self.height_m} m high; raise platform.height_m")
+        if self.deck_moves() and self.max_edge_drop_m() >= self.height_m - DECK_CLEARANCE_M:
+            # (a deck that only yaws drops nothing, but moves: it still stands clear of the ground)
+            raise ValueError(f"platform: a moving deck (heave {self.heave_m} m, roll {self.roll_deg} deg, pitch "
+                             f"{self.pitch_deg} deg, yaw {self.yaw_deg} deg) takes the edge of its {self.size_m} m top "
+                             f"{self.max_edge_drop_m():.2f} m down and must stay {DECK_CLEARANCE_M} m above the ground: "
+                             f"raise platform.height_m from {self.height_m} to more than "
+                             f"{self.max_edge_drop_m() + DECK_CLEARANCE_M:.2f} m, or keep the deck still")
         return self
 
 

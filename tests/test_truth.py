@@ -1302,6 +1302,10 @@ def test_a_deck_that_would_reach_the_ground_or_the_camera_is_refused():
         validate_model(DatasetSpec, {"platform": {"height_m": 0.0, "heave_m": 0.3}})
     with pytest.raises(InputError, match="raise platform.height_m"):
         validate_model(DatasetSpec, {"platform": {"height_m": 0.3, "size_m": 2.0, "roll_deg": 15.0, "pitch_deg": 10.0}})
+    # a deck that only yaws drops nothing: the message says what it needs (it said "0.00 m down, into the ground")
+    with pytest.raises(InputError, match=r"yaw 5.0 deg\).* raise platform.height_m from 0.0 to more than 0.02 m, or keep"):
+        validate_model(DatasetSpec, {"platform": {"height_m": 0.0, "yaw_deg": 5.0}})
+    validate_model(DatasetSpec, {"platform": {"height_m": 0.03, "yaw_deg": 5.0}})
     with pytest.raises(InputError, match="touchdown_height_m"):
         validate_model(DatasetSpec, {"platform": {"height_m": 1.0, "roll_deg": 15.0},
                                      "trajectory": {"touchdown_height_m": 0.1, "final_offset_m": [0.0, 0.3]}})
