@@ -2356,14 +2356,14 @@ class HierarchicalLocalizer:
     def _read_where_fitted(self, det, gray: np.ndarray, why: str) -> tuple:
         """``(det | None, reason)``: a grey outline read as the pad's design only at the lower bar
         (:data:`hvloc.phases.GREY_NEAR_ASYM_NCC`) is taken where its design fit placed it and the image
-        there reads as the design at the full bars (:func:`hvloc.phases._reads_as_design`); refused where
+        there reads as the design at the full bars (:func:`hvloc.phases._design_read`); refused where
         its design was not fitted or does not read so."""
         fit = det.info.get("design_fit")
         if not isinstance(fit, dict):
             return None, f"a grey frame's pad read faintly as its design, and its design not fitted ({fit or 'off'})"
         outer = ph._through_quad(det.px, self.geometry, self.camera, self.outer_P[:, :2], square=det.pts_P)
         if outer is None or not np.isfinite(outer).all() \
-                or not ph._reads_as_design(gray, outer, self.geometry, self.camera, self._design())[0]:
+                or ph._design_read(gray, outer, self.geometry, self.camera, self._design())[0] != ph.READS:
             return None, "a grey frame's pad read faintly as its design, and not as it where its design fit puts it"
         return det, why
 

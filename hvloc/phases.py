@@ -1354,10 +1354,9 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
             continue
         if _mean_side(outer) < GREY_MIN_SIDE_PX:
             continue
-        reads, ncc = _reads_as_design(gray, outer, geo, camera, design)
-        near = not reads and _reads_as_design(gray, outer, geo, camera, design, GREY_NEAR_ASYM_NCC)[0]
-        if (reads or near) and (best is None or (reads, ncc) > best[:2]):
-            best = (reads, ncc, outer)
+        level, ncc = _design_read(gray, outer, geo, camera, design)
+        if level and (best is None or (level, ncc) > best[:2]):
+            best = (level, ncc, outer)
     if best is None:
         return None, f"no bright quadrilateral in a grey frame reads as the pad's design ({len(cands)} looked at)"
     outer = best[2]
@@ -1394,28 +1393,36 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
     # One read at the lower bar (GREY_NEAR_ASYM_NCC) is read so here, and at the full bars where the pad's
     # design fit puts it (the localizer's: a 24-35 px field fitted on luma came out 1-2 % of its side large,
     # reading lower than where the pad is)
-    strict = _reads_as_design(gray, outer, geo, camera, design)[0]
-    if not (strict or (not best[0] and _reads_as_design(gray, outer, geo, camera, design, GREY_NEAR_ASYM_NCC)[0])):
+    level = _design_read(gray, outer, geo, camera, design)[0]
+    if not (level == READS or (best[0] == READS_FAINTLY and level == READS_FAINTLY)):
         return None, "the pad's design is seen in a grey frame, but not where its field's sides fit"
-    return OutlineQuad(outer, np.zeros((2, 4)), _mean_side(outer), rms, field_px=field, read_after_fit=not strict), "ok"
+    return OutlineQuad(outer, np.zeros((2, 4)), _mean_side(outer), rms, field_px=field,
+                       read_after_fit=level != READS), "ok"
 
 
-def _reads_as_design(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None,
-                     design: PadDesign, min_asym: float = GREY_MIN_ASYM_NCC) -> tuple:
-    """``(bool, best correlation)``: whether the grey image through the outer square ``outer`` reads as
-    the pad's design, at :data:`GREY_MIN_NCC` and leading the next naming by :data:`GREY_MIN_LEAD`, or
-    where that lead falls short, by the design's asymmetric part correlating ``min_asym``."""
+READS, READS_FAINTLY = 2, 1  # :func:`_design_read`'s levels (0: it does not read as the design)
+
+
+def _design_read(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None,
+                 design: PadDesign) -> tuple:
+    """``(level, best correlation)``: how the grey image through the outer square ``outer`` reads as the
+    pad's design.  :data:`READS`: at :data:`GREY_MIN_NCC`, leading the next naming by :data:`GREY_MIN_LEAD`,
+    or where that lead falls short, named alike by the design's asymmetric part correlating
+    :data:`GREY_MIN_ASYM_NCC` and leading by :data:`GREY_MIN_ASYM_LEAD`; :data:`READS_FAINTLY`: so, but
+    that part correlating only :data:`GREY_NEAR_ASYM_NCC`; else 0."""
     k, scores = name_by_design(gray, outer, geo, camera, design)
     o = np.sort(scores)
     if k is None or o[-1] < GREY_MIN_NCC:
-        return False, float(o[-1])
+        return 0, float(o[-1])
     if o[-1] - o[-2] >= GREY_MIN_LEAD:
-        return True, float(o[-1])
+        return READS, float(o[-1])
     a = asymmetric_design_scores(gray, outer, geo, camera, design)
     if a is None:
-        return False, float(o[-1])
+        return 0, float(o[-1])
     ao = np.sort(a)
-    return bool(int(np.argmax(a)) == k and ao[-1] >= min_asym and ao[-1] - ao[-2] >= GREY_MIN_ASYM_LEAD), float(o[-1])
+    if int(np.argmax(a)) != k or ao[-1] - ao[-2] < GREY_MIN_ASYM_LEAD:
+        return 0, float(o[-1])
+    return (READS if ao[-1] >= GREY_MIN_ASYM_NCC else READS_FAINTLY if ao[-1] >= GREY_NEAR_ASYM_NCC else 0), float(o[-1])
 
 
 def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> bool:
@@ -1520,7 +1527,7 @@ class PadDesign:
 
     def __init__(self, texture_rgb: np.ndarray):
         self.gray = cv2.cvtColor(np.ascontiguousarray(texture_rgb), cv2.COLOR_RGB2GRAY)
-        self._at = {}
+        self._at, self._turned = {}, {}
 
     def at(self, n: int) -> np.ndarray:
         """(n, n) float grey: each sample the mean of its cell (the image's pixel), a little blurred
@@ -1529,6 +1536,13 @@ class PadDesign:
         if d is None:
             d = cv2.resize(self.gray, (n, n), interpolation=cv2.INTER_AREA).astype(np.float64)
             d = self._at[n] = cv2.GaussianBlur(d, (0, 0), 0.6)
+        return d
+
+    def turned(self, n: int) -> np.ndarray:
+        """:meth:`at` less its mean over the four quarter turns (:func:`_asymmetric`): what a turn changes."""
+        d = self._turned.get(n)
+        if d is None:
+            d = self._turned[n] = _asymmetric(self.at(n))
         return d
 
 
@@ -1587,7 +1601,7 @@ def asymmetric_design_scores(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeom
     if got is None or not got[1].all():
         return None
     v, _, n = got
-    va, da = _asymmetric(v.reshape(n, n)).ravel(), _asymmetric(design.at(n))
+    va, da = _asymmetric(v.reshape(n, n)).ravel(), design.turned(n)
     return np.array([_ncc(va, np.rot90(da, _DESIGN_TURN * k).ravel()) for k in range(4)])
 
 
@@ -2040,8 +2054,7 @@ def _reading_score(g: np.ndarray, reading: tuple, sets: dict, geo: PadGeometry, 
         return -1.0, -1.0, centre[0], centre[1]
     v = cv2.remap(g, px[seen, 0].astype(np.float32)[None], px[seen, 1].astype(np.float32)[None],
                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-    d = design.at(n)
-    return _ncc(v, d.ravel()[seen]), _ncc(v, _asymmetric(d).ravel()[seen]), centre[0], centre[1]
+    return _ncc(v, design.at(n).ravel()[seen]), _ncc(v, design.turned(n).ravel()[seen]), centre[0], centre[1]
 
 
 def _refine_outline_from(rgb, pad_geometry, predict, x0, y0, camera):
