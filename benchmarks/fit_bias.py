@@ -31,7 +31,6 @@ BINS = tuple(zip(PAD_PX_BINS[:-1], PAD_PX_BINS[1:]))  # 16-20, ..., 64-140 px
 def fit_rows(dataset, every: int = 1, response: str = "known") -> list:
     """Per frame fitted: ``(sequence, frame, pad px, height error %, lateral error %, blur px,
     sharpening)``; a frame the fit refused is left out (its reason is not a bias)."""
-    from hvloc.phases import chroma_halved
     from hvloc.synthesis import PadSynthesis
     from hvloc.texfit import HALVED_MAX_SIDE_PX, fit_pose_to_design
     from render.dataset import Dataset
@@ -45,10 +44,7 @@ def fit_rows(dataset, every: int = 1, response: str = "known") -> list:
             if not BINS[0][0] <= px[k] < BINS[-1][1]:
                 continue
             G = seq.cam2pad_at(k)
-            image = seq.image(k)
-            # (compared in chroma too where it is whole, as the localizer compares it)
-            fitted, info = fit_pose_to_design(image, seq.camera, drawing, G, known, HALVED_MAX_SIDE_PX,
-                                              chroma=not chroma_halved(image))
+            fitted, info = fit_pose_to_design(seq.image(k), seq.camera, drawing, G, known, HALVED_MAX_SIDE_PX)
             if fitted is None:
                 continue
             h = float(G[2, 3])

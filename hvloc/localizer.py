@@ -2298,9 +2298,9 @@ class HierarchicalLocalizer:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         tilt = not smear > TILT_MAX_SMEAR_PX
-        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least, halved),
+        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least),
                          fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
-                         up_C if tilt else None, self.up_sigma_deg, least, not halved)
+                         up_C if tilt else None, self.up_sigma_deg, least)
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design

@@ -16,21 +16,8 @@ by as many tenths of a percent), and two of the camera's: its blur (a Gaussian's
 and codec together, which couples with the size: a wider blur spreads the white field outward)
 and its own sharpening (an unsharp mask's amount).  Each of the camera's channels is linear in
 light (the design's red, green and blue, the ground's, an offset), solved at every step, and
-written through sRGB's tone curve (:data:`TONE`); the fit compares the frame's luma, and its chroma
-where that is whole (not a codec's half-resolution chroma), each weighed by its own noise.  Residuals
+written through sRGB's tone curve (:data:`TONE`); the fit compares the frame's luma.  Residuals
 are weighed by Huber's rule, so a shadow across part of the pad counts as little as it fits.
-
-Why chroma: beside the border, luma cannot tell the border from anything as dark.  A pad on a
-platform whose dark rim (its top's edge, its side) lines the border's outer edge, over bright snow,
-was fitted 1.65 % of the height too near from its labelled pose in the median (fuzz seed 216 without
-its dirt and gloss, 18-64 px; on the snow without the platform 0.06 %), with chroma 0.8 %; fuzz seed
-216 as rendered, 2.6 % -> 0.5 %.  Over 16 random scenes with whole chroma, the median of each scene's
-|height error| 0.33 -> 0.21 % (``benchmarks.fit_bias`` fits as the localizer does).  Chroma places the pad, never tilts it: the tilt, where fitted, is fitted on luma alone (as
-:data:`TILT_PIXELS_PER_SAMPLE` and :data:`DESIGN_MODEL_PX` were calibrated), and the pad then placed
-again with chroma at that tilt.  Fitted with chroma, the tilt of a 50 px pad went 0.5 degrees further
-off on a camera with a lens's chromatic aberration (fuzz seed 143), and a deck's far pad stayed at the
-IMU's level start 7 degrees off (fuzz seed 114, a render mixed in display values, whose colour edges
-the drawing does not model), 12 % of the height off and accepted.
 
 Where the bias went: on frames made as a camera makes them (light averaged over each pixel, blurred,
 written through sRGB), a grey frame taken to light as one channel, with the tone's exponent fitted,
@@ -124,10 +111,7 @@ TILT_PIXELS_PER_SAMPLE = 10.0
 # pad's 31 px view, fitted from the labelled pose, went 3.5 degrees off stating 0.9, 0.6 off its stains
 # removed; with this error as well, 0.6-1.3 times in the median at every size, 0-3 % beyond three)
 DESIGN_MODEL_PX = 0.1
-LUMA = (0.299, 0.587, 0.114)  # an RGB frame is compared in this mix of its written channels (OpenCV's grey, JPEG's luma) ...
-# ... and, where its chroma is whole (``chroma=True``), in these two as well (JPEG's Cb and Cr: B and R less the luma),
-# each residual weighed by its own noise
-CHROMA = ((-0.169, -0.331, 0.5), (0.5, -0.419, -0.081))
+LUMA = (0.299, 0.587, 0.114)  # an RGB frame is compared in this mix of its written channels (OpenCV's grey, JPEG's luma)
 
 
 RESPONSE_FIELDS = (("gamma", None, 0.2, 10.0), ("sharpen", 0.0, 0.0, 10.0), ("sharpen_sigma_px", SHARPEN_SIGMA_PX, 1e-3, 20.0))
@@ -214,13 +198,11 @@ def _tilt_to(T: np.ndarray, up_C) -> np.ndarray:
 
 def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None,
                        max_side_px: float = MAX_SIDE_PX, up_C: np.ndarray | None = None,
-                       up_sigma_deg: float | None = None, tilt_min_side_px: float = TILT_MIN_SIDE_PX,
-                       chroma: bool = False) -> tuple:
+                       up_sigma_deg: float | None = None, tilt_min_side_px: float = TILT_MIN_SIDE_PX) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
-    (:data:`LUMA`) and, with ``chroma`` (the frame's chroma whole, not a codec's half-resolution one),
-    in its chroma (:data:`CHROMA`) as well, or a grey camera's ``(H, W)``.  ``info``: the blur (px),
+    (:data:`LUMA`), or a grey camera's ``(H, W)``.  ``info``: the blur (px),
     and sharpening fitted, the drawing's correlation with the frame, the residual's RMS, the
     pixels compared, iterations, the pad's side (px) at the start.  None (``info["why"]``) for a pad outside :data:`MIN_SIDE_PX` - ``max_side_px`` across,
     too little of it in view, or a drawing that matches the frame poorly (:data:`MIN_NCC`).
@@ -263,13 +245,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     grid = cv2.resize(fine, (box[2] - box[0], box[3] - box[1]), interpolation=cv2.INTER_AREA)
     img = np.asarray(image[box[1]:box[3], box[0]:box[2]], np.float64) / 255.0
     img = img.reshape(img.shape[0], img.shape[1], -1)
-    # the mixes compared (channels, m): the luma (a grey camera: its one channel), and the chroma where asked
-    if img.shape[2] == 3:
-        # (not a grey camera's frame written as RGB: its chroma is 0 everywhere, its noise too)
-        colour = chroma and bool(np.any(img[..., 0] != img[..., 1]) or np.any(img[..., 1] != img[..., 2]))
-        mix = np.column_stack((LUMA,) + (CHROMA if colour else ()))
-    else:
-        mix = np.full((img.shape[2], 1), 1.0 / img.shape[2])
+    luma = np.array(LUMA) if img.shape[2] == 3 else np.full(img.shape[2], 1.0 / img.shape[2])  # a grey camera: its one channel
     levels = _design_levels(synth)
     inside = (_draw(levels, synth, camera, fine, cam2pad, SUBSAMPLES)[..., 3] > 0.5).astype(np.uint8)
     # compared: the pad and a ring of ground around it (the border's outer edge is seen against
@@ -286,7 +262,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     sel = np.ones_like(mask) if amount > 0 else mask
     at = mask[sel] if amount > 0 else slice(None)
     target = img[mask]  # (n, channels) as written
-    seen = target @ mix  # (n, m): the luma (and chroma) compared
+    seen = target @ luma  # the luma compared
     # ... and each channel in light, the gains' target: where the camera sharpened, as it was before
     # (the mask undone: x = (written + a G(x)) / (1 + a), a contraction; solved on the sharpened
     # values, the gains took the mask's halos for the pad's levels and the pad came out 0.1 % small)
@@ -335,10 +311,10 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         A = np.column_stack([d[:, 0], d[:, 1], d[:, 2], 1.0 - d[:, 3], np.ones(len(d))])
         g, *_ = np.linalg.lstsq(A[at], target_light, rcond=None)  # (5, channels)
         light = np.maximum(A @ g, LIGHT_FLOOR)  # (the tone curve's slope is unbounded at black)
-        return seen - (written(light ** (1.0 / tone)) @ mix)[at], A, g, light
+        return seen - (written(light ** (1.0 / tone)) @ luma)[at], A, g, light
 
     def jacobian(q, DB, A, g, light, tilt):
-        """``(n, m, 8)``: the residuals' derivatives (each compared mix's).  The pose's four (six with the ``tilt``) from
+        """``(n, 8)``: the residuals' derivatives.  The pose's four (six with the ``tilt``) from
         the drawing's gradient and the image motion each parameter causes at each pixel's pad point;
         the blur's from the drawings' Laplacians (a Gaussian's width grows as the heat equation
         says); the sharpening's from the two blurs' difference.  Each carries the change of the brightness solved with it
@@ -369,9 +345,9 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             dA = np.column_stack([dd[:, :3], -dd[:, 3], np.zeros(len(dd))])
             dAc = dA[at]
             dg = AtA_inv @ (dAc.T @ lit - Ac.T @ (dAc @ g))  # the gains' change (the normal equations')
-            return -(written(slope * (dA @ g + A @ dg)) @ mix)[at]
+            return -(written(slope * (dA @ g + A @ dg)) @ luma)[at]
 
-        J = np.zeros((n, mix.shape[1], len(q)))
+        J = np.zeros((n, len(q)))
         for i, k in enumerate(POSE):  # each pose parameter moves the pad points' ideal images
             if k >= 6 and not tilt:
                 continue
@@ -379,9 +355,9 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             dq[k] = steps[i]
             moved = X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
             flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[i]
-            J[:, :, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
-        J[:, :, 4] = of(lap)
-        J[:, :, 5] = of((B1 - B2)[sel].astype(np.float64))
+            J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
+        J[:, 4] = of(lap)
+        J[:, 5] = of((B1 - B2)[sel].astype(np.float64))
         return J
 
     model = DESIGN_MODEL_PX * float(camera.fx) / side_px ** 2  # the drawing's own error as a tilt (radians)
@@ -399,12 +375,11 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
             return None
         return math.sqrt(worst) if worst > 0 and math.isfinite(worst) else None
 
-    def descend(state, tilt: bool, m_used: int):
+    def descend(state, tilt: bool):
         """Levenberg-Marquardt from ``state`` (``(q, DB, r, A, g, light)``), the tilt (``q[6:8]``)
-        fitted or held, comparing the first ``m_used`` mixes (1: the luma alone); returns the last state, the iterations taken and the tilt's doubt (radians,
+        fitted or held; returns the last state, the iterations taken and the tilt's doubt (radians,
         one sigma along its worst axis: :func:`tilt_doubt`; ``None`` when held)."""
-        q, DB, r_all, A, g, light = state
-        r = r_all[:, :m_used]
+        q, DB, r, A, g, light = state
         # the tilt's prior (centred on the IMU's, ``q0``), in the residuals' units: their robust variance
         # per sample (TILT_PIXELS_PER_SAMPLE)
         prior = TILT_PIXELS_PER_SAMPLE / math.radians(up_sigma_deg) ** 2 if tilt else 0.0
@@ -412,18 +387,15 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         it = 0
         doubt = None
         for it in range(1, ITERATIONS + 1):
-            # each mix's residuals weighed by its own robust noise, in the luma's units (``c``)
-            s_mix = 1.4826 * np.median(np.abs(r), axis=0) + 1e-9
-            c = s_mix[0] / s_mix
-            rs, s = (r * c).ravel(), float(s_mix[0])
-            w = np.where(np.abs(rs) <= HUBER_K * s, 1.0, HUBER_K * s / np.maximum(np.abs(rs), 1e-12))
-            J = (jacobian(q, DB, A, g, light, tilt)[:, :m_used] * c[:, None]).reshape(len(rs), -1)
+            s = 1.4826 * float(np.median(np.abs(r))) + 1e-9
+            w = np.where(np.abs(r) <= HUBER_K * s, 1.0, HUBER_K * s / np.maximum(np.abs(r), 1e-12))
+            J = jacobian(q, DB, A, g, light, tilt)
             N = J.T @ (J * w[:, None])
-            b = J.T @ (w * rs)
+            b = J.T @ (w * r)
             pw = prior * s * s
             N[6:8, 6:8] += pw * np.eye(2)
             b[6:8] += pw * (q[6:8] - q0)
-            cost = float(np.sum(w * rs * rs)) + pw * float((q[6:8] - q0) @ (q[6:8] - q0))
+            cost = float(np.sum(w * r * r)) + pw * float((q[6:8] - q0) @ (q[6:8] - q0))
             # a camera parameter at the end of its range that the descent would push past is held there
             # this step: clipped after the solve, its step would spoil the others' (the pose stopped
             # where it started whenever the sharpening sat at 0)
@@ -448,39 +420,33 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
                 qn[5] = float(np.clip(qn[5], *SHARPEN_RANGE))
                 DBn = drawn(qn)
                 rn, An, gn, ln = toned(DBn[0][sel].astype(np.float64))
-                rns = (rn[:, :m_used] * c).ravel()
-                if float(np.sum(w * rns * rns)) + pw * float((qn[6:8] - q0) @ (qn[6:8] - q0)) < cost:
-                    q, DB, r_all, A, g, light, moved = qn, DBn, rn, An, gn, ln, True
-                    r = r_all[:, :m_used]
+                if float(np.sum(w * rn * rn)) + pw * float((qn[6:8] - q0) @ (qn[6:8] - q0)) < cost:
+                    q, DB, r, A, g, light, moved = qn, DBn, rn, An, gn, ln, True
                     lam = max(lam / 10.0, 1e-9)
                     break
                 lam *= 10.0
             if not moved or (np.all(np.abs(dq[list(POSE)]) < 0.1 * steps) and np.all(np.abs(dq[4:6]) < 0.02)):  # settled
                 break
-        return (q, DB, r_all, A, g, light), it, doubt
+        return (q, DB, r, A, g, light), it, doubt
 
     q = np.array([0.0, 0.0, 0.0, 0.0, BLUR_START_PX, 0.0, 0.0, 0.0])
     q0 = np.zeros(2)
     DB = drawn(q)
-    m = mix.shape[1]
-    state, it, _ = descend((q, DB) + toned(DB[0][sel].astype(np.float64)), False, m)
+    state, it, _ = descend((q, DB) + toned(DB[0][sel].astype(np.float64)), False)
     q, doubt = state[0], None
     if up_C is not None and up_sigma_deg and side_px >= tilt_min_side_px and q[4] <= TILT_MAX_BLUR_PX:
         q0 = _tilt_to(_posed(cam2pad, q), up_C)
-        state, more, doubt = descend(state, True, 1)
+        state, more, doubt = descend(state, True)
         q, it = state[0], it + more
-        if m > 1:
-            state, more, _ = descend(state, False, m)
-            q, it = state[0], it + more
-    r = state[2][:, 0]  # the luma's
+    r = state[2]
     on = inside[mask] > 0  # the correlation on the pad alone
-    d = (seen[:, 0] - r)[on]  # the drawing's luma
-    t = seen[on, 0]
+    d = (seen - r)[on]  # the drawing's luma
+    t = seen[on]
     a = d - d.mean()
     t = t - t.mean()
     ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
     info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it,
-            "side_px": round(side_px, 2), "chroma": m > 1}
+            "side_px": round(side_px, 2)}
     if q[6] or q[7]:
         info["tilt_deg"] = [round(math.degrees(float(x)), 3) for x in q[6:8]]
         info["tilt_sigma_deg"] = round(math.degrees(min(doubt, math.radians(up_sigma_deg))), 4) \

@@ -5120,59 +5120,6 @@ def test_a_far_pads_design_is_drawn_over_each_pixels_area(pad, monkeypatch):
     assert np.mean(centred) < -0.0015, centred
 
 
-def test_a_far_pad_beside_a_dark_rim_is_placed_by_its_chroma_not_grown_over_the_rim(pad):
-    """A pad on a platform whose dark rim (3 cm, neutral grey) lines its border's outer edge, over
-    bright snow.  In luma the rim is as dark as the border: the design fit compared on luma alone
-    takes it for border and puts these 28-60 px pads 0.7-4.6 % of the height too near (fuzz seed 216
-    as rendered: 2.6 %).  Compared in chroma too, where the rim is as grey as the snow, 1.0 % (the
-    rest: the ground drawn at one level, which beside the pad is dark and beyond it bright).  On plain ground
-    chroma changes nothing that matters (within 0.1 % both), and a grey camera's frame written as RGB
-    has no chroma to compare: fitted as with luma alone."""
-    from types import SimpleNamespace
-
-    from hvloc.synthesis import PadSynthesis
-    from hvloc.texfit import fit_pose_to_design
-
-    rim = int(round(0.03 * pad.ppm))
-    tex = np.pad(pad.texture_rgb, ((rim, rim), (rim, rim), (0, 0)))
-    tex[:rim], tex[-rim:], tex[:, :rim], tex[:, -rim:] = 55, 55, 55, 55
-    platform = SimpleNamespace(texture_rgb=tex, ppm=pad.ppm, side_m=tex.shape[0] / pad.ppm)
-    syn, rng = PadSynthesis(pad), np.random.default_rng(1)
-
-    def errors(view, ground, sides):
-        out = {False: [], True: []}
-        for side in sides:
-            h = CAM.fx * pad.side_m / side
-            G, h, frame = _camera_view(view, rng, (h, h), ground)
-            for chroma in (False, True):
-                fitted, info = fit_pose_to_design(frame, CAM, syn, G, chroma=chroma)
-                assert fitted is not None and info["chroma"] == chroma, info
-                out[chroma].append((fitted[2, 3] - G[2, 3]) / h)
-        return {k: np.array(v) for k, v in out.items()}
-
-    rimmed = errors(platform, (235, 238, 245), np.linspace(28, 60, 5))
-    assert np.mean(rimmed[False]) < -0.02, rimmed  # the rim taken for border
-    assert np.max(np.abs(rimmed[True])) < 0.013 and np.mean(np.abs(rimmed[True])) < 0.5 * np.mean(np.abs(rimmed[False])), rimmed
-    plain = errors(pad, (120, 90, 60), (30, 50))
-    assert np.max(np.abs(plain[False])) < 0.001 and np.max(np.abs(plain[True])) < 0.001, plain
-    G, h, frame = _camera_view(pad, rng, (14, 14), (120, 90, 60))
-    grey = np.repeat(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY)[..., None], 3, axis=2)
-    (a, ia), (b, ib) = (fit_pose_to_design(grey, CAM, syn, G, chroma=c) for c in (False, True))
-    assert not ib["chroma"] and np.array_equal(a, b)
-
-
-def test_the_localizer_compares_chroma_in_its_design_fit_only_where_the_frame_keeps_it_whole(pad):
-    """The localizer's design fit compares chroma where the frame's is whole; a JPEG frame's chroma is
-    at half resolution, its colour edges smeared over pixels the drawing does not smear: luma alone."""
-    G, h, frame = _camera_view(pad, np.random.default_rng(2), (14, 14), (120, 90, 60))
-    ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(frame, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 60])
-    for image, whole in ((frame, True), (cv2.cvtColor(cv2.imdecode(jpeg, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB), False)):
-        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4))
-        e = loc.process(image, 0.0, imu=G[:3, :3])  # the body is the camera; the pad lies level
-        assert e.status == "ok" and e.method == "outline", e.reason
-        assert e.extras["design_fit"]["chroma"] is whole and abs(e.cam2pad[2, 3] - G[2, 3]) / h < 0.003
-
-
 @pytest.mark.parametrize("gamma,sharpen", [(2.42, 0.4), (2.2, 0.5), (2.42, 0.0)])
 def test_a_far_pad_fitted_with_its_cameras_known_response_is_as_far_as_it_is(pad, gamma, sharpen):
     """A camera whose tone curve is not sRGB's (written = light ** (1 / 2.42), a gamma of 1.1 on top)
