@@ -1409,18 +1409,24 @@ def _design_read(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: 
     pad's design.  :data:`READS`: at :data:`GREY_MIN_NCC`, leading the next naming by :data:`GREY_MIN_LEAD`,
     or where that lead falls short, named alike by the design's asymmetric part correlating
     :data:`GREY_MIN_ASYM_NCC` and leading by :data:`GREY_MIN_ASYM_LEAD`; :data:`READS_FAINTLY`: so, but
-    that part correlating only :data:`GREY_NEAR_ASYM_NCC`; else 0."""
+    that part correlating only :data:`GREY_NEAR_ASYM_NCC`; else 0.  Also where the lead falls short of
+    :data:`DESIGN_MIN_LEAD`, so that :func:`name_by_design` names nothing: a far pad with fine texture
+    (an even grey at a sample per pixel) reads alike under every quarter turn but its markers (a 1.6 m
+    pad with 0.2 m markers at 27-30 px: 0.98 against 0.94-0.95, its asymmetric part 0.77 against
+    -0.25), and was lost."""
     k, scores = name_by_design(gray, outer, geo, camera, design)
     o = np.sort(scores)
-    if k is None or o[-1] < GREY_MIN_NCC:
+    if o[-1] < GREY_MIN_NCC:
         return 0, float(o[-1])
-    if o[-1] - o[-2] >= GREY_MIN_LEAD:
+    if k is not None and o[-1] - o[-2] >= GREY_MIN_LEAD:
         return READS, float(o[-1])
+    # the plain naming's lead short of GREY_MIN_LEAD, or even of DESIGN_MIN_LEAD (k None): what a
+    # quarter turn changes decides
     a = asymmetric_design_scores(gray, outer, geo, camera, design)
     if a is None:
         return 0, float(o[-1])
     ao = np.sort(a)
-    if int(np.argmax(a)) != k or ao[-1] - ao[-2] < GREY_MIN_ASYM_LEAD:
+    if int(np.argmax(a)) != int(np.argmax(scores)) or ao[-1] - ao[-2] < GREY_MIN_ASYM_LEAD:
         return 0, float(o[-1])
     return (READS if ao[-1] >= GREY_MIN_ASYM_NCC else READS_FAINTLY if ao[-1] >= GREY_NEAR_ASYM_NCC else 0), float(o[-1])
 
