@@ -1347,7 +1347,7 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
     if not cands:
         return None, f"no field-shaped bright quadrilateral in a grey frame (a pad {GREY_MIN_SIDE_PX:g} px across at least)"
     cands.sort(key=lambda a: -a[0])
-    best = None
+    best, near = None, []
     for _, field in cands[:GREY_MAX_CANDIDATES]:
         outer = _outer_of_field(field, geo, camera)
         if outer is None or not np.isfinite(outer).all():
@@ -1357,21 +1357,26 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
         level, ncc = _design_read(gray, outer, geo, camera, design)
         if level and (best is None or (level, ncc) > best[:2]):
             best = (level, ncc, outer)
+        elif ncc >= DESIGN_MIN_NCC:
+            near.append((ncc, outer))
+    # none reads: a blob's hull a few px off the field (its corners rounded, a bright stain run into its
+    # ring) samples the design askew; the field's sides fitted from there and read again (the most
+    # alike first).  The bars are the same
+    for _, outer in sorted(near, key=lambda a: -a[0])[:GREY_REFIT_CANDIDATES] if best is None else ():
+        got = _grey_field_fitted(rgb, outer, geo, camera)
+        if got is not None:
+            level, ncc = _design_read(gray, got[0], geo, camera, design)
+            if level and (best is None or (level, ncc) > best[:2]):
+                best = (level, ncc, got[0])
     if best is None:
         return None, f"no bright quadrilateral in a grey frame reads as the pad's design ({len(cands)} looked at)"
-    outer = best[2]
-    side_px = _mean_side(outer)
-    # the fits read the pad's neighbourhood only (as _field_agrees: a whole frame's grey and light cost ms)
-    margin = int(np.ceil(0.3 * side_px + 8))
-    rgb_w, lo = _window(rgb, outer, margin)
-    gray_w, cam_w = _window(gray, outer, margin)[0], _shifted(camera, *lo)
-    got = _field_fit(rgb_w, outer - lo, geo, cam_w, max(3.0, 0.15 * side_px), rounds=FIELD_FIT_ROUNDS)
+    got = _grey_field_fitted(rgb, best[2], geo, camera)
     if got is None:
         return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
-    field, rms = got[0] + lo, got[3]
-    outer = _outer_of_field(field, geo, camera)
-    if outer is None or not np.isfinite(outer).all():
-        return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+    # (the fits read the pad's neighbourhood only, as _field_agrees: a whole frame's grey and light cost ms)
+    gray_w, lo = _window(gray, best[2], int(np.ceil(0.3 * _mean_side(best[2]) + 8)))
+    cam_w = _shifted(camera, *lo)
+    outer, field, rms = got
     # A step fit of the field's edge alone is biased by the bands beside it: the checker, then the solid
     # band, a pixel or two each (on the `mono` suite's renders the field came out 0.4-0.7 % small, the
     # height as much high: +0.3 to +1.5 % in the median by dataset).  The border's whole profile, its
@@ -1401,6 +1406,23 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
 
 
 READS, READS_FAINTLY = 2, 1  # :func:`_design_read`'s levels (0: it does not read as the design)
+GREY_REFIT_CANDIDATES = 3  # where no blob reads as the design, so many of the most alike are read again, fitted
+
+
+def _grey_field_fitted(rgb: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None):
+    """``(outer, field, line rms)``: the white field's sides fitted on luma from where the outer square
+    ``outer`` puts them (:func:`_field_fit`, in the pad's neighbourhood only), and the outer square
+    where the fitted field puts it; ``None`` where they do not fit."""
+    side_px = _mean_side(outer)
+    rgb_w, lo = _window(rgb, outer, int(np.ceil(0.3 * side_px + 8)))
+    got = _field_fit(rgb_w, outer - lo, geo, _shifted(camera, *lo), max(3.0, 0.15 * side_px), rounds=FIELD_FIT_ROUNDS)
+    if got is None:
+        return None
+    field = got[0] + lo
+    fitted = _outer_of_field(field, geo, camera)
+    if fitted is None or not np.isfinite(fitted).all():
+        return None
+    return fitted, field, got[3]
 
 
 def _design_read(gray: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None,
