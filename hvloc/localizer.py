@@ -2233,8 +2233,8 @@ class HierarchicalLocalizer:
 
     def _untracked_deck(self) -> bool:
         """Whether the pad lies on a tilting deck whose tilt is not tracked this frame (and the frame is
-        a global shutter's, the design's drawing)."""
-        return self.deck is not None and not self.deck_tracked and not self.shutter.active
+        a global shutter's or one the design's drawing draws row by row, :meth:`_shutter_drawn`)."""
+        return self.deck is not None and not self.deck_tracked and (not self.shutter.active or self._shutter_drawn())
 
     def _far_tilt_doubt(self, normal_C: np.ndarray, sigma_deg: float) -> tuple:
         """``(sigma deg, scatter deg | None)``: the doubt of a far pad's tilt fitted by its design on an
@@ -2276,11 +2276,15 @@ class HierarchicalLocalizer:
         # ... and on a deck whose tilt is not tracked, where only the design fixes it: a 66-130 px pad's
         # corners on a deck tilting 6 degrees, a sharp colour frame, were posed 0.2-1.8 % of the height
         # off or refused as loose (3 of 10); its design fitted with the tilt, 0.04-0.3 % and none refused.
-        # Not under a rolling shutter: the drawing is a global shutter's, and a frame's turn while its rows
-        # are read skews the pad as a tilt does (fuzz seed 112: 73-100 px pads at 5 Hz, 18 ms of readout,
-        # fitted 2-3 degrees off stating 0.4, the poses 3.5 % of the height off at 8 of their sigmas)
+        # Under a rolling shutter only where the camera's turn is known (the gyro): a frame's turn while its
+        # rows are read skews the pad as a tilt does, and a global shutter's drawing took it for one (fuzz
+        # seed 112: 73-100 px pads at 5 Hz, 18 ms of readout, fitted 2-3 degrees off stating 0.4, the poses
+        # 3.5 % of the height off at 8 of their sigmas); drawn band by band at each band's time
+        # (hvloc.texfit's ``shutter``), as a global shutter's frame
+        rolled = self._shutter_drawn()
         untracked = self._untracked_deck()
-        top = HALVED_MAX_SIDE_PX if halved or untracked else MAX_SIDE_PX if self.shutter.active else GLOBAL_MAX_SIDE_PX
+        top = HALVED_MAX_SIDE_PX if halved or untracked else \
+            MAX_SIDE_PX if self.shutter.active and not rolled else GLOBAL_MAX_SIDE_PX
         # ... and there its tilt is fitted from UNTRACKED_TILT_MIN_SIDE_PX, not only where the image tells it
         # better than an AHRS does: what else fixes it is the deck's whole swing, and the fit's doubt (with
         # the drawing's own error, hvloc.texfit.DESIGN_MODEL_PX, and the scatter of the fits before it,
@@ -2298,9 +2302,28 @@ class HierarchicalLocalizer:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         tilt = not smear > TILT_MAX_SMEAR_PX
-        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least),
-                         fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
-                         up_C if tilt else None, self.up_sigma_deg, least)
+        shutter = (self.shutter.line_s, self.shutter.ref_row, self.twist) if rolled else None
+        twist_key = None if shutter is None else (array_key(self.twist.v_P), array_key(self.twist.w_C))
+        fitted, info = self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least,
+                                                twist_key),
+                                 fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
+                                 up_C if tilt else None, self.up_sigma_deg, least, shutter)
+        return fitted, (dict(info, rolled=True) if rolled else info)
+
+    def _shutter_drawn(self) -> bool:
+        """Whether the design fit draws a rolling shutter's frame band by band at each band's time:
+        its line time and the camera's turn rate known (the gyro's; its velocity, where known, too)."""
+        return self.shutter.active and self.twist is not None and self.twist.w_C is not None
+
+    def _fitted_px(self, fitted: np.ndarray, pts_P: np.ndarray, info: dict):
+        """``pts_P``'s pixels under the design fit's pose ``fitted``: where the fit drew a rolling
+        shutter's rows at their own times (``info["rolled"]``), where each row saw them, as any found
+        corner is (the pose is unrolled from them later, with the same motion)."""
+        px = self.camera.project_from(fitted, pts_P)
+        if px is None or not info.get("rolled") or not np.isfinite(px).all():
+            return px
+        d = self.shutter.shift(self.camera, fitted, pts_P, px, self.twist)
+        return np.where(np.isfinite(d), px + d, px)
 
     def _design_fitted(self, det, rgb: np.ndarray, up_C, rescue: bool = False):
         """``det`` (an outline) with its corners those of the pose fitted to the pad's printed design
@@ -2328,7 +2351,7 @@ class HierarchicalLocalizer:
         fitted, info = self._design_fit(start.cam2pad, rgb, up_C, ("design fit", array_key(det.pts_P), array_key(det.px)))
         if fitted is None:
             return replace(det, info=dict(det.info, design_fit=info.get("why", "failed")))
-        px = self.camera.project_from(fitted, det.pts_P)
+        px = self._fitted_px(fitted, det.pts_P, info)
         if px is None or not np.isfinite(px).all():
             return det
         moved = float(np.abs(px - det.px).max())
@@ -2672,7 +2695,7 @@ class HierarchicalLocalizer:
         if quad is None or not np.isfinite(quad).all() or not MIN_SIDE_PX <= ph._mean_side(quad) < MIN_PAD_PX:
             return None, why
         fitted, info = self._design_fit(T, rgb, up_C, ("design at the prediction", array_key(T)))
-        px = None if fitted is None else self.camera.project_from(fitted, self.outer_P)
+        px = None if fitted is None else self._fitted_px(fitted, self.outer_P, info)
         if px is None or not np.isfinite(px).all():
             return None, f"{why}; its design fitted from the predicted pose: {info.get('why', 'out of view')}"
         det = ph.Detection(self.outer_P, px, "outline", {

@@ -46,8 +46,8 @@ from .features import srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
 
-MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across (under a rolling shutter; GLOBAL_MAX_SIDE_PX
-# below under a global one): larger ones the step fit places well ...
+MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across (under a rolling shutter not drawn row by
+# row; GLOBAL_MAX_SIDE_PX below under a global one or one so drawn): larger ones the step fit places well ...
 # ... unless the frame's chroma is at half resolution (JPEG, H.264): there the border's colour edges smear and
 # the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
 # luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
@@ -57,9 +57,10 @@ HALVED_MAX_SIDE_PX = 140.0
 # times that error: bench_v1's sim800 (two descents, an AHRS 0.47 degrees off in the median) at 64-100 px, 1.01 %
 # of the height sideways with the step fit, 0.09 % with the design fitted with its tilt (as at 44-64 px: 0.18 %).
 # Not further: the fit's cost grows with the pad's area (one thread: ~100 ms at 64-100 px against the step fit's
-# ~20, ~300 ms at 100-140 px).  Not under a rolling shutter: the drawing is a global shutter's, and a frame's
-# turn while its rows are read skews the pad as a tilt does (fuzz seed 112, 73-100 px at 5 Hz: its poses 2.6 % of
-# the height off in the median, 6.7 % beyond their 3 sigma)
+# ~20, ~300 ms at 100-140 px).  Under a rolling shutter only where the frame is drawn row by row (``shutter``:
+# the camera's turn known): drawn as one instant, a frame's turn while its rows are read skews the pad as a tilt
+# does (fuzz seed 112, 73-100 px at 5 Hz: its poses 2.6 % of the height off in the median, 6.7 % beyond their
+# 3 sigma)
 GLOBAL_MAX_SIDE_PX = 100.0
 # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off).
 # At 16-20 px it stands in for the white field's corners, which a camera summing light puts 7-9 % of the
@@ -155,20 +156,45 @@ def _design_levels(synth) -> list:
 
 
 def _draw(levels: list, synth, camera: Camera, points: np.ndarray, cam2pad: np.ndarray,
-          per_px: int = 1) -> np.ndarray:
+          per_px: int = 1, ends=None) -> np.ndarray:
     """``(h, w, 4)``: the design's channels (:func:`_design_levels`) seen from ``cam2pad`` over the
     window's pixels, 0 off the pad: each pixel the mean of its ``per_px`` x ``per_px`` points of
     ``points`` (their ideal pinhole places: :meth:`PadSynthesis.window` at that scale), each read
-    from the level whose texels are the finest no smaller than the points' spacing."""
+    from the level whose texels are the finest no smaller than the points' spacing.  ``ends``: a
+    rolling shutter's poses at the first and the last row of ``points``, each row seen from its own,
+    the map from image to pad linear in the row between them (as :func:`_row_mapped`'s)."""
     H = pad_plane_homography(camera, cam2pad)  # pad (x, y) m -> ideal pixel
     tex, ppm = level_for(levels, synth.pad.side_m, H, per_px)
-    M = np.linalg.inv(H @ texture_to_pad(synth.pad.side_m, ppm))  # ideal pixel -> texel
-    uv = cv2.perspectiveTransform(np.ascontiguousarray(points).reshape(-1, 1, 2), M).reshape(points.shape)
+    K = texture_to_pad(synth.pad.side_m, ppm)
+    if ends is None:
+        M = np.linalg.inv(H @ K)  # ideal pixel -> texel
+        uv = cv2.perspectiveTransform(np.ascontiguousarray(points).reshape(-1, 1, 2), M).reshape(points.shape)
+    else:
+        a, b = (np.linalg.inv(pad_plane_homography(camera, T) @ K) for T in ends)  # ideal pixel -> texel, by row
+        x, y = points[..., 0].astype(np.float64), points[..., 1].astype(np.float64)
+        m = a[:, :, None, None] + _row_shares(points.shape[0])[:, None] * (b - a)[:, :, None, None]  # (3, 3, rows, 1)
+        q = [x * m[i, 0] + y * m[i, 1] + m[i, 2] for i in range(3)]
+        uv = np.dstack([q[0] / q[2], q[1] / q[2]]).astype(np.float32)
     d = cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
     if per_px == 1:
         return d
     # (an integer factor's INTER_AREA is the blocks' mean; numpy's mean over two strided axes took 5 times as long)
     return cv2.resize(d, (points.shape[1] // per_px, points.shape[0] // per_px), interpolation=cv2.INTER_AREA)
+
+
+def _row_shares(rows: int) -> np.ndarray:
+    """``(rows,)``: each row's share of the way from the first row to the last (0 to 1)."""
+    return np.linspace(0.0, 1.0, rows) if rows > 1 else np.zeros(1)
+
+
+def _row_mapped(ends: list, p: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """``(n, 3)``: homogeneous points ``p`` (n, 3) each mapped by the 3 x 3 map its row sees: the two
+    maps ``ends`` (at the first row and at the last) taken linearly from one to the other by each
+    point's row ``share``.  A rolling shutter's rows see the pad from poses a few ms apart: a map
+    between image and pad is linear in that time to first order (a drone turning at 2 rad/s over
+    15 ms of readout: the second order moves a point ~0.01 px)."""
+    a, b = (np.asarray(m, np.float64) for m in ends)
+    return p @ a.T + share[:, None] * (p @ (b - a).T)
 
 
 def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -198,7 +224,8 @@ def _tilt_to(T: np.ndarray, up_C) -> np.ndarray:
 
 def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.ndarray, response=None,
                        max_side_px: float = MAX_SIDE_PX, up_C: np.ndarray | None = None,
-                       up_sigma_deg: float | None = None, tilt_min_side_px: float = TILT_MIN_SIDE_PX) -> tuple:
+                       up_sigma_deg: float | None = None, tilt_min_side_px: float = TILT_MIN_SIDE_PX,
+                       shutter=None) -> tuple:
     """``(cam2pad | None, info)``: ``cam2pad`` (``T_P_C``) with its position and yaw refined so that
     the pad's design, drawn there (``synth``: :class:`hvloc.synthesis.PadSynthesis`) and blurred,
     best matches ``image`` as the camera wrote it (0-255): RGB ``(H, W, 3)``, compared in its luma
@@ -223,7 +250,15 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     against that prior, once the pose with the start's tilt held has settled (``info["tilt_deg"]``: how
     far it moved from the start's, about the pad's x and y axes; ``info["tilt_sigma_deg"]``: its doubt,
     the image's with the drawing's own error, :data:`DESIGN_MODEL_PX`, and the prior's).  Without them
-    the start's tilt is held."""
+    the start's tilt is held.
+
+    ``shutter``: a rolling shutter's ``(line_s, ref_row, twist)`` (hvloc.shutter: row ``r`` seen at
+    ``(r - ref_row) * line_s`` from the frame's time, the camera moving by the Twist: the gyro's turn,
+    the velocity where known): each row drawn from the pose its time saw, ``cam2pad`` and the pose
+    returned the reference row's.  A frame's turn while its rows are read skews a far pad as a tilt
+    does: drawn as one instant, 50-90 px pads read in 30 ms while the drone turned at 0.6-2.7 rad/s
+    were fitted 0.8-6.4 degrees off in tilt and 1.4-11 % of the height off, row by row within 0.25
+    degrees and 0.5 % (tests/test_shutter.py); each iteration costs ~1.5 times a global shutter's."""
     info: dict = {}
     half = synth.pad.side_m / 2.0
     outer = np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
@@ -247,7 +282,26 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     img = img.reshape(img.shape[0], img.shape[1], -1)
     luma = np.array(LUMA) if img.shape[2] == 3 else np.full(img.shape[2], 1.0 / img.shape[2])  # a grey camera: its one channel
     levels = _design_levels(synth)
-    inside = (_draw(levels, synth, camera, fine, cam2pad, SUBSAMPLES)[..., 3] > 0.5).astype(np.uint8)
+    # a rolling shutter (``shutter``: its line time, its reference row and the camera's motion, a
+    # hvloc.shutter.Twist, where known): each row drawn as seen at its own time
+    rolling = shutter is not None and bool(shutter[0]) and shutter[2] is not None \
+        and not (shutter[2].v_P is None and shutter[2].w_C is None)
+
+    def at_rows(q, first: float, last: float) -> tuple | None:
+        """q's pose as seen by the window's image rows ``first`` and ``last`` (frame rows), or ``None``
+        for a global shutter (:func:`_draw`'s ``ends``)."""
+        if not rolling:
+            return None
+        T = _posed(cam2pad, q)
+        return tuple(shutter[2].moved(T, (y - shutter[1]) * shutter[0]) for y in (first, last))
+
+    fine_rows = (box[1] + 0.5 / SUBSAMPLES - 0.5, box[1] + (fine.shape[0] - 0.5) / SUBSAMPLES - 0.5)  # their frame rows
+
+    def draw(q, pts=fine):
+        """The design's channels over the window's pixels (:func:`_draw`) at q's pose, each row at its time."""
+        return _draw(levels, synth, camera, pts, _posed(cam2pad, q), SUBSAMPLES, at_rows(q, *fine_rows))
+
+    inside = (draw(np.zeros(8))[..., 3] > 0.5).astype(np.uint8)
     # compared: the pad and a ring of ground around it (the border's outer edge is seen against
     # the ground, whose mean brightness is fitted with the pad's), within the window
     ring = int(math.ceil(3.0 * BLUR_START_PX)) + 1
@@ -278,6 +332,12 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, turn, turn, turn])
     POSE = (0, 1, 2, 3, 6, 7)  # q's pose parameters (4, 5: the blur and the sharpening)
     ideal = np.column_stack([grid[sel].astype(np.float64), np.ones(int(sel.sum()))])  # the modelled pixels' ideal places
+    row_share = _row_shares(sel.shape[0])[np.nonzero(sel)[0]]  # (their rows' shares of the window's, :func:`_row_mapped`)
+
+    def homographies(q) -> list:
+        """The pad (x, y) -> ideal pixel homographies at q's pose as the window's first and last rows saw
+        it (a rolling shutter's: :func:`_row_mapped` takes each modelled pixel's between them)."""
+        return [pad_plane_homography(camera, T) for T in at_rows(q, box[1], box[3] - 1)]
 
     def written(t):
         """Toned values ``t`` (modelled pixels, channels) as the camera writes them: sharpened by
@@ -290,7 +350,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     def drawn(q):
         """``(D, B1, B2)``, each ``(h, w, 4)``: the design's channels at q's pose blurred as the camera
         does (:func:`blurred`)."""
-        return blurred(_draw(levels, synth, camera, fine, _posed(cam2pad, q), SUBSAMPLES), q)
+        return blurred(draw(q), q)
 
     def blurred(d, q):
         """``(D, B1, B2)``: drawn channels ``d`` blurred as the camera does, ``D = B1 + a (B1 - B2)``:
@@ -321,13 +381,14 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         (the gains are least squares in light, not in the residual's terms: held fixed, the
         Jacobian's columns correlated 0.2-0.5 with the residual's true change)."""
         _, B1, B2 = DB
-        T = _posed(cam2pad, q)
-        X = np.linalg.solve(pad_plane_homography(camera, T), ideal.T).T  # each compared pixel's pad point
+        if rolling:  # each modelled pixel's pad point, as its row saw it
+            X = _row_mapped([np.linalg.inv(H) for H in homographies(q)], ideal, row_share)
+        else:
+            X = np.linalg.solve(pad_plane_homography(camera, _posed(cam2pad, q)), ideal.T).T
         # the drawing's gradient in the ideal image, from drawings a quarter px off each way, blurred
         # once (the blur is linear): the grid's own differences of a drawing blurred by under a px are
         # not its derivative (the pose's columns correlated 0.6-0.7 with the residual's true change)
-        off = [_draw(levels, synth, camera, fine + np.float32(o), T, SUBSAMPLES)
-               for o in ((GRAD_PX, 0.0), (-GRAD_PX, 0.0), (0.0, GRAD_PX), (0.0, -GRAD_PX))]
+        off = [draw(q, fine + np.float32(o)) for o in ((GRAD_PX, 0.0), (-GRAD_PX, 0.0), (0.0, GRAD_PX), (0.0, -GRAD_PX))]
         grad = blurred(np.concatenate([off[0] - off[1], off[2] - off[3]], axis=2) / np.float32(2 * GRAD_PX), q)[0]
         gx, gy = grad[..., :4][sel].astype(np.float64), grad[..., 4:][sel].astype(np.float64)
         sig = max(q[4], 0.05)
@@ -353,7 +414,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
                 continue
             dq = np.zeros(len(q))
             dq[k] = steps[i]
-            moved = X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
+            moved = _row_mapped(homographies(q + dq), X, row_share) if rolling else \
+                X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
             flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[i]
             J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
         J[:, 4] = of(lap)
