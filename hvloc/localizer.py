@@ -2279,7 +2279,7 @@ class HierarchicalLocalizer:
         # Under a rolling shutter only where the camera's turn is known (the gyro): a frame's turn while its
         # rows are read skews the pad as a tilt does, and a global shutter's drawing took it for one (fuzz
         # seed 112: 73-100 px pads at 5 Hz, 18 ms of readout, fitted 2-3 degrees off stating 0.4, the poses
-        # 3.5 % of the height off at 8 of their sigmas); drawn band by band at each band's time
+        # 3.5 % of the height off at 8 of their sigmas); drawn row by row, each row at its own time
         # (hvloc.texfit's ``shutter``), as a global shutter's frame
         rolled = self._shutter_drawn()
         untracked = self._untracked_deck()
@@ -2311,7 +2311,7 @@ class HierarchicalLocalizer:
         return fitted, (dict(info, rolled=True) if rolled else info)
 
     def _shutter_drawn(self) -> bool:
-        """Whether the design fit draws a rolling shutter's frame band by band at each band's time:
+        """Whether the design fit draws a rolling shutter's frame row by row, each row at its own time:
         its line time and the camera's turn rate known (the gyro's; its velocity, where known, too)."""
         return self.shutter.active and self.twist is not None and self.twist.w_C is not None
 
