@@ -46,8 +46,8 @@ from .features import srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
 
-MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across (under a rolling shutter not drawn row by
-# row; GLOBAL_MAX_SIDE_PX below under a global one or one so drawn): larger ones the step fit places well ...
+MAX_SIDE_PX = 64.0  # fitted only on pads at most this many px across (under a rolling shutter; GLOBAL_MAX_SIDE_PX
+# below under a global one): larger ones the step fit places well ...
 # ... unless the frame's chroma is at half resolution (JPEG, H.264): there the border's colour edges smear and
 # the step fit's sides come out 0.7-1 % of the height off at 64-140 px (far_wide, unseen100), the design's
 # luma within 0.2 % (~45 ms at 64-100 px, ~95 ms at 100-140 px)
@@ -57,10 +57,10 @@ HALVED_MAX_SIDE_PX = 140.0
 # times that error: bench_v1's sim800 (two descents, an AHRS 0.47 degrees off in the median) at 64-100 px, 1.01 %
 # of the height sideways with the step fit, 0.09 % with the design fitted with its tilt (as at 44-64 px: 0.18 %).
 # Not further: the fit's cost grows with the pad's area (one thread: ~100 ms at 64-100 px against the step fit's
-# ~20, ~300 ms at 100-140 px).  Under a rolling shutter only where the frame is drawn row by row (``shutter``:
-# the camera's turn known): drawn as one instant, a frame's turn while its rows are read skews the pad as a tilt
-# does (fuzz seed 112, 73-100 px at 5 Hz: its poses 2.6 % of the height off in the median, 6.7 % beyond their
-# 3 sigma)
+# ~20, ~300 ms at 100-140 px).  Not under a rolling shutter (but on an untracked deck, drawn row by row: the
+# localizer's ``_design_fit``): drawn as one instant, a frame's turn while its rows are read skews the pad as a
+# tilt does (fuzz seed 112, 73-100 px at 5 Hz: its poses 2.6 % of the height off in the median, 6.7 % beyond
+# their 3 sigma), and drawn row by row its 64-100 px pads cost 1.3 times the CPU for nothing (fuzz seed 162)
 GLOBAL_MAX_SIDE_PX = 100.0
 # ... and at least this many: below, the design is a few px of blur (a 13-15 px pad's height came out 11 % off).
 # At 16-20 px it stands in for the white field's corners, which a camera summing light puts 7-9 % of the
@@ -170,10 +170,9 @@ def _draw(levels: list, synth, camera: Camera, points: np.ndarray, cam2pad: np.n
         M = np.linalg.inv(H @ K)  # ideal pixel -> texel
         uv = cv2.perspectiveTransform(np.ascontiguousarray(points).reshape(-1, 1, 2), M).reshape(points.shape)
     else:
-        a, b = (np.linalg.inv(pad_plane_homography(camera, T) @ K) for T in ends)  # ideal pixel -> texel, by row
-        x, y = points[..., 0].astype(np.float64), points[..., 1].astype(np.float64)
-        m = a[:, :, None, None] + _row_shares(points.shape[0])[:, None] * (b - a)[:, :, None, None]  # (3, 3, rows, 1)
-        q = [x * m[i, 0] + y * m[i, 1] + m[i, 2] for i in range(3)]
+        q = _row_mapped([np.linalg.inv(pad_plane_homography(camera, T) @ K) for T in ends],  # ideal pixel -> texel
+                        points[..., 0].astype(np.float64), points[..., 1].astype(np.float64), 1.0,
+                        _row_shares(points.shape[0])[:, None])
         uv = np.dstack([q[0] / q[2], q[1] / q[2]]).astype(np.float32)
     d = cv2.remap(tex, uv, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
     if per_px == 1:
@@ -187,14 +186,17 @@ def _row_shares(rows: int) -> np.ndarray:
     return np.linspace(0.0, 1.0, rows) if rows > 1 else np.zeros(1)
 
 
-def _row_mapped(ends: list, p: np.ndarray, share: np.ndarray) -> np.ndarray:
-    """``(n, 3)``: homogeneous points ``p`` (n, 3) each mapped by the 3 x 3 map its row sees: the two
-    maps ``ends`` (at the first row and at the last) taken linearly from one to the other by each
-    point's row ``share``.  A rolling shutter's rows see the pad from poses a few ms apart: a map
-    between image and pad is linear in that time to first order (a drone turning at 2 rad/s over
-    15 ms of readout: the second order moves a point ~0.01 px)."""
+def _row_mapped(ends: list, x, y, w, share) -> list:
+    """``[x', y', w']``: the homogeneous points ``(x, y, w)`` (arrays, or ``w`` a number) each mapped by
+    the 3 x 3 map its row sees: the two maps ``ends`` (at the first row and at the last) taken linearly
+    from one to the other by its row's ``share`` (broadcast with the points).  A rolling shutter's
+    rows see the pad from poses a few ms apart: a map between image and pad is linear in that time
+    to first order (a drone turning at 2 rad/s over 15 ms of readout: the second order moves a point
+    ~0.01 px)."""
     a, b = (np.asarray(m, np.float64) for m in ends)
-    return p @ a.T + share[:, None] * (p @ (b - a).T)
+    d = b - a
+    return [x * (a[i, 0] + share * d[i, 0]) + y * (a[i, 1] + share * d[i, 1]) + w * (a[i, 2] + share * d[i, 2])
+            for i in range(3)]
 
 
 def _posed(T: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -332,7 +334,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     steps = np.array([0.1 * m_per_px, 0.1 * m_per_px, 0.1 * m_per_px * depth / half, turn, turn, turn])
     POSE = (0, 1, 2, 3, 6, 7)  # q's pose parameters (4, 5: the blur and the sharpening)
     ideal = np.column_stack([grid[sel].astype(np.float64), np.ones(int(sel.sum()))])  # the modelled pixels' ideal places
-    row_share = _row_shares(sel.shape[0])[np.nonzero(sel)[0]]  # (their rows' shares of the window's, :func:`_row_mapped`)
+    row_share = _row_shares(sel.shape[0])[np.nonzero(sel)[0]]  # (their rows' shares of the window's: _row_mapped)
 
     def homographies(q) -> list:
         """The pad (x, y) -> ideal pixel homographies at q's pose as the window's first and last rows saw
@@ -382,7 +384,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         Jacobian's columns correlated 0.2-0.5 with the residual's true change)."""
         _, B1, B2 = DB
         if rolling:  # each modelled pixel's pad point, as its row saw it
-            X = _row_mapped([np.linalg.inv(H) for H in homographies(q)], ideal, row_share)
+            X = np.column_stack(_row_mapped([np.linalg.inv(H) for H in homographies(q)], ideal[:, 0], ideal[:, 1],
+                                            1.0, row_share))
         else:
             X = np.linalg.solve(pad_plane_homography(camera, _posed(cam2pad, q)), ideal.T).T
         # the drawing's gradient in the ideal image, from drawings a quarter px off each way, blurred
@@ -414,8 +417,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
                 continue
             dq = np.zeros(len(q))
             dq[k] = steps[i]
-            moved = _row_mapped(homographies(q + dq), X, row_share) if rolling else \
-                X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
+            moved = np.column_stack(_row_mapped(homographies(q + dq), X[:, 0], X[:, 1], X[:, 2], row_share)) \
+                if rolling else X @ pad_plane_homography(camera, _posed(cam2pad, q + dq)).T
             flow = (moved[:, :2] / moved[:, 2:3] - ideal[:, :2]) / steps[i]
             J[:, k] = of(-(gx * flow[:, :1] + gy * flow[:, 1:]))
         J[:, 4] = of(lap)
