@@ -87,6 +87,15 @@ SHARPEN_RANGE = (0.0, 1.5)  # ... this many times over (fitted; 0: none)
 UNSHARP_ROUNDS = 12    # a known sharpening undone on the frame by this many rounds (each leaves a / (1 + a) of the error)
 LIGHT_FLOOR = 1e-3     # light below this (of the brightest) is taken as this: a black marker's grey is noise
 ITERATIONS = 10
+# A descent has settled when its last step moved the pad's image less than a tenth of its steps (~0.01 px) ...
+# ... the tilt less than this share of its doubt (a tenth of a tenth of a px at the corners asked of a 100 px
+# pad's tilt took half its iterations, each moving it a twentieth of its doubt) ...
+TILT_SETTLED = 0.1
+# ... and the blur and the sharpening less than this, on a pad CAMERA_SETTLED_SIDE_PX across, and as much more as the
+# pad is larger: the blur moves the fitted size by a share that falls with the side (px) (a 32 px pad's view
+# stopped where they moved under 0.1 ended 2.3 % of the height off; at 66-138 px, 0.02 % or less as with 0.02)
+CAMERA_SETTLED = 0.02
+CAMERA_SETTLED_SIDE_PX = 32.0
 HUBER_K = 2.0          # residuals beyond this many robust sigmas weigh less (shadows, glare, dirt)
 MIN_NCC = 0.8          # the fitted drawing's correlation with the frame, for the fit to be used
 GRAD_PX = 0.25         # the drawing's gradient is its difference this far (ideal px) each way
@@ -425,6 +434,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
         J[:, 5] = of((B1 - B2)[sel].astype(np.float64))
         return J
 
+    camera_settled = CAMERA_SETTLED * max(1.0, side_px / CAMERA_SETTLED_SIDE_PX)
     model = DESIGN_MODEL_PX * float(camera.fx) / side_px ** 2  # the drawing's own error as a tilt (radians)
 
     def tilt_doubt(info_matrix: np.ndarray, prior: float):
@@ -490,7 +500,10 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
                     lam = max(lam / 10.0, 1e-9)
                     break
                 lam *= 10.0
-            if not moved or (np.all(np.abs(dq[list(POSE)]) < 0.1 * steps) and np.all(np.abs(dq[4:6]) < 0.02)):  # settled
+            tol = 0.1 * steps
+            if doubt is not None:  # (the tilt's to a share of its doubt)
+                tol[4:] = np.maximum(tol[4:], TILT_SETTLED * doubt)
+            if not moved or (np.all(np.abs(dq[list(POSE)]) < tol) and np.all(np.abs(dq[4:6]) < camera_settled)):  # settled
                 break
         return (q, DB, r, A, g, light), it, doubt
 
