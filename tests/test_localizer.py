@@ -5185,6 +5185,40 @@ def test_a_far_pads_design_is_drawn_over_each_pixels_area(pad, monkeypatch):
     assert np.mean(centred) < -0.0015, centred
 
 
+def test_a_large_pads_design_fit_stops_once_its_steps_are_a_small_share_of_what_they_move(pad, monkeypatch):
+    """The design fit stops when its last step moved the pad's image ~0.01 px, its tilt a tenth of its
+    doubt (:data:`hvloc.texfit.TILT_SETTLED`) and its blur and sharpening by 0.02 on a 32 px pad, more
+    on a larger one (:data:`hvloc.texfit.CAMERA_SETTLED_SIDE_PX`).  Held to 0.02 and a hundredth of a
+    px at the tilt's corners whatever the pad's size, 100-120 px pads took 11-13 iterations; now
+    fewer, ending within a hundredth of a percent of the height of where those ended; on pads up to
+    32 px across nothing changes."""
+    import hvloc.texfit as tf
+    from hvloc.synthesis import PadSynthesis
+
+    syn, rng = PadSynthesis(pad), np.random.default_rng(0)
+    strict, now = [], []
+    for side in (28.0, 32.0, 100.0, 120.0, 100.0, 120.0):
+        h = CAM.fx * pad.geometry.side_m / side
+        G, h, frame = _camera_view(pad, rng, (h, h), (80, 110, 60), blur_px=0.5)
+        frame = _jpeg(frame, 70)
+        start = G.copy()
+        start[:3, 3] = G[:3, 3] * 1.01 + np.array([0.003, -0.002, 0.0]) * h
+        for out, held in ((strict, True), (now, False)):
+            with monkeypatch.context() as m:
+                if held:
+                    m.setattr(tf, "TILT_SETTLED", 0.0)
+                    m.setattr(tf, "CAMERA_SETTLED_SIDE_PX", math.inf)
+                fitted, info = tf.fit_pose_to_design(frame, CAM, syn, start, None, tf.HALVED_MAX_SIDE_PX,
+                                                     G[:3, :3].T @ np.array([0.0, 0.0, 1.0]), 0.5)
+            assert fitted is not None, info
+            out.append((side, (fitted[2, 3] - G[2, 3]) / h, info["iterations"]))
+    strict, now = np.array(strict), np.array(now)
+    small = strict[:, 0] <= 32
+    assert np.array_equal(strict[small], now[small]), (strict, now)
+    assert np.abs(now[~small, 1] - strict[~small, 1]).max() < 1e-4, (strict, now)
+    assert now[~small, 2].sum() < strict[~small, 2].sum(), (strict, now)
+
+
 @pytest.mark.parametrize("gamma,sharpen", [(2.42, 0.4), (2.2, 0.5), (2.42, 0.0)])
 def test_a_far_pad_fitted_with_its_cameras_known_response_is_as_far_as_it_is(pad, gamma, sharpen):
     """A camera whose tone curve is not sRGB's (written = light ** (1 / 2.42), a gamma of 1.1 on top)
