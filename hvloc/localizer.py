@@ -2276,14 +2276,9 @@ class HierarchicalLocalizer:
         # ... and on a deck whose tilt is not tracked, where only the design fixes it: a 66-130 px pad's
         # corners on a deck tilting 6 degrees, a sharp colour frame, were posed 0.2-1.8 % of the height
         # off or refused as loose (3 of 10); its design fitted with the tilt, 0.04-0.3 % and none refused.
-        # Under a rolling shutter only where the camera's turn is known (the gyro): a frame's turn while its
-        # rows are read skews the pad as a tilt does, and a global shutter's drawing took it for one (fuzz
-        # seed 112: 73-100 px pads at 5 Hz, 18 ms of readout, fitted 2-3 degrees off stating 0.4, the poses
-        # 3.5 % of the height off at 8 of their sigmas); drawn row by row, each row at its own time
-        # (hvloc.texfit's ``shutter``), as a global shutter's frame
-        # (elsewhere a rolling shutter's frame is fitted to MAX_SIDE_PX as before, drawn row by row: to
-        # GLOBAL_MAX_SIDE_PX its 64-100 px pads cost fuzz seed 162 1.3 times the CPU, 3 times the step fit's,
-        # for no gain in accuracy or availability over the 21 rolling-shutter fuzz scenes)
+        # Under a rolling shutter only where the camera's turn is known (the gyro), each row drawn at its
+        # own time (hvloc.texfit's ``shutter``; why, and why only to MAX_SIDE_PX elsewhere: its
+        # GLOBAL_MAX_SIDE_PX)
         rolled = self._shutter_drawn()
         untracked = self._untracked_deck()
         top = HALVED_MAX_SIDE_PX if halved or untracked else MAX_SIDE_PX if self.shutter.active else GLOBAL_MAX_SIDE_PX
@@ -2306,11 +2301,9 @@ class HierarchicalLocalizer:
         tilt = not smear > TILT_MAX_SMEAR_PX
         shutter = (self.shutter.line_s, self.shutter.ref_row, self.twist) if rolled else None
         twist_key = None if shutter is None else (array_key(self.twist.v_P), array_key(self.twist.w_C))
-        fitted, info = self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least,
-                                                twist_key),
-                                 fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
-                                 up_C if tilt else None, self.up_sigma_deg, least, shutter)
-        return fitted, (dict(info, rolled=True) if rolled else info)
+        return self.work(lambda: key + (array_key(up_C), self.up_sigma_deg, self.response, top, tilt, least, twist_key),
+                         fit_pose_to_design, rgb, self.camera, self._drawing(), cam2pad, self.response, top,
+                         up_C if tilt else None, self.up_sigma_deg, least, shutter)
 
     def _shutter_drawn(self) -> bool:
         """Whether the design fit draws a rolling shutter's frame row by row, each row at its own time:

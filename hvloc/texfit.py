@@ -267,7 +267,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     ``shutter``: a rolling shutter's ``(line_s, ref_row, twist)`` (hvloc.shutter: row ``r`` seen at
     ``(r - ref_row) * line_s`` from the frame's time, the camera moving by the Twist: the gyro's turn,
     the velocity where known): each row drawn from the pose its time saw, ``cam2pad`` and the pose
-    returned the reference row's.  A frame's turn while its rows are read skews a far pad as a tilt
+    returned the reference row's (``info["rolled"]``).  A frame's turn while its rows are read skews a far pad as a tilt
     does: drawn as one instant, 50-90 px pads read in 30 ms while the drone turned at 0.6-2.7 rad/s
     were fitted 0.8-6.4 degrees off in tilt and 1.4-11 % of the height off, row by row within 0.25
     degrees and 0.5 % (tests/test_shutter.py); each iteration costs ~1.5 times a global shutter's."""
@@ -526,6 +526,8 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
     ncc = float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
     info = {"blur_px": round(float(q[4]), 3), "sharpen": round(amount if known else float(q[5]), 3), "ncc": round(ncc, 3), "rms": round(float(np.sqrt(np.mean(r ** 2))), 5), "pixels": n, "iterations": it,
             "side_px": round(side_px, 2)}
+    if rolling:
+        info["rolled"] = True  # (each row drawn at its own time: the pose is the reference row's)
     if q[6] or q[7]:
         info["tilt_deg"] = [round(math.degrees(float(x)), 3) for x in q[6:8]]
         info["tilt_sigma_deg"] = round(math.degrees(min(doubt, math.radians(up_sigma_deg))), 4) \
