@@ -692,14 +692,19 @@ class DeckTilt:
         self.t = max(self.t, t)
 
 
-def _mirror_refusal(pose: PoseResult) -> str:
+def _mirror_refusal(pose: PoseResult, deck_tilt_deg: float = 0.0) -> str:
     """Why a pose whose flip nothing decided (:func:`hvloc.pose.solve_planar_pose`: no IMU, no
-    previous pose, the mount's level up undecided) is refused, or ``""``."""
+    previous pose, the mount's level up undecided; or the IMU's up, where the pad may tilt
+    ``deck_tilt_deg`` from it and both lie within that) is refused, or ``""``.  (fz307, a grey camera
+    over a 6 degree deck with the IMU on, was told "no IMU" here: its user would look for the wrong fault.)"""
     if pose.flip_choice != "ambiguous":
         return ""
     apart = float(np.linalg.norm(pose.other_cam2pad[:3, 3] - pose.cam2pad[:3, 3]))
+    why = (f"and the IMU's up does not tell them apart: both lie within the {deck_tilt_deg:g} deg a deck may tilt"
+           if deck_tilt_deg > 0
+           else "and no IMU, previous pose or level flight tells them apart")
     return (f"the pose and its mirror, {apart:.2f} m apart, fit alike (reprojection RMS {pose.rms_px:.2f} and "
-            f"{pose.other_rms_px:.2f} px), and no IMU, previous pose or level flight tells them apart")
+            f"{pose.other_rms_px:.2f} px), {why}")
 
 
 def up_in_camera(R_W_B, T_B_C) -> np.ndarray | None:
@@ -2496,7 +2501,7 @@ class HierarchicalLocalizer:
                 if len(P) >= VELOCITY_FROM_IMAGE_MIN_POINTS else None
             if found is not None:
                 pose, px, twist, vcov = found
-        refusal = _mirror_refusal(pose) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
+        refusal = _mirror_refusal(pose, up_tolerance if up_C is not None else 0.0) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
         if refusal:
             return None, refusal
         info = {k: v for k, v in det.info.items() if k not in ("fitted_up_C", "fitted_up_sigma_deg")}

@@ -6180,3 +6180,28 @@ def test_on_a_tilting_deck_gravity_does_not_choose_between_a_pose_and_its_mirror
     assert deck.flip_choice == "ambiguous"
     tight = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=2.0)
     assert tight.flip_choice == "gravity"
+
+
+def test_a_mirror_refused_on_a_deck_says_the_deck_not_a_missing_imu():
+    """The refusal of a pose whose mirror fits alike names what failed to choose: on a tilting deck
+    the IMU is there, but both lie within the deck's tilt of its up; without it, no IMU (nor a
+    previous pose, nor level flight) chose.  A deck's refusal once read "no IMU", sending its user
+    after a fault they did not have."""
+    from hvloc.localizer import _mirror_refusal
+
+    geo = make_pad().geometry
+    cam = Camera(640, 480, 500.0, 500.0, 319.5, 239.5)
+    T = look_at_cam2world(np.array([6.0, 0.0, 14.0]), np.zeros(3))
+    px = cam.project_from(T, geo.outer_corners)
+    up_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    # (seen 23 degrees off axis, the mirror's pad lies ~46 degrees from up: a deck allowed 60 keeps both)
+    deck = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=60.0)
+    assert deck.flip_choice == "ambiguous"
+    why = _mirror_refusal(deck, 60.0)
+    assert "within the 60 deg a deck may tilt" in why and "no IMU" not in why, why
+    alone = solve_planar_pose(cam, geo.outer_corners, px)  # no IMU, no previous pose, no level up
+    assert alone.flip_choice == "rms" and _mirror_refusal(alone) == ""
+    blind = solve_planar_pose(cam, geo.outer_corners, px, level_up_C=np.array([1.0, 0.0, 0.0]))  # a level up that decides nothing
+    assert blind.flip_choice == "ambiguous" and "no IMU" in _mirror_refusal(blind)
+    level = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C)
+    assert _mirror_refusal(level, 60.0) == ""  # gravity chose: nothing to refuse
