@@ -2501,7 +2501,8 @@ class HierarchicalLocalizer:
                 if len(P) >= VELOCITY_FROM_IMAGE_MIN_POINTS else None
             if found is not None:
                 pose, px, twist, vcov = found
-        refusal = _mirror_refusal(pose, up_tolerance if up_C is not None else 0.0) or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
+        refusal = _mirror_refusal(pose, up_tolerance if up_C is not None else 0.0) \
+            or self._edge_fit_outrun(pose, P, det.info.get("edge_fit_smear_px"))
         if refusal:
             return None, refusal
         info = {k: v for k, v in det.info.items() if k not in ("fitted_up_C", "fitted_up_sigma_deg")}

@@ -6201,7 +6201,8 @@ def test_a_mirror_refused_on_a_deck_says_the_deck_not_a_missing_imu():
     assert "within the 60 deg a deck may tilt" in why and "no IMU" not in why, why
     alone = solve_planar_pose(cam, geo.outer_corners, px)  # no IMU, no previous pose, no level up
     assert alone.flip_choice == "rms" and _mirror_refusal(alone) == ""
-    blind = solve_planar_pose(cam, geo.outer_corners, px, level_up_C=np.array([1.0, 0.0, 0.0]))  # a level up that decides nothing
+    # a level up that decides nothing (sideways: neither pad lies within 30 degrees of it)
+    blind = solve_planar_pose(cam, geo.outer_corners, px, level_up_C=np.array([1.0, 0.0, 0.0]))
     assert blind.flip_choice == "ambiguous" and "no IMU" in _mirror_refusal(blind)
     level = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C)
     assert _mirror_refusal(level, 60.0) == ""  # gravity chose: nothing to refuse
