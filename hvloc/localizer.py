@@ -2292,9 +2292,12 @@ class HierarchicalLocalizer:
         # the drawing's own error, hvloc.texfit.DESIGN_MODEL_PX, and the scatter of the fits before it,
         # _far_tilt_doubt) says whether it is fixed well enough
         least = UNTRACKED_TILT_MIN_SIDE_PX if untracked else TILT_MIN_SIDE_PX
+        def smear_under(motion) -> float:  # how far the motion moves a corner of the pad over the exposure (px)
+            d = self._image_motion(cam2pad, motion, self.outer_P)
+            return 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
+
         motion = self._motion()
-        d = self._image_motion(cam2pad, motion, self.outer_P)
-        smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
+        smear = smear_under(motion)
         # (only with a velocity from the last poses, as _edge_fit_outrun: a descent's first frame has one gyro
         # row, which read 1.19 rad/s on nested_deck_pitched where the frame was smeared 2.8 px)
         if motion.v_P is not None and smear > TILT_MAX_SMEAR_PX:
@@ -2303,6 +2306,13 @@ class HierarchicalLocalizer:
             if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
+        # the tilt is held where the motion surely smears the pad past that: the gyro's rate less its
+        # doubt (a multirotor's vibration is most of one frame's rate: fz313's 0.06-0.12 rad/s of
+        # doubt on 0.1-0.27 rad/s read predicted 1.0-1.7 px of smear where its 10 ms exposures smeared
+        # the pad 0.3-0.4 px, and a deck's tilt went unfitted: those frames were refused)
+        if self.rate_B is not None and self.rate_doubt is not None and smear > TILT_MAX_SMEAR_PX:
+            sure_B = np.sign(self.rate_B) * np.maximum(np.abs(self.rate_B) - self.rate_doubt, 0.0)
+            smear = smear_under(Twist(motion.v_P, self.T_B_C[:3, :3].T @ sure_B))
         tilt = not smear > TILT_MAX_SMEAR_PX
         shutter = (self.shutter.line_s, self.shutter.ref_row, self.twist) if rolled else None
         twist_key = None if shutter is None else (array_key(self.twist.v_P), array_key(self.twist.w_C))

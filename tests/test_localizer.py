@@ -5769,6 +5769,30 @@ def test_the_design_is_not_fitted_where_the_imu_says_motion_smears_the_pad_past_
     assert "smears the pad" in fits[3.0][1]["why"] and "px side" in fits[3.0][1]["why"], fits[3.0][1]
 
 
+def test_a_far_pads_tilt_is_held_only_where_the_gyro_surely_turns_the_camera(pad):
+    """The tilt is held where the frame's motion smears the pad past
+    :data:`hvloc.localizer.TILT_MAX_SMEAR_PX` (test_a_far_pads_tilt_is_held_where_the_frames_motion_smears_it),
+    judged on the gyro's rate less its doubt: a multirotor's vibration is most of one frame's rate,
+    and read whole it held a deck's tilt where the frame was sharp (fz313: 0.1-0.27 rad/s read with
+    0.06-0.12 of doubt predicted 1.0-1.7 px, its 10 ms exposures smeared 0.3-0.4; those frames were
+    refused).  The same rate, sure (its doubt small), still holds it."""
+    rng = np.random.default_rng(8)
+    G = _pitched_view(pad, rng, 80.0)
+    img = _camera_view(pad, rng, None, (120, 110, 90), G=G)[2]
+    up_C = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    rate = 0.25  # rad/s about the camera's x: ~2 px over 12 ms at this focal length (~690 px)
+    assert rate * 0.012 * CAM.fx > 1.5
+    fitted = {}
+    for doubt in (0.22, 0.02):  # vibration: the rate mostly noise; a real turn
+        loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig(), T_B_C=np.eye(4), exposure_s=0.012)
+        loc.velocity, loc.unposed = np.zeros(3), 0  # the last two poses: hovering
+        loc.rate_B, loc.rate_doubt = np.array([rate, 0.0, 0.0]), np.full(3, doubt)
+        F, info = loc._design_fit(G, img, up_C, ("test", doubt))
+        assert F is not None, info
+        fitted[doubt] = "tilt_deg" in info
+    assert fitted == {0.22: True, 0.02: False}, fitted
+
+
 def test_the_localizer_fits_a_far_pads_design_when_asked():
     """``design_fit``: the hierarchical localizer's Approaching poses of the far views are placed by
     the drawn design (said in the estimate's extras) and lie nearer the truth in height than the
