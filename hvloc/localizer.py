@@ -2292,6 +2292,7 @@ class HierarchicalLocalizer:
         # the drawing's own error, hvloc.texfit.DESIGN_MODEL_PX, and the scatter of the fits before it,
         # _far_tilt_doubt) says whether it is fixed well enough
         least = UNTRACKED_TILT_MIN_SIDE_PX if untracked else TILT_MIN_SIDE_PX
+
         def smear_under(motion) -> float:  # how far the motion moves a corner of the pad over the exposure (px)
             d = self._image_motion(cam2pad, motion, self.outer_P)
             return 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))

@@ -6189,15 +6189,20 @@ def test_a_decks_tilt_is_tracked_from_noisy_normals_and_a_mirror_is_not_taken():
     assert sigma == pytest.approx(math.hypot(0.5, 15.0 / math.sqrt(2)))
 
 
+def _far_oblique_outline():
+    """``(geo, cam, T, px, up_C)``: a far pad's outer corners seen 23 degrees off axis, where IPPE's
+    pose and its mirror fit alike (the mirror's pad ~46 degrees from up), and the world's up."""
+    geo = make_pad().geometry
+    cam = Camera(640, 480, 500.0, 500.0, 319.5, 239.5)
+    T = look_at_cam2world(np.array([6.0, 0.0, 14.0]), np.zeros(3))
+    return geo, cam, T, cam.project_from(T, geo.outer_corners), T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+
+
 def test_on_a_tilting_deck_gravity_does_not_choose_between_a_pose_and_its_mirror():
     """A far pad seen obliquely: IPPE's two poses fit alike.  On level ground gravity picks the one
     whose pad lies level; where the pad may tilt by more than both lie from up, nothing picks it
     (``ambiguous``), so the localizer refuses it rather than guess."""
-    geo = make_pad().geometry
-    cam = Camera(640, 480, 500.0, 500.0, 319.5, 239.5)
-    T = look_at_cam2world(np.array([6.0, 0.0, 14.0]), np.zeros(3))  # pad seen 23 degrees off axis
-    px = cam.project_from(T, geo.outer_corners)
-    up_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+    geo, cam, T, px, up_C = _far_oblique_outline()
     level = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C)
     assert level.flip_choice == "gravity" and rotation_angle(level.cam2pad[:3, :3], T[:3, :3]) < 0.01
     deck = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=60.0)
@@ -6213,12 +6218,7 @@ def test_a_mirror_refused_on_a_deck_says_the_deck_not_a_missing_imu():
     after a fault they did not have."""
     from hvloc.localizer import _mirror_refusal
 
-    geo = make_pad().geometry
-    cam = Camera(640, 480, 500.0, 500.0, 319.5, 239.5)
-    T = look_at_cam2world(np.array([6.0, 0.0, 14.0]), np.zeros(3))
-    px = cam.project_from(T, geo.outer_corners)
-    up_C = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
-    # (seen 23 degrees off axis, the mirror's pad lies ~46 degrees from up: a deck allowed 60 keeps both)
+    geo, cam, T, px, up_C = _far_oblique_outline()  # (a deck allowed 60 degrees keeps both)
     deck = solve_planar_pose(cam, geo.outer_corners, px, up_C=up_C, up_tolerance_deg=60.0)
     assert deck.flip_choice == "ambiguous"
     why = _mirror_refusal(deck, 60.0)
