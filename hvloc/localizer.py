@@ -1449,7 +1449,7 @@ class HierarchicalLocalizer:
         self.texture_tried_kf = kf.serial
         from .texture import RANSAC_PX
 
-        T, motion = pose.cam2pad, self._motion()
+        T, motion = pose.cam2pad, self._drawn_motion()
         plan = self._smear_plan(T, motion) or (T, None, 0.0, 2.0 * RANSAC_PX)  # (sharp: no smear to draw)
         det, _ = self.work(lambda: ("texture_at", id(self._texture), array_key(T), plan[3], plan[1] is not None and (
                                         array_key(motion.v_P), array_key(motion.w_C), self.exposure_s)),
@@ -1822,6 +1822,32 @@ class HierarchicalLocalizer:
             return Twist(pred[2], w)
         return Twist(self._recent_velocity(), w)
 
+    def _sure_rate_C(self) -> np.ndarray | None:
+        """The gyro's rate for this frame (in the camera) as far as it is sure: less its doubt about
+        each body axis (:func:`imu_turn`), as read where no doubt is known; ``None`` without one.
+
+        What a drawing is smeared by, and what judges whether the motion smears a frame: a
+        multirotor's vibration is most of one frame's rate.  A drawing smeared past the frame's
+        own smear lays its streaks' ends on the frame's edges, and its tracks move half the miss:
+        on fzu11 (a 95 degree lens 30 degrees off nadir, 20 ms exposures, a gyro vibrating 0.25
+        rad/s) rates read 0.3-0.4 rad/s on 0.24-0.27 of doubt smeared the texture's drawing 5-6.5
+        px where the frames were smeared 1.4-2.4, its tracks 2.7 px off along the smear in the
+        median, and texture poses at 2.2-4.8 m 1.5-7 % of the height off stating a tenth of that
+        (NEES 14-178).  fz313's 0.06-0.12 rad/s of doubt on 0.1-0.27 read predicted 1.0-1.7 px of
+        smear where its 10 ms exposures smeared the pad 0.3-0.4 px.  A real turn (1 rad/s read on
+        0.05 of doubt) keeps all but its doubt."""
+        if self.rate_B is None:
+            return None
+        rate = self.rate_B
+        if self.rate_doubt is not None:
+            rate = np.sign(rate) * np.maximum(np.abs(rate) - self.rate_doubt, 0.0)
+        return self.T_B_C[:3, :3].T @ rate
+
+    def _drawn_motion(self) -> Twist:
+        """The motion a drawing of the pad is smeared by: :meth:`_motion`'s velocity and the gyro's
+        rate as far as it is sure (:meth:`_sure_rate_C`)."""
+        return Twist(self._motion().v_P, self._sure_rate_C())
+
     def _recent_velocity(self) -> np.ndarray | None:
         """The last two accepted poses' velocity where the frame before this one was posed (or this
         one is): after a loss the drone may be another speed."""
@@ -2098,7 +2124,7 @@ class HierarchicalLocalizer:
         if method == "texture":
             det, why = None, ""
             if self._texture_allowed(self.policy_h, orb=True):
-                h, motion = self.policy_h, self._motion()
+                h, motion = self.policy_h, self._drawn_motion()
                 # a height from before the frame just gone: the drone may have come down since
                 low = None if h is None or self.unposed < 2 else STALE_LOWEST_SHARE * h
                 smear = self._smear_of(motion, up_C)
@@ -2307,13 +2333,11 @@ class HierarchicalLocalizer:
             if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
-        # the tilt is held where the motion surely smears the pad past that: the gyro's rate less its
-        # doubt (a multirotor's vibration is most of one frame's rate: fz313's 0.06-0.12 rad/s of
-        # doubt on 0.1-0.27 rad/s read predicted 1.0-1.7 px of smear where its 10 ms exposures smeared
-        # the pad 0.3-0.4 px, and a deck's tilt went unfitted: those frames were refused)
-        if self.rate_B is not None and self.rate_doubt is not None and smear > TILT_MAX_SMEAR_PX:
-            sure_B = np.sign(self.rate_B) * np.maximum(np.abs(self.rate_B) - self.rate_doubt, 0.0)
-            smear = smear_under(Twist(motion.v_P, self.T_B_C[:3, :3].T @ sure_B))
+        # the tilt is held where the motion surely smears the pad past that (_sure_rate_C: fz313's
+        # vibrating gyro predicted 1.0-1.7 px of smear where its frames were smeared 0.3-0.4 px, and a
+        # deck's tilt went unfitted: those frames were refused)
+        if smear > TILT_MAX_SMEAR_PX:
+            smear = smear_under(self._drawn_motion())
         tilt = not smear > TILT_MAX_SMEAR_PX
         shutter = (self.shutter.line_s, self.shutter.ref_row, self.twist) if rolled else None
         twist_key = None if shutter is None else (array_key(self.twist.v_P), array_key(self.twist.w_C))
@@ -2731,7 +2755,7 @@ class HierarchicalLocalizer:
         if pred is None:
             return None, why
         T, velocity = pred
-        rate_C = None if self.rate_B is None else self.T_B_C[:3, :3].T @ self.rate_B
+        rate_C = self._sure_rate_C()  # (smeared by what the gyro surely says)
         sh = self.shutter
         det, why2 = self.work(lambda: ("synthesis", array_key(T), array_key(velocity), array_key(rate_C),
                                        self.exposure_s),
