@@ -1831,10 +1831,11 @@ class HierarchicalLocalizer:
         own smear lays its streaks' ends on the frame's edges, and its tracks move half the miss:
         on fzu11 (a 95 degree lens 30 degrees off nadir, 20 ms exposures, a gyro vibrating 0.25
         rad/s) rates read 0.3-0.4 rad/s on 0.24-0.27 of doubt smeared the texture's drawing 5-6.5
-        px where the frames were smeared 1.4-2.4, its tracks 2.7 px off along the smear in the
+        px where the pad moved 1.4-2.4 px over the exposure (its frames were rendered sharp, camera.json
+        then still saying 20 ms), its tracks 2.7 px off along the smear in the
         median, and texture poses at 2.2-4.8 m 1.5-7 % of the height off stating a tenth of that
         (NEES 14-178).  fz313's 0.06-0.12 rad/s of doubt on 0.1-0.27 read predicted 1.0-1.7 px of
-        smear where its 10 ms exposures smeared the pad 0.3-0.4 px.  A real turn (1 rad/s read on
+        smear where the pad moved 0.3-0.4 px over its 10 ms exposures.  A real turn (1 rad/s read on
         0.05 of doubt) keeps all but its doubt."""
         if self.rate_B is None:
             return None
@@ -2334,7 +2335,7 @@ class HierarchicalLocalizer:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
         # the tilt is held where the motion surely smears the pad past that (_sure_rate_C: fz313's
-        # vibrating gyro predicted 1.0-1.7 px of smear where its frames were smeared 0.3-0.4 px, and a
+        # vibrating gyro predicted 1.0-1.7 px of smear where the pad moved 0.3-0.4 px, and a
         # deck's tilt went unfitted: those frames were refused)
         if smear > TILT_MAX_SMEAR_PX:
             smear = smear_under(self._drawn_motion())

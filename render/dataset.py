@@ -56,7 +56,9 @@ COLUMN_DOCS = {
                 "grid over the pad, corners included; NaN when none is in view). Datasets generated before commit "
                 "54ed125 read it on the pad's four corners through an ideal pinhole, those out of view included (a "
                 "fisheye close above a large pad: up to 10^5 px); their images and other labels are the same, so "
-                "their spec identity is too"),
+                "their spec identity is too. 0 where motion blur is not rendered (degradations.motion_blur false: each "
+                "frame an instant, camera.json's exposure_s 0 too); datasets generated before 2026-12-06 gave the motion "
+                "over the spec's exposure there, and camera.json that exposure, on sharp frames"),
     "blur_subframes": "samples over the exposure used for this frame's motion blur (1: none)",
     **{f"c{i}{a}": f"pixel {a} of the pad's outer corner {i} (TL, TR, BR, BL); NaN when outside the image"
        for i in range(4) for a in "uv"},

@@ -541,7 +541,7 @@ class SequenceRenderer:
         if np.allclose(cam2pad, self.cam2pad(k), atol=1e-12):
             pose[3:] = self._quats[k]  # the hemisphere kept from row to row
         blur = 0.0
-        if self.exposure > 0:  # the image motion over the exposure of the pad in view
+        if self.blur:  # the image motion over the exposure of the pad in view (none where blur is not rendered)
             B, P = self._poses_at(t + np.array([-self.exposure / 2, self.exposure / 2]))
             ends = [invert(Pi) @ Bi @ self.T_B_C for Bi, Pi in zip(B, P)]
             blur = pad_image_motion_px(self.camera, ends[0], ends[1], self.pad.geometry.half_side_m, (cam2pad,))

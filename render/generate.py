@@ -26,7 +26,9 @@ def camera_info(spec: DatasetSpec, r) -> dict:
     """What a sequence's ``camera.json`` says (``r``: its :class:`render.frames.SequenceRenderer`)."""
     cam = spec.camera
     info = r.camera.to_dict()
-    info.update({"fps": cam.fps, "exposure_s": cam.exposure_s, "T_B_C": r.T_B_C.tolist(),
+    # the exposure the frames show: an instant where motion blur is not rendered (the spec's exposure_s
+    # then smears nothing, and a localizer that read it predicted smear on sharp frames: fzu11's 20 ms)
+    info.update({"fps": cam.fps, "exposure_s": cam.exposure_s if r.blur else 0.0, "T_B_C": r.T_B_C.tolist(),
                  "supersample": cam.supersample, "rolling_shutter_line_s": cam.rolling_shutter_line_s,
                  "rolling_shutter_ref_row": r.ref_row, "imu_time_offset_s": spec.imu.time_offset_s,
                  "frame_time_jitter_s": cam.frame_time_jitter_s, "frame_drop_rate": cam.frame_drop_rate, "mono": cam.mono,

@@ -397,7 +397,8 @@ class EnvironmentSpec(_Model):
 
 
 class DegradationSpec(_Model):
-    motion_blur: bool = True
+    motion_blur: bool = Field(True, description="the frames smeared over camera.exposure_s; off, each frame is an "
+                              "instant, and the dataset says so: camera.json's exposure_s and every blur_px are 0")
     blur_method: Literal["velocity", "subframes"] = Field(
         "velocity", description="velocity: the sharp render moved along each pixel's image motion (one render per "
         "frame); subframes: the exact reference, one render per sample time")

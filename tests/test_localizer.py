@@ -1019,7 +1019,7 @@ def test_the_texture_is_drawn_smeared_by_what_the_gyro_surely_says_not_by_its_vi
     """A multirotor's gyro reads its vibration in every sample: the rate over a frame can be mostly
     its doubt.  Drawn smeared by the rate as read, the texture's drawing lays its streaks' ends on a
     sharp frame's edges and its tracks move half the miss (fzu11: 0.3-0.4 rad/s read on 0.24-0.27
-    of doubt smeared the drawing 5-6.5 px where the frames were smeared 1.4-2.4, texture poses 1.5-7
+    of doubt smeared the drawing 5-6.5 px where the pad moved 1.4-2.4 over the exposure, texture poses 1.5-7
     % of the height off, NEES 14-178).  Smeared by the rate less its doubt (here nothing), the sharp
     frame is refined against a sharp drawing and the pose is right; a turn read on little doubt
     keeps all but its doubt."""
@@ -5811,7 +5811,7 @@ def test_a_far_pads_tilt_is_held_only_where_the_gyro_surely_turns_the_camera(pad
     :data:`hvloc.localizer.TILT_MAX_SMEAR_PX` (test_a_far_pads_tilt_is_held_where_the_frames_motion_smears_it),
     judged on the gyro's rate less its doubt: a multirotor's vibration is most of one frame's rate,
     and read whole it held a deck's tilt where the frame was sharp (fz313: 0.1-0.27 rad/s read with
-    0.06-0.12 of doubt predicted 1.0-1.7 px, its 10 ms exposures smeared 0.3-0.4; those frames were
+    0.06-0.12 of doubt predicted 1.0-1.7 px, the pad moved 0.3-0.4 over its 10 ms exposures; those frames were
     refused).  The same rate, sure (its doubt small), still holds it."""
     rng = np.random.default_rng(8)
     G = _pitched_view(pad, rng, 80.0)

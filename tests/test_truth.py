@@ -1032,6 +1032,27 @@ def test_blur_px_is_the_motion_of_the_pad_in_view_whatever_the_lens():
     assert math.isnan(pad_image_motion_px(nadir, away, away, half, (away,)))
 
 
+def test_a_dataset_rendered_without_motion_blur_says_its_frames_are_instants(tmp_path):
+    """``degradations.motion_blur: false`` renders each frame as an instant.  camera.json had kept the
+    spec's exposure_s and frames.csv the motion over it (blur_px), so a localizer that read them
+    predicted smear on sharp frames (fzu11: a 20 ms exposure, nothing smeared; its texture drawn
+    smeared 5-6.5 px and posed 1.5-7 % of the height off, "ok").  The dataset now says what its
+    frames show: exposure 0 and no blur; with blur rendered, the spec's exposure and the motion."""
+    d = {"name": "instants", "seed": 3, "sequences": 1, "pad_ppm": 200,
+         "camera": {"width": 96, "height": 96, "hfov_deg": 70, "fps": 2, "exposure_s": 0.03},
+         "environment": {"distractors": {"boxes": [0, 0]}},
+         "trajectory": {"families": ["straight"], "start_height_m": 6.0, "duration_s": [3, 3],
+                        "touchdown_height_m": 1.0, "lateral_offset_m": [0.3, 0.3]}}
+    said = {}
+    for blur in (True, False):
+        generate(_spec(_merge(d, {"degradations.motion_blur": blur})), tmp_path / str(blur), show_progress=False)
+        assert verify_dataset(tmp_path / str(blur)) == []
+        seq = Dataset(tmp_path / str(blur))[0]
+        said[blur] = (seq.exposure_s, float(np.nanmax(seq.columns["blur_px"])))
+    assert said[True][0] == 0.03 and said[True][1] > 0.3, said  # (a descent of 5 m in 3 s moves the pad)
+    assert said[False] == (0.0, 0.0), said
+
+
 # ----------------------------------------------------------------------------- a ship's deck
 
 def _deck_spec(**over) -> DatasetSpec:
