@@ -93,6 +93,7 @@ class OutlineQuad:
     edge_fitted: bool = False  # its sides placed by an edge fit (no centroid, profile or hull): it holds to EDGE_FIT_SMEAR_PX
     field_sigma_px: float = 0.0  # the noise field_px's corners carry beyond a found corner's (a loose fit's scatter)
     read_after_fit: bool = False  # read as the design only at a lower bar: it must read so where its design fit puts it
+    hull_only: bool = False  # a cut pad's corners its colour hull's alone (no side fitted): taken only where its design fit places it
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -269,6 +270,13 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is None or (np.linalg.norm(smeared - quad, axis=1)
                                > max(3.0, 0.1 * side_px) + np.where(_seen(smeared, rgb.shape), 0.0, smear)).any() \
                 or _seen(smeared, rgb.shape).sum() < 3:
+            if refined is None and _seen(quad, rgb.shape).sum() == 3 and not _too_smeared(rgb, quad, pad_geometry, camera):
+                # a sharp pad whose side toward the hidden corner is in view over a few pixels only (a
+                # corner just out of view: too short a stretch to fit a line on, fz310's ~13 px): its
+                # colour hull's corners, three in view within a few pixels of the pad's, to be placed
+                # by its design over the pixels in view (the localizer takes it only so placed)
+                got, why = _outline_quad(rgb, quad, pad_geometry, camera, side_px, float("inf"), None, cut)
+                return (None, why) if got is None else (replace(got, hull_only=True), "ok")
             return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
                           else "pad cut by the image's edge and smeared by motion")
         return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut, smear, fitted)
@@ -1520,6 +1528,8 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     info = {"yaw_from": how, "side_px": found.side_px, "line_rms": found.line_rms}
     if found.read_after_fit:
         info["read_after_fit"] = True
+    if found.hull_only:
+        info["hull_only"] = True
     if found.edge_fitted:  # (the localizer checks the smear its IMU predicts against what an edge fit holds to)
         info["edge_fit_smear_px"] = round(float(found.smear_px), 2)
     if found.smear_px > SMEARED_PX or found.sigma_per_smear == EDGE_SIGMA_PER_SMEAR:
