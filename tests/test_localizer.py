@@ -2329,7 +2329,7 @@ def test_a_pad_cut_by_the_image_edge_is_posed_from_what_is_seen(pad):
                                                              (0.1, 0.2)):
         clear += in_view >= 0.4
         out, why = find_outline(warp_pad_view(pad, CAM, G, (110, 90, 60)), geo, CAM)
-        if out is None:
+        if out is None or out.hull_only:  # (a hull's corners, taken only as its design places them: below)
             continue
         found += 1
         found_clear += in_view >= 0.4
@@ -2389,7 +2389,7 @@ def test_a_side_mostly_cut_off_by_the_image_edge_is_read_on_what_is_in_view(pad)
             continue
         views += 1
         out, _ = find_outline(warp_pad_view(pad, CAM, G, (110, 90, 60)), geo, CAM)
-        if out is None:
+        if out is None or out.hull_only:  # (a hull's corners, taken only as its design places them)
             continue
         found += 1
         q, s = _in_order_of(out.quad_px, truth)
