@@ -1917,8 +1917,10 @@ class HierarchicalLocalizer:
         px of smear across its sides (unseen55: a 40 ms exposure in a gusty turn), its sides fitted
         7-21 px out and posed 98 mm off, beyond its 3 sigma.  Only with a velocity from the last poses
         (no motion is predicted whole without one: the first frame's gyro rate, a single row at a
-        descent's start, read 2.2 rad/s where the frame was smeared 9-11 px, and the pad was lost)."""
-        motion = self._motion()
+        descent's start, read 2.2 rad/s where the frame was smeared 9-11 px, and the pad was lost).
+        The gyro's part is what it surely says (:meth:`_sure_rate_C`): a vibrating gyro read whole
+        predicts smear that is not there."""
+        motion = self._drawn_motion()
         if read_px is None or motion.v_P is None:
             return ""
         d = self._image_motion(pose.cam2pad, motion, pts_P)
@@ -2324,12 +2326,13 @@ class HierarchicalLocalizer:
         # _far_tilt_doubt) says whether it is fixed well enough
         least = UNTRACKED_TILT_MIN_SIDE_PX if untracked else TILT_MIN_SIDE_PX
 
-        def smear_under(motion) -> float:  # how far the motion moves a corner of the pad over the exposure (px)
-            d = self._image_motion(cam2pad, motion, self.outer_P)
-            return 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
-
-        motion = self._motion()
-        smear = smear_under(motion)
+        # how far the motion surely moves a corner of the pad over the exposure (px): the gyro's rate less
+        # its doubt (_sure_rate_C: fz313's vibrating gyro read whole predicted 1.0-1.7 px of smear where
+        # the pad moved 0.3-0.4 px, and a deck's tilt went unfitted; fzu12's 0.3-0.4 rad/s on 0.25 of
+        # doubt left 14 of 144 frames unfitted and their outlines refused, 73 -> 87 posed)
+        motion = self._drawn_motion()
+        d = self._image_motion(cam2pad, motion, self.outer_P)
+        smear = 0.0 if d is None else float(np.nanmax(np.linalg.norm(d, axis=1), initial=0.0))
         # (only with a velocity from the last poses, as _edge_fit_outrun: a descent's first frame has one gyro
         # row, which read 1.19 rad/s on nested_deck_pitched where the frame was smeared 2.8 px)
         if motion.v_P is not None and smear > TILT_MAX_SMEAR_PX:
@@ -2338,11 +2341,6 @@ class HierarchicalLocalizer:
             if smear > DESIGN_FIT_MAX_SMEAR_SHARE * side:
                 return None, {"why": f"the frame's motion smears the pad {smear:.1f} px over the exposure, past what its "
                                      f"drawing's blur stands in for ({DESIGN_FIT_MAX_SMEAR_SHARE:g} of its {side:.0f} px side)"}
-        # the tilt is held where the motion surely smears the pad past that (_sure_rate_C: fz313's
-        # vibrating gyro predicted 1.0-1.7 px of smear where the pad moved 0.3-0.4 px, and a
-        # deck's tilt went unfitted: those frames were refused)
-        if smear > TILT_MAX_SMEAR_PX:
-            smear = smear_under(self._drawn_motion())
         tilt = not smear > TILT_MAX_SMEAR_PX
         shutter = (self.shutter.line_s, self.shutter.ref_row, self.twist) if rolled else None
         twist_key = None if shutter is None else (array_key(self.twist.v_P), array_key(self.twist.w_C))
