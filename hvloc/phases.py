@@ -270,12 +270,12 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
         if smeared is None or (np.linalg.norm(smeared - quad, axis=1)
                                > max(3.0, 0.1 * side_px) + np.where(_seen(smeared, rgb.shape), 0.0, smear)).any() \
                 or _seen(smeared, rgb.shape).sum() < 3:
-            if refined is None and _seen(quad, rgb.shape).sum() == 3 and not _too_smeared(rgb, quad, pad_geometry, camera):
+            if refined is None and _seen(quad, rgb.shape).sum() == 3 and not smear > SMEARED_PX:  # (read just above)
                 # a sharp pad whose side toward the hidden corner is in view over a few pixels only (a
                 # corner just out of view: too short a stretch to fit a line on, fz310's ~13 px): its
                 # colour hull's corners, three in view within a few pixels of the pad's, to be placed
                 # by its design over the pixels in view (the localizer takes it only so placed)
-                got, why = _outline_quad(rgb, quad, pad_geometry, camera, side_px, float("inf"), None, cut)
+                got, why = _outline_quad(rgb, quad, pad_geometry, camera, side_px, float("inf"), None, cut, smear)
                 return (None, why) if got is None else (replace(got, hull_only=True), "ok")
             return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
                           else "pad cut by the image's edge and smeared by motion")
