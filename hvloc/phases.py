@@ -195,9 +195,11 @@ def _whole_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | 
             # (the checker's dark cells wash out first: the ring may be the solid band alone)
             band = 1.0 - (1.0 - 2 * pad_geometry.border.solid_band_m / pad_geometry.side_m) ** 2
             for bright in (None, GLARE_MIN_CHROMA):  # the washed-out pale last (GLARE_MIN_CHROMA)
-                other = _best_ring(_colour_evidence(small, hsv, border, pad_geometry.border.color_rgb,
-                                                    bright_chroma=bright), pad_geometry,
-                                   cut_edges, min_share=0.5 * band, scale=scale)
+                ev = _colour_evidence(small, hsv, border, pad_geometry.border.color_rgb, bright_chroma=bright)
+                # read whole, then cut by the image's edge, as the plain mask is
+                other = _best_ring(ev, pad_geometry, cut_edges, min_share=0.5 * band, scale=scale)
+                if other is None:
+                    other = _best_ring(ev, pad_geometry, cut_edges, cut=True, min_share=0.5 * band, scale=scale)
                 if other is not None:
                     break
         tries += [] if other is None else [other]

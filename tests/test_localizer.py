@@ -1857,6 +1857,16 @@ def test_an_outline_whose_sides_fold_is_never_found(pad, monkeypatch):
     assert ph._quad_shaped(np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 9.0], [0.0, 9.0]]))
 
 
+def _washed_by_glare(img, corners, share):
+    """``img`` with white light ``share`` of full added in linear light over the pad whose outer
+    corners are ``corners`` (px), fading past it (a glossy pad's specular lobe)."""
+    inside = np.zeros(img.shape[:2], np.uint8)
+    cv2.fillConvexPoly(inside, np.round(corners).astype(np.int32), 1)
+    inside = cv2.GaussianBlur(inside.astype(np.float32), (0, 0), 6.0)  # the lobe fades past the pad
+    lin = (img.astype(np.float32) / 255.0) ** 2.2 + share * inside[..., None]
+    return (np.clip(lin, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+
+
 @pytest.mark.parametrize("h", [6.0, 12.0])
 def test_outline_is_found_under_glare_that_washes_out_the_border(pad, h):
     """Noon glare on a glossy pad adds white light: the border keeps its hue and its own chroma but
@@ -1869,14 +1879,8 @@ def test_outline_is_found_under_glare_that_washes_out_the_border(pad, h):
     found = 0
     for yaw in (0.3, 1.4, 2.5, 4.0):
         G = tilted(0.3, -0.2, h, yaw, 0.05, 0.1)
-        img = warp_pad_view(pad, CAM, G, (120, 118, 112)).astype(np.float32)
         c = CAM.project_from(G, pad.geometry.outer_corners)
-        inside = np.zeros(img.shape[:2], np.uint8)
-        cv2.fillConvexPoly(inside, np.round(c).astype(np.int32), 1)
-        inside = cv2.GaussianBlur(inside.astype(np.float32), (0, 0), 6.0)  # the lobe fades past the pad
-        glare = 0.42 * inside[..., None]  # white light added in linear light
-        lin = (img / 255.0) ** 2.2 + glare
-        img = (np.clip(lin, 0, 1) ** (1 / 2.2) * 255 + 0.5).astype(np.uint8)
+        img = _washed_by_glare(warp_pad_view(pad, CAM, G, (120, 118, 112)), c, 0.42)
         from hvloc.phases import _hsv_mask
 
         ring_px = cv2.contourArea(c.astype(np.float32)) * (1 - (pad.geometry.field_side_m / pad.geometry.side_m) ** 2)
@@ -1889,6 +1893,26 @@ def test_outline_is_found_under_glare_that_washes_out_the_border(pad, h):
         err = np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1).max()
         assert err < 0.6, (yaw, err)
     assert found >= 3, found
+
+
+@pytest.mark.parametrize("off", [3.3, 3.4])
+def test_a_pad_washed_by_glare_and_cut_by_the_images_edge_is_found(pad, off):
+    """fz216 (a glossy blue pad on snow, a camera 23 degrees off nadir): glare broke the border's
+    colour mask into pieces, and the pad ran out of the top of the image.  The washed-out colour is
+    read relative to brightness where nothing saturated is found, but that read looked for a whole
+    ring only, and a ring whose corner lies out of view is read as cut: "no pad-coloured
+    quadrilateral" from 8 m down to 3.6 m (28 frames).  The glare's read now looks for a cut ring
+    too, as the plain mask's does.  Views at 6 m with one corner 14 and 22 px out of view (found
+    before only with it 5 px out): every corner within 0.6 px."""
+    G = tilted(off, 0.0, 6.0, 3.9, 0.05, 0.1)
+    c = CAM.project_from(G, pad.geometry.outer_corners)
+    out = ((c < -0.5) | (c > CAM.width - 0.5)).any(axis=1)
+    assert out.sum() == 1 and 10 < max(-c.min(), c.max() - CAM.width) < 25  # one corner just out of view
+    img = _washed_by_glare(warp_pad_view(pad, CAM, G, (120, 118, 112)), c, 0.42)
+    det, why = detect_outline(img, pad.geometry, CAM)
+    assert det is not None, why
+    err = np.linalg.norm(det.px - CAM.project_from(G, det.pts_P), axis=1)
+    assert err.max() < 0.6, err
 
 
 def test_refine_quad_told_the_polarity_keeps_a_narrow_bands_outer_edge():
