@@ -94,6 +94,7 @@ class OutlineQuad:
     field_sigma_px: float = 0.0  # the noise field_px's corners carry beyond a found corner's (a loose fit's scatter)
     read_after_fit: bool = False  # read as the design only at a lower bar: it must read so where its design fit puts it
     hull_only: bool = False  # a cut pad's corners its colour hull's alone (no side fitted): taken only where its design fit places it
+    washed: bool = False  # its band washed out along a stretch, placed where its field and its colour agree (:func:`_field_rescue`)
 
 
 def detect_outline(rgb: np.ndarray, pad_geometry: PadGeometry, camera: Camera | None = None, roi=None,
@@ -260,6 +261,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
     refined, res, f, chan, (bx0, by0) = _fit_sides(rgb, quad, side_px, pad_geometry, camera, polarity=polarity)
     cam_s = _shifted(camera, bx0, by0)
     field, edge, field_noise = None, False, 0.0
+    washed = False  # its band washed out where its field and colour agree (_field_rescue)
     if cut and (refined is None or _too_smeared(rgb, refined + [bx0, by0], pad_geometry, camera, limit_px=EDGE_FIT_SMEAR_PX)):
         # smeared past the edge fit's window (it holds to twice its window): the border's centroid
         # over the stretches of each side that are in view, the hidden corner where two sides meet
@@ -365,7 +367,7 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 rescued = None if cut else _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is None:
                     return None, why
-                refined, field = rescued[0] + [bx0, by0], rescued[1]  # (the field is kept in the fit's window)
+                refined, field, washed = rescued[0] + [bx0, by0], rescued[1], rescued[2]  # (the field is kept in the fit's window)
                 smear = None  # (read on a swollen quad: read again where the field puts the pad)
         # (under a blur past an edge fit's reach the field's luma edge is smeared as much as the colour's;
         # within it, JPEG may smear the colour further, and the field's luma edges, where found, place
@@ -380,12 +382,13 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 # was out of the fit's reach: the field, found further in, says where the pad is
                 rescued = _field_rescue(f, refined - [bx0, by0], pad_geometry, cam_s)
                 if rescued is not None:
-                    refined, field, smear, field_noise = rescued[0] + [bx0, by0], rescued[1], None, 0.0
+                    refined, field, smear, field_noise, washed = rescued[0] + [bx0, by0], rescued[1], None, 0.0, rescued[2]
                 elif far:
                     return None, "its colour swells past its white field"
-    return _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
-                         None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge,
-                         field_sigma=field_noise)
+    found, why = _outline_quad(rgb, refined, pad_geometry, camera, side_px, res,
+                               None if field is None else field + [bx0, by0], cut, smear, per_smear=per_smear, edge=edge,
+                               field_sigma=field_noise)
+    return (replace(found, washed=True) if found is not None and washed else found), why
 
 
 def _outline_quad(rgb, refined, geo: PadGeometry, camera: Camera | None, side_px, res, field, cut: bool,
@@ -1473,8 +1476,11 @@ def _field_agrees(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     return got is not None and got[1] <= max(3.0, 0.1 * side_px)
 
 
+FIELD_CONFIRMS_PX, FIELD_CONFIRMS_SHARE = 1.0, 0.025  # the field's outer square where the colour's quad is (_field_rescue)
+
+
 def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:
-    """``(outer quad, field quad)`` or ``None``: the outline read from the white field's luma edges
+    """``(outer quad, field quad, washed)`` or ``None``: the outline read from the white field's luma edges
     where its colour swelled past the pad so far that the border's band check failed (``rgb`` the
     outline's fit window, ``camera`` shifted to it: a whole 1080p frame costs milliseconds).
 
@@ -1487,16 +1493,30 @@ def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     of the conditions suite 2.4 % of the side with one fit, 1.5 % with three, as the field's
     usual fit does at those sizes), and the
     outer square put where the field's homography puts it.  That quad must
-    then pass the band checks the colour's did not."""
+    then pass the band checks the colour's did not, or lie where the colour's sides put the pad.
+
+    The band check stands in for a second look at where the sides are; the field's luma edges are
+    one, independent of the colour.  A glossy pad's glare can wash a stretch of its band to the
+    ground's grey (fz216: a blue band on snow under a high sun, its chroma there 0.06 of the rest):
+    the band is missing there for the labelled outline too, and every view of that pad was refused
+    from 11 m down.  Where the field's outer square and the colour's quad agree within
+    :data:`FIELD_CONFIRMS_SHARE` of the side (at least :data:`FIELD_CONFIRMS_PX`), the sides are where
+    both put them, whatever washed the band (``washed``: then the pad is not what its design draws,
+    and its design is not fitted to it); a side fitted to a wrong edge lies 3-10 px from the
+    field's (the rescue's own case, and then the field's quad must show the band)."""
     side_px = _mean_side(quad_px)
     got = _field_fit(rgb, quad_px, geo, camera, max(5.0, 0.25 * side_px), rounds=FIELD_FIT_ROUNDS)
-    if got is None or not got[2]:
+    if got is None:
         return None
     field = got[0]
     outer = _outer_of_field(field, geo, camera)
-    if outer is None or _band_missing(rgb, outer, geo, camera) or _corner_missing(rgb, outer, geo, camera):
+    if outer is None or _corner_missing(rgb, outer, geo, camera):
         return None
-    return outer, field
+    if float(np.max(np.linalg.norm(outer - quad_px, axis=1))) <= max(FIELD_CONFIRMS_PX, FIELD_CONFIRMS_SHARE * side_px):
+        return outer, field, _band_missing(rgb, outer, geo, camera)  # both readings put the sides there
+    if not got[2] or _band_missing(rgb, outer, geo, camera):  # (a swollen colour's field must show the band)
+        return None
+    return outer, field, False
 
 
 def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0: np.ndarray | None = None,
@@ -1532,6 +1552,8 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
         info["read_after_fit"] = True
     if found.hull_only:
         info["hull_only"] = True
+    if found.washed:
+        info["washed"] = True
     if found.edge_fitted:  # (the localizer checks the smear its IMU predicts against what an edge fit holds to)
         info["edge_fit_smear_px"] = round(float(found.smear_px), 2)
     if found.smear_px > SMEARED_PX or found.sigma_per_smear == EDGE_SIGMA_PER_SMEAR:
