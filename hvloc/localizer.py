@@ -1370,8 +1370,6 @@ class HierarchicalLocalizer:
             for method, res in self._candidates(method, res, gray, up_C):
                 self.twist = tried_twist
                 pose, n, extras = res
-                if pose.relief_tilt_deg > 0:  # what a wrinkle's tilt puts sideways (reported; loose_tilt_refusal counts it as loose)
-                    extras = dict(extras, relief_sideways_var=(pose.cam2pad[2, 3] * math.radians(pose.relief_tilt_deg)) ** 2)
                 est = Estimate(t, METHOD_PHASE[method] or self.phase, "ok", pose.cam2pad, n, pose.rms_px, pose.cov, method=method,
                                extras=extras)
                 verdict = self._gate(est, R_W_B)
@@ -2111,8 +2109,6 @@ class HierarchicalLocalizer:
             if res is None:
                 return None, why
             extras = {"keyframe_anchored": self.flow.kf.anchored, "tilt_noise_scale": res.tilt_noise_scale}
-            if self.flow.kf.relief_var > 0:  # (its keyframe's wrinkle, reported as the marker pose's is)
-                extras["relief_sideways_var"] = self.flow.kf.relief_var
             if self.flow.fitted is not None:
                 P, seen = self.flow.fitted
                 def solve(px):
@@ -2804,8 +2800,7 @@ class HierarchicalLocalizer:
         serial = None if f.kf is None else f.kf.serial
 
         def anchor():  # a keyframe from this pose, with how far off its image saw the AHRS
-            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est),
-                     relief_var=float(est.extras.get("relief_sideways_var", 0.0)))
+            f.anchor(gray, est.cam2pad, anchored=True, cov=est.cov, ahrs_off_deg=ahrs_off_deg(est))
 
         if method == "flow":
             f.accept(est.cam2pad, est.rms_px, est.cov)

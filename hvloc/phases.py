@@ -1512,9 +1512,10 @@ def _field_rescue(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera
     outer = _outer_of_field(field, geo, camera)
     if outer is None or _corner_missing(rgb, outer, geo, camera):
         return None
+    missing = _band_missing(rgb, outer, geo, camera)
     if float(np.max(np.linalg.norm(outer - quad_px, axis=1))) <= max(FIELD_CONFIRMS_PX, FIELD_CONFIRMS_SHARE * side_px):
-        return outer, field, _band_missing(rgb, outer, geo, camera)  # both readings put the sides there
-    if not got[2] or _band_missing(rgb, outer, geo, camera):  # (a swollen colour's field must show the band)
+        return outer, field, missing  # both readings put the sides there
+    if not got[2] or missing:  # (a swollen colour's field must show the band)
         return None
     return outer, field, False
 
@@ -2343,9 +2344,6 @@ class Keyframe:
     # how far the IMU's gravity was off, at the least, where its anchoring pose's image fixed the
     # tilt (degrees; 0 where it could not tell): kept by the keyframes chained from it (FlowTracker.gravity_sigma)
     ahrs_off_deg: float = 0.0
-    # the sideways variance (m^2 per axis) a wrinkle's tilt put in its anchoring pose's covariance
-    # (hvloc.pose.relief_tilt_rad), kept by the keyframes chained from it (hvloc.localizer.loose_tilt_refusal)
-    relief_var: float = 0.0
     contrast: np.ndarray | None = None  # its image divided by its local mean (refined_on_keyframe), made when first asked
 
 
@@ -2786,19 +2784,16 @@ class FlowTracker:
         return self.kf is not None and self.prev_gray is not None
 
     def anchor(self, gray, cam2pad, anchored: bool = True, cov: np.ndarray | None = None, tag=None,
-               ahrs_off_deg: float | None = None, chained: bool = False, relief_var: float | None = None) -> bool:
+               ahrs_off_deg: float | None = None, chained: bool = False) -> bool:
         """A keyframe from ``gray`` (the current frame, ``tag`` naming it; by default the frame
         :class:`ImageWork` is at) and its pose; ``ahrs_off_deg``: how far that pose's image saw the
         IMU's gravity off (:attr:`gravity_sigma`), by default the keyframe's it renews (0 for none);
         ``chained``: the pose was tracked from the current keyframe (its error carried in ``cov``),
-        which the new one names as its parent; ``relief_var``: :attr:`Keyframe.relief_var`, by default
-        the keyframe's it renews."""
+        which the new one names as its parent."""
         parent = self.kf.serial if chained and self.kf is not None else None
         tag = self.work.frame if tag is None else tag
         if ahrs_off_deg is None:
             ahrs_off_deg = 0.0 if self.kf is None else self.kf.ahrs_off_deg
-        if relief_var is None:
-            relief_var = 0.0 if self.kf is None else self.kf.relief_var
         corners = None
         if self.region_P is not None:  # (the mask too is image work: localizers sharing it make it once)
             corners = self.work(lambda: ("harris_pad", tag, array_key(cam2pad)), self._pad_corners, gray, cam2pad)
@@ -2815,7 +2810,7 @@ class FlowTracker:
                            unroll=self.unroll)
         if kf is None:
             return False
-        kf.tag, kf.ahrs_off_deg, kf.parent, kf.relief_var = tag, float(ahrs_off_deg), parent, float(relief_var)
+        kf.tag, kf.ahrs_off_deg, kf.parent = tag, float(ahrs_off_deg), parent
         self.keyframes += 1
         kf.serial = self.keyframes
         self.kf, self.tracks, self.prev_gray, self.prev_tag, self.frames_since_kf = kf, kf.px.copy(), kf.gray, tag, 0
