@@ -864,6 +864,11 @@ def image_tilt_contradicts(est: "Estimate", cfg: LocalizerConfig, allowed_deg: f
 PAD_YAW_DEG, PAD_YAW_PERIOD_S = 20.0, 8.0  # the deck's yaw swell the pad's heading filter follows (PadHeading)
 PAD_HEADING_SIGMA_DEG = 1.0  # a pose's heading noise, as that filter weighs it where its covariance does not say
 PAD_YAW_HORIZON_S = 1.0  # ... and how long on it carries the pad's turn
+PAD_YAW_RATE_DEG_S = PAD_YAW_DEG * 2.0 * math.pi / PAD_YAW_PERIOD_S  # that swell's fastest turn (15.7 degrees a second)
+# how far the pad may have turned unseen over a gap without poses, beyond what its heading filter
+# carries (FalsePoseGates.unseen_turn_deg): at most this, well short of a quarter turn, which is what
+# a misnamed outline is off by and the jump must still refuse
+PAD_UNSEEN_TURN_MAX_DEG = 20.0
 PAD_YAW_MIN_RATE_DEG_S = 1.0  # a slower turn is no turn (PadHeading.turning)
 PAD_HEADING_MIN_SIGMA_DEG = 0.05  # a pose's heading is taken no surer than this
 # the offsets' own heading noise (PadHeading.unexplained_var) is read from the last this many accepted
@@ -999,6 +1004,9 @@ class FalsePoseGates:
             self.R_W_P = R_W_P
         else:
             ref = self.pad_orientation(est.t)
+            # the turn the pad may have made unseen since the last pose is granted (toward this pose's)
+            unseen = math.radians(self.unseen_turn_deg(est.t))
+            ref = rotation_z(float(np.clip(heading_turn(ref, R_W_P), -unseen, unseen))) @ ref
             jump = math.degrees(rotation_angle(ref, R_W_P) if cfg.pad_tilt_deg <= 0 else abs(heading_turn(ref, R_W_P)))
             if jump > cfg.imu_jump_deg:
                 self.imu_rejects += 1
@@ -1006,7 +1014,8 @@ class FalsePoseGates:
                     self.R_W_P, self.imu_rejects = R_W_P, 0
                     self.heading.reset()
                     self.heading.update(est.t, R_W_P, heading_var(est))
-                return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg})"
+                beyond = f" beyond the {math.degrees(unseen):.0f} deg it may have turned unseen" if unseen > 0 else ""
+                return f"vision-IMU rotation jumped {jump:.1f} deg (> {cfg.imu_jump_deg}){beyond}"
             # slow drift (the AHRS's): move the reference a little toward the new offset; its heading
             # is the one the pad's turn has reached (PadHeading).  On a tilting deck the reference is
             # the last accepted pose's (a naming a quarter turn off still jumps)
@@ -1015,6 +1024,18 @@ class FalsePoseGates:
         self.heading.update(est.t, R_W_P, heading_var(est))
         self.imu_rejects = 0
         return ""
+
+    def unseen_turn_deg(self, t: float) -> float:
+        """How far (degrees) the pad may have turned at ``t`` beyond the heading its filter predicts:
+        nothing within :data:`PAD_YAW_HORIZON_S` of the last accepted pose (the filter carries the
+        turn that far), then the swell's fastest turn (:data:`PAD_YAW_RATE_DEG_S`) over the rest of
+        the gap, at most :data:`PAD_UNSEEN_TURN_MAX_DEG`.  A deck yawing 5 degrees turned 6-8
+        degrees in the 2-3 s before the pad was seen again (fz340, fzu17), and its right poses were
+        refused as jumps until the reference started again eight frames later."""
+        if self.heading.x is None or not math.isfinite(t):
+            return 0.0
+        gap = max(t - self.heading.t - PAD_YAW_HORIZON_S, 0.0)
+        return min(PAD_YAW_RATE_DEG_S * gap, PAD_UNSEEN_TURN_MAX_DEG)
 
     def pad_orientation(self, t: float) -> np.ndarray | None:
         """The pad's orientation in the world (the vision-IMU offset) expected at ``t``: the running
@@ -1106,7 +1127,7 @@ class PadHeading:
         r += self.unexplained_var()
         if self.x is None or not math.isfinite(t):
             self.x, self.t = np.array([psi, 0.0]), t if math.isfinite(t) else self.t
-            self.P = np.diag([r, math.radians(PAD_YAW_DEG * 2.0 * math.pi / PAD_YAW_PERIOD_S) ** 2])
+            self.P = np.diag([r, math.radians(PAD_YAW_RATE_DEG_S) ** 2])
             return
         x, P = constant_rate_prediction(self.x, self.P, self.q, max(t - self.t, 0.0))
         nu = math.remainder(psi - x[0], 2.0 * math.pi)

@@ -597,6 +597,31 @@ def test_a_pad_turning_under_the_camera_is_followed_and_a_heading_jump_still_ref
             assert np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.01 * G[2, 3], k
 
 
+
+@pytest.mark.parametrize("turn_deg, posed", [(8.0, True), (-8.0, True), (30.0, False)])
+def test_a_pad_that_turned_unseen_is_posed_again_and_a_larger_jump_still_refused(pad, turn_deg, posed):
+    """A deck yawing while the pad is out of sight (2.5 s of frames with no pad) has turned when it
+    is seen again: the jump's bar grants what it may have turned unseen, beyond what the heading
+    filter carries (:meth:`hvloc.localizer.FalsePoseGates.unseen_turn_deg`).  Before, the 8 degrees
+    a 5 degree yaw swell turned in such a gap (fz340, fzu17) were refused as a jump until the
+    reference started again eight frames later.  What the bar grants is capped: a heading 30
+    degrees off after the gap is still refused."""
+    views = _views(pad, 14, 3.0, 2.6)
+    loc = HierarchicalLocalizer(pad, CAM, LocalizerConfig())
+    for k, (img, G) in enumerate(views[:8]):
+        assert loc.process(img, 0.1 * k, _imu_from(G)).ok, k
+    blank = np.full_like(views[0][0], 90)
+    for k in range(25):
+        assert not loc.process(blank, 0.8 + 0.1 * k, _imu_from(views[7][1])).ok
+    for j, (img, G) in enumerate(views[8:]):
+        e = loc.process(img, 3.3 + 0.1 * j, _imu_from(G, extra=so3_exp([0.0, 0.0, math.radians(turn_deg)])))
+        if posed:
+            assert e.ok, f"frame {j} after the gap: {e.status} {e.reason}"
+            assert np.linalg.norm(e.cam2pad[:3, 3] - G[:3, 3]) < 0.01 * G[2, 3], j
+        elif j < 3:  # (after eight refused poses the reference starts again: two a frame here)
+            assert e.status == "rejected" and "vision-IMU rotation jumped 10.0 deg" in e.reason, (j, e.reason)
+            assert "20 deg it may have turned unseen" in e.reason, e.reason
+
 def _offsets(yaw_of, rate_hz, seconds, jitter_deg, seed):
     """``(t, R_W_P)``: the vision-IMU offset of a pad whose heading is ``yaw_of(t)`` (rad), seen
     through an AHRS whose heading jitters ``jitter_deg`` from row to row (white)."""
