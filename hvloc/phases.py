@@ -466,6 +466,10 @@ def _window(img: np.ndarray, quad_px: np.ndarray, margin_px: float) -> tuple:
     return img[lo[1]:hi[1], lo[0]:hi[0]], lo
 
 
+SIDE_FIT_PASSES = 4  # the wide side fit is made at most this many times (_fit_sides) ...
+SIDE_FIT_SETTLED_PX = 0.5  # ... until another pass moves no corner further than this
+
+
 def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeometry, camera: Camera | None,
                visible=None, polarity: bool = False) -> tuple:
     """``(refined | None, rms, crop, border channel, (x0, y0))``: the sides of the coarse ``quad``
@@ -486,8 +490,21 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
     # two inside it), so the border's polarity says which crossing is its outer edge (the border
     # channel is higher on the border than beyond it, in shadow and glare alike).  The narrow window
     # around the fitted sides holds the outer edge alone, placed by each profile's own ends.
-    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=max(hw, 2.5), camera=cam_s,
-                               inside_brighter=polarity)
+    wide = max(hw, 2.5)
+    refined, res = refine_quad(chan, quad - [bx0, by0], half_width=wide, camera=cam_s, inside_brighter=polarity)
+    # again from where it put the sides, until they settle: where the hull lay a few pixels off a
+    # side, the window held the edge over a short stretch only, and a line through it can be turned
+    # by degrees (fz355: a pad cut by the image's top edge, its corner in view 5.5 px out along the
+    # next side after the narrow pass, 0.3 px once settled; posed 11.9 % of the height off, "ok").
+    # Only where the solid band is wider than the window: one that holds both of its edges walks
+    # across it pass by pass (small pads' sides went off their colour hull)
+    for _ in range(SIDE_FIT_PASSES - 1 if side_px * geo.border.solid_band_m / geo.side_m > 2.0 * wide else 0):
+        if refined is None:
+            break
+        again, res2 = refine_quad(chan, refined, half_width=wide, camera=cam_s, inside_brighter=polarity)
+        if again is None or np.max(np.linalg.norm(again - refined, axis=1)) <= SIDE_FIT_SETTLED_PX:
+            break
+        refined, res = again, res2
     if refined is not None:  # then narrow, around the refined sides
         again, res2 = refine_quad(chan, refined, half_width=hw, camera=cam_s)
         if again is not None:

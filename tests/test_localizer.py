@@ -2462,6 +2462,42 @@ def _one_corner_hidden_views(geo, heights, yaws: int, directions, insets):
                     yield G, truth, seen, in_view
 
 
+
+def test_a_side_fit_started_pixels_off_a_large_pads_edge_settles_on_it(pad, monkeypatch):
+    """A large pad's colour hull can lie pixels off its edge (fz355: a 257 px pad cut by the image's
+    top edge on a platform whose grey rim lies beside the band: the hull's hidden corner 10 px out,
+    the one beside it in view 5 px).  The wide side fit's window then holds the edge over a short
+    stretch only, the line through it turned by degrees, and the narrow fit around that line kept
+    the corner 5.5 px out along the next side: posed 11.9 % of the height off, "ok".  The wide fit
+    is now made again from where it put the sides until they settle (``SIDE_FIT_PASSES``, where the
+    solid band is wider than the window).  Over one-corner-hidden views at 1.9 m (300 px pads) whose
+    hull is so made, every corner in view lies within 0.35 px; made once, some lay 3 px out."""
+    from hvloc import phases as ph
+
+    geo = pad.geometry
+    worst, settled = {}, ph.SIDE_FIT_PASSES
+    for passes in (1, settled):
+        monkeypatch.setattr(ph, "SIDE_FIT_PASSES", passes)
+        worst[passes] = []
+        for G, truth, seen, _ in _one_corner_hidden_views(geo, (1.9,), 6, (0.0, 1.57, 3.14, 4.71, 0.8, 2.4),
+                                                          (0.3, 0.5, 0.7, 0.9)):
+            img = warp_pad_view(pad, CAM, G, GROUND)
+            k = int(np.argmin(seen))  # the hidden corner; the one after it in view
+            j = (k + 1) % 4
+            hull = truth.copy()
+            along = truth[j] - truth[(j + 1) % 4]
+            hull[j] += 5.0 * along / np.linalg.norm(along)
+            side = truth[k] - truth[j]
+            hull[k] += 10.0 * np.array([side[1], -side[0]]) / np.linalg.norm(side)  # outward
+            side_px = float(np.mean(np.linalg.norm(np.roll(truth, -1, axis=0) - truth, axis=1)))
+            assert side_px * geo.border.solid_band_m / geo.side_m > 6.0  # (the band wider than the window)
+            refined, _, _, _, origin = ph._fit_sides(img, hull, side_px, geo, CAM)
+            if refined is not None:
+                worst[passes].append(float(np.linalg.norm(refined + origin - truth, axis=1)[seen].max()))
+    assert len(worst[settled]) >= 30, worst
+    assert max(worst[settled]) < 0.35, worst
+    assert sum(w > 2.0 for w in worst[1]) >= 2, worst  # (the premise: made once)
+
 def test_a_side_mostly_cut_off_by_the_image_edge_is_read_on_what_is_in_view(pad):
     """Each side is read between a fifth and four fifths of its length (clear of the corners).  A
     side running out of the image with a third of it in view then kept only a few profiles, too few
@@ -2611,7 +2647,9 @@ def test_a_cut_pad_edge_fitted_under_smear_states_the_fits_noise(pad):
             nees.append((_nees_as_stated(out, geo, G), _nees_as_stated(out, geo, G, sigma_of=before)))
     assert len(nees) >= 6, nees
     assert all(now < 14.16 for now, _ in nees), nees  # chi2(3), 3 sigma
-    assert sum(old > 14.16 for _, old in nees) >= 2, nees
+    # (the premise: as stated before, some did not; 2 of them until the wide side fit was made again
+    # until it settles, phases.SIDE_FIT_PASSES, which put their corners nearer)
+    assert sum(old > 14.16 for _, old in nees) >= 1, nees
 
 
 def test_an_outline_left_at_its_colour_hulls_corners_states_their_noise(pad):
