@@ -673,3 +673,40 @@ def test_a_known_camera_response_is_written_with_the_frames_it_made_and_read_bac
         (known.root / "camera.json").write_text(json.dumps({**info, "response": bad}))
         with pytest.raises(InputError, match=field.replace(".", r"\.")):
             Sequence(known.root)
+
+
+def test_the_pads_window_holds_a_side_a_barrel_lens_bows_past_its_corners():
+    """The renderer adds the pad's glare, relief shading and deck light over a window of the image
+    around the pad (:func:`render.frames.pad_window`).  It was its corners' box: through a barrel
+    lens (k1 -0.25, 100 degrees) a side running near the image's edge bows out past it, and the
+    sliver between got none of that light.  Every pixel whose ray meets the pad now lies in the
+    window, over views with a side near each edge (356 of them were not).  A pad partly out of view
+    gives the whole image: a corner near the camera's plane projected past any integer (numpy's
+    cast warned, and the window came out empty), and a lens folds points far out of view back in."""
+    from hvloc.geometry import Camera, make_transform
+    from render.frames import pad_window
+
+    cam = Camera.from_hfov(640, 480, math.radians(100.0), dist=(-0.25, 0.05, 0.0, 0.0, 0.0))
+    s = 0.5
+    corners = np.array([[-s, -s, 0.0], [s, -s, 0.0], [s, s, 0.0], [-s, s, 0.0]])
+    u, v = np.meshgrid(np.arange(640.0), np.arange(480.0))
+    rays = cam.normalized_from_pixels(np.column_stack([u.ravel(), v.ravel()]))
+    missed_before = 0
+    for dx, dy in ((0.0, 0.9), (0.0, -0.9), (1.2, 0.0), (-1.2, 0.0)):
+        T = make_transform(np.diag([1.0, -1.0, -1.0]), [dx, dy, 1.4])  # looking down from 1.4 m
+        R, t = T[:3, :3], T[:3, 3]
+        d = rays @ R[:, :2].T + R[:, 2]  # each pixel's ray in the pad's frame
+        P = t + d * (-t[2] / d[:, 2])[:, None]
+        on = (np.abs(P[:, 0]) < s) & (np.abs(P[:, 1]) < s)
+        rows, cols = np.divmod(np.flatnonzero(on), 640)
+        assert len(rows) > 1000
+        r0, r1, c0, c1 = pad_window(cam, T, corners)
+        assert (rows >= r0).all() and (rows < r1).all() and (cols >= c0).all() and (cols < c1).all(), (dx, dy)
+        box = cam.project_from(T, corners)  # (the corners' box, as before)
+        lo, hi = np.floor(box.min(axis=0)) - 2, np.ceil(box.max(axis=0)) + 3
+        missed_before += int(((rows < lo[1]) | (rows >= hi[1]) | (cols < lo[0]) | (cols >= hi[0])).sum())
+    assert missed_before > 50, missed_before  # (the premise)
+    # a pad partly out of view: the whole image (a lens folds points far out of view back in)
+    T = make_transform(np.diag([1.0, -1.0, -1.0]), [0.0, 1.3, 1.4])
+    assert not cam.in_image(cam.project_from(T, corners)).all()
+    assert pad_window(cam, T, corners) == (0, 480, 0, 640)
