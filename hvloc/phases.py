@@ -496,13 +496,16 @@ def _fit_sides(rgb: np.ndarray, quad: np.ndarray, side_px: float, geo: PadGeomet
     # side, the window held the edge over a short stretch only, and a line through it can be turned
     # by degrees (fz355: a pad cut by the image's top edge, its corner in view 5.5 px out along the
     # next side after the narrow pass, 0.3 px once settled; posed 11.9 % of the height off, "ok").
-    # Only where the solid band is wider than the window: one that holds both of its edges walks
-    # across it pass by pass (small pads' sides went off their colour hull)
+    # Made again only while a corner in view moves (a hidden corner, far along two sides, moves with
+    # any turn of them), and where the solid band is wider than the window: one that holds both of
+    # its edges walks across it pass by pass (small pads' sides went off their colour hull)
     for _ in range(SIDE_FIT_PASSES - 1 if side_px * geo.border.solid_band_m / geo.side_m > 2.0 * wide else 0):
         if refined is None:
             break
         again, res2 = refine_quad(chan, refined, half_width=wide, camera=cam_s, inside_brighter=polarity)
-        if again is None or np.max(np.linalg.norm(again - refined, axis=1)) <= SIDE_FIT_SETTLED_PX:
+        seen = _seen(refined + [bx0, by0], rgb.shape)
+        if again is None or not seen.any() \
+                or np.max(np.linalg.norm(again - refined, axis=1)[seen]) <= SIDE_FIT_SETTLED_PX:
             break
         refined, res = again, res2
     if refined is not None:  # then narrow, around the refined sides
