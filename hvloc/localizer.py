@@ -1006,7 +1006,8 @@ class FalsePoseGates:
             ref = self.pad_orientation(est.t)
             # the turn the pad may have made unseen since the last pose is granted (toward this pose's)
             unseen = math.radians(self.unseen_turn_deg(est.t))
-            ref = rotation_z(float(np.clip(heading_turn(ref, R_W_P), -unseen, unseen))) @ ref
+            if unseen > 0:
+                ref = rotation_z(float(np.clip(heading_turn(ref, R_W_P), -unseen, unseen))) @ ref
             jump = math.degrees(rotation_angle(ref, R_W_P) if cfg.pad_tilt_deg <= 0 else abs(heading_turn(ref, R_W_P)))
             if jump > cfg.imu_jump_deg:
                 self.imu_rejects += 1

@@ -47,23 +47,21 @@ class FrameLayers:
 PAD_WINDOW_SAMPLES = 64  # points along each side of the pad whose images bound its window (pad_window)
 
 
-def pad_window(camera, cam2pad: np.ndarray, corners_P: np.ndarray, shape=None) -> tuple | None:
+def pad_window(camera, cam2pad: np.ndarray, corners_P: np.ndarray) -> tuple:
     """``(r0, r1, c0, c1)``: the rows and columns of the image the pad (``corners_P``, its outline in
-    its frame) may show in, or ``None`` where it shows in none.  Bounded by the images of points
+    its frame) may show in.  Bounded by the images of points
     along its sides, not of its corners alone: through a barrel lens a side near the image's edge
     bows out past its corners' box (its sliver got no glare, relief shading or deck light).  The
     whole image where any of them falls outside it or behind the camera: a lens model folds points
-    far out of view back in, and a corner near the camera's plane projects past any integer.
-    ``shape``: the image's (rows, columns), by default the camera's."""
-    H, W = (camera.height, camera.width) if shape is None else shape[:2]
+    far out of view back in, and a corner near the camera's plane projects past any integer."""
+    H, W = camera.height, camera.width
     t = np.linspace(0.0, 1.0, PAD_WINDOW_SAMPLES, endpoint=False)[:, None, None]
     c = np.asarray(corners_P, np.float64)
     px = camera.project_from(cam2pad, (c + t * (np.roll(c, -1, axis=0) - c)).reshape(-1, 3))
     if not (np.isfinite(px).all() and camera.in_image(px).all()):
         return 0, H, 0, W
     (c0, r0), (c1, r1) = np.floor(px.min(axis=0)).astype(int) - 2, np.ceil(px.max(axis=0)).astype(int) + 3
-    r0, c0, r1, c1 = max(r0, 0), max(c0, 0), min(r1, H), min(c1, W)
-    return None if r1 <= r0 or c1 <= c0 else (r0, r1, c0, c1)
+    return max(r0, 0), min(r1, H), max(c0, 0), min(c1, W)  # (all in view: never empty)
 
 
 class SequenceRenderer:
@@ -339,11 +337,7 @@ class SequenceRenderer:
     def _pad_pixels(self, depth: np.ndarray, cam2pad: np.ndarray):
         """``(rows, cols, P, on)``: the window of the image around the pad, its pixels' points in the
         pad frame (from the depth) and which of them lie on the pad; ``None`` when none do."""
-        H, W = depth.shape
-        window = pad_window(self.camera, cam2pad, self.pad.outer_corners_P, depth.shape)
-        if window is None:
-            return None
-        r0, r1, c0, c1 = window
+        r0, r1, c0, c1 = pad_window(self.camera, cam2pad, self.pad.outer_corners_P)
         xn, yn = self.rays[0][r0:r1, c0:c1], self.rays[1][r0:r1, c0:c1]
         z = depth[r0:r1, c0:c1]
         zc = np.where(np.isfinite(z), z, 0.0).astype(np.float32)
