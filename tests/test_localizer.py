@@ -5736,6 +5736,48 @@ def test_a_stained_pads_fitted_tilt_is_doubted_for_the_drawings_own_error(pad, m
     assert ratios().max() > 3.0  # the premise: the pixels' noise alone understates
 
 
+def test_a_drawing_that_matches_its_pad_poorly_doubts_the_pads_fitted_tilt_more(pad, monkeypatch):
+    """Where the fitted drawing explains the pad poorly (its correlation with the frame under
+    :data:`hvloc.texfit.DESIGN_MODEL_NCC`: stains, a grey camera's JPEG), it misplaces a far pad's tilt
+    by more than the drawing's usual error: fz377's grey JPEG 60 pads, 51-54 px at 11 m matched at
+    0.90, had tilts stated to 1.6-2.0 degrees 5-7 off, 1-1.3 m, accepted.  The drawing's error then
+    grows as 1 - ncc.  Here: heavily stained 44-56 px grey views, JPEG 50, 18 degrees off nadir, each
+    fitted from (and weighed against) a tilt 4 degrees off.  Every view within 1.5 of its stated
+    doubt; stated with the usual error, the worst were nearly twice it off."""
+    import hvloc.texfit as tf
+    from hvloc.synthesis import PadSynthesis
+    from render.textures import dirty_texture
+
+    syn = PadSynthesis(pad)
+
+    def fits():
+        rng, out = np.random.default_rng(7), []
+        for trial in range(10):
+            dirty = dataclasses.replace(pad, texture_rgb=dirty_texture(pad.texture_rgb, 0.7, 200 + trial))
+            G = _pitched_view(dirty, rng, rng.uniform(44.0, 56.0), pitch_deg=18.0)
+            frame = _jpeg(_grey(_camera_view(dirty, rng, None, (120, 110, 90), G=G, blur_px=0.6)[2]), 50)
+            turn = so3_exp(math.radians(4.0) * np.array([math.cos(phi := rng.uniform(0, 2 * np.pi)), math.sin(phi), 0.0]))
+            start = G.copy()
+            start[:3, :3], start[:3, 3] = turn @ G[:3, :3], turn @ G[:3, 3]  # (the pad turned about its centre)
+            got, info = tf.fit_pose_to_design(frame, CAM, syn, start, max_side_px=tf.HALVED_MAX_SIDE_PX,
+                                              up_C=start[:3, :3].T @ np.array([0.0, 0.0, 1.0]), up_sigma_deg=5.0,
+                                              tilt_min_side_px=40.0)
+            assert got is not None and "tilt_deg" in info, (trial, info)
+            up = np.array([0.0, 0.0, 1.0])
+            off = math.degrees(math.acos(min(1.0, float((got[:3, :3].T @ up) @ (G[:3, :3].T @ up)))))
+            out.append((off / info["tilt_sigma_deg"], info["ncc"], info["tilt_sigma_deg"]))
+        return np.array(out)
+
+    scaled = fits()
+    poor = scaled[:, 1] < tf.DESIGN_MODEL_NCC
+    assert (scaled[:, 1] < tf.DESIGN_MODEL_NCC - 0.03).sum() >= 4, scaled[:, 1]  # the premise: poorly matched views
+    assert scaled[:, 0].max() < 1.5, scaled
+    monkeypatch.setattr(tf, "DESIGN_MODEL_NCC", 0.0)  # the drawing's usual error, however it matches
+    usual = fits()
+    assert np.all(scaled[:, 2] >= usual[:, 2] - 1e-9) and np.all(scaled[poor, 2] > usual[poor, 2]), (scaled, usual)
+    assert usual[:, 0].max() > 1.5, usual  # the premise: stated so, the worst views lie further off
+
+
 def test_a_middle_far_pad_on_an_untracked_deck_is_posed_by_its_design_with_its_tilt(pad):
     """On a deck whose tilt is not tracked, a pad's four corners fix its tilt too loosely below
     ~100 px, and the pose is refused; the design fit holds the IMU's tilt below
