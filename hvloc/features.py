@@ -29,6 +29,19 @@ def _inside(px: np.ndarray, shape, margin=0.0) -> np.ndarray:
     return (x >= margin) & (y >= margin) & (x <= shape[1] - 1 - margin) & (y <= shape[0] - 1 - margin)
 
 
+def sample_at(img: np.ndarray, pts) -> np.ndarray:
+    """``img`` read bilinearly at points ``pts`` ``(..., 2)`` (x, y pixels), float64: shaped as the
+    points' leading axes (a grid of them at most two deep), with the image's channels after a colour
+    one's; a point outside reads the nearest edge's value (callers mark those unseen).  Points far out
+    of view (a cut pad's side or cells through a wide lens) are held within float32's range: cast as
+    they were, they overflowed with a warning."""
+    p = np.asarray(pts, np.float64)
+    lead = p.shape[:-1]
+    at = np.clip(p.reshape((1, -1, 2) if len(lead) < 2 else (-1, lead[-1], 2)), -1e6, 1e6).astype(np.float32)
+    v = cv2.remap(img, at[..., 0], at[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return v.astype(np.float64).reshape(lead + v.shape[2:])
+
+
 def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: float, camera: Camera | None) -> list:
     """For each side of ``quad``: ``(profiles (m, R), seen (m,))``, the image sampled across the side
     at ``offsets[i]`` px along its inward normal, at ``m`` places along its middle, and which of
@@ -39,8 +52,7 @@ def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: floa
     for i in range(4):
         r = np.asarray(offsets[i], np.float64)
         P = pts[i][:, None, :] + (inward[i] * r)[None, :, None] * nrm[i][:, None, :]
-        prof = cv2.remap(g, P[..., 0].astype(np.float32), P[..., 1].astype(np.float32), cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+        prof = sample_at(g, P)
         out.append((prof, _inside(P, g.shape).all(axis=1) & np.isfinite(prof).all(axis=1)))
     return out
 
@@ -170,8 +182,7 @@ def refine_quads(gray: np.ndarray, quads_px, half_widths, camera: Camera | None 
     u = np.linspace(-1.0, 1.0, nr)
     r = u[None, :] * hw[:, None]                                    # (S, R) offsets per side
     P = pts[:, :, None, :] + r[:, None, :, None] * nrm[:, :, None, :]  # (S, m, R, 2)
-    prof = cv2.remap(g, P[..., 0].reshape(S * m, nr).astype(np.float32), P[..., 1].reshape(S * m, nr).astype(np.float32),
-                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    prof = sample_at(g, P.reshape(S * m, nr, 2))
     k = max(1, nr // 6)
     lo = prof[:, :k].mean(axis=1)
     hi = prof[:, -k:].mean(axis=1)

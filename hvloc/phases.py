@@ -13,7 +13,7 @@ import numpy as np
 
 from . import markers as mk
 from .features import (_inside, band_centroid_offsets, banded_edge_offsets, banded_profile_offsets, refine_quad,
-                       refine_quads, rise_offsets, srgb_to_linear, step_blur)
+                       refine_quads, rise_offsets, sample_at, srgb_to_linear, step_blur)
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, ideal_grid, invert, rotation_angle, so3_exp, transform_points
@@ -527,7 +527,7 @@ def _refine_occluded(rgb, quad, a, b, n, geo: PadGeometry, camera: Camera | None
     # an occluder's edge crosses the pad: just this side of it lies the field, not the border (a
     # hull side that is the pad's own edge has its band all along; then nothing is hidden)
     along = a + np.linspace(0.2, 0.8, 16)[:, None] * (b - a) - 2.5 * n
-    v = _sample_at(rgb, along)
+    v = sample_at(rgb, along)
     border = np.asarray(geo.border.color_rgb, np.float64)
     level = float(border @ _colour_direction(border)) / max(border.sum(), 30.0)
     if np.mean((v @ _colour_direction(border)) / np.maximum(v.sum(axis=1), 30.0) > 0.5 * level) > 0.5:
@@ -1109,7 +1109,7 @@ def _corner_missing(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     px = _through_quad(quad_px, geo, camera, np.concatenate(pts))
     if px is None:
         return False
-    v = _sample_at(rgb, px)
+    v = sample_at(rgb, px)
     seen = _seen(px, rgb.shape, visible).reshape(4, -1).all(axis=1)
     chroma = ((v @ _colour_direction(geo.border.color_rgb)) / np.maximum(v.sum(axis=1), 30.0)).reshape(4, -1).mean(axis=1)
     if seen.sum() < 2:
@@ -1138,7 +1138,7 @@ def _band_stretches(rgb: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, came
     px = _through_quad(quad_px, geo, camera, np.concatenate(pts))
     if px is None:
         return None
-    v = _sample_at(rgb, px)
+    v = sample_at(rgb, px)
     seen = _seen(px, rgb.shape, visible).reshape(4, 2, segments, per).all(axis=1).mean(axis=2) >= min_share  # (4, segments)
     ch = (v @ _colour_direction(geo.border.color_rgb)).reshape(4, 2, segments, per)
     norm = (ch / np.maximum(v.sum(axis=1), 30.0).reshape(4, 2, segments, per)).mean(axis=3)
@@ -1648,16 +1648,6 @@ DESIGN_MIN_LEAD = 0.04  # ... and its lead over the next naming's
 _DESIGN_TURN = -1       # np.rot90's direction that takes naming 0's samples to naming k's
 
 
-def _sample_at(img: np.ndarray, px: np.ndarray) -> np.ndarray:
-    """``img`` read bilinearly at points ``px`` ``(n, 2)``: ``(n,)`` of a grey image, ``(n, channels)``
-    of a colour one, float64; a point outside reads the nearest edge's value (callers mark those unseen).
-    Points far out of view (a cut pad's through a wide lens) are held within float32's range: cast as
-    they were, they overflowed with a warning."""
-    at = np.clip(np.asarray(px, np.float64), -1e6, 1e6).astype(np.float32)
-    return cv2.remap(img, at[:, 0][None], at[:, 1][None], cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)[0].astype(np.float64)
-
-
 def _design_samples(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, camera: Camera | None) -> tuple | None:
     """``(v, seen, n)``: the image sampled at the design's ``n`` x ``n`` cells (:func:`_design_cells`,
     a cell per pixel across the pad, 12-64) as the quad's own order names them, row by row, and which
@@ -1671,7 +1661,7 @@ def _design_samples(gray: np.ndarray, quad_px: np.ndarray, geo: PadGeometry, cam
     px = _through_quad(quad_px, geo, camera, _design_cells(geo.side_m, n))
     if px is None:
         return None
-    v = _sample_at(gray, px)
+    v = sample_at(gray, px)
     return v, _seen(px, gray.shape), n
 
 
@@ -2141,7 +2131,7 @@ def _reading_score(g: np.ndarray, reading: tuple, sets: dict, geo: PadGeometry, 
     seen = np.isfinite(px).all(axis=1) & _seen(px, g.shape) & beyond
     if seen.sum() < PAIR_DESIGN_MIN_SEEN * beyond.sum() or seen.sum() < 16:
         return -1.0, -1.0, centre[0], centre[1]
-    v = _sample_at(g, px[seen])
+    v = sample_at(g, px[seen])
     return _ncc(v, design.at(n).ravel()[seen]), _ncc(v, design.turned(n).ravel()[seen]), centre[0], centre[1]
 
 
@@ -2273,7 +2263,7 @@ def _cue_scores(rgb: np.ndarray, quad_px: np.ndarray, pad_geometry: PadGeometry,
     px = _through_quad(quad_px, geo, camera, np.concatenate(turned))
     if px is None:
         return np.zeros(4)
-    vals = _sample_at(rgb, px)
+    vals = sample_at(rgb, px)
     inside = _seen(px, rgb.shape, visible).reshape(4, -1).all(axis=1)
     target = _chroma(geo.cue.color_rgb) - _chroma(geo.border.color_rgb)
     luma = srgb_to_linear(vals.round()) @ _LUMA

@@ -230,21 +230,24 @@ def test_a_soft_grey_view_of_the_pad_is_named_by_what_a_quarter_turn_changes(pad
 def test_points_far_out_of_view_are_sampled_without_overflow():
     """A cut pad's cells seen through a wide lens can land past float32's range (a grey fuzz scene's
     design read warned "overflow encountered in cast" into the logs).  They read as the nearest edge,
-    as any point outside does, without a warning; points in view read bilinearly, as before."""
+    as any point outside does, without a warning; points in view read bilinearly, as before, and a
+    grid of them (an edge's profiles) as a grid."""
     import warnings
 
-    import hvloc.phases as ph
+    from hvloc.features import sample_at
 
     img = np.arange(48, dtype=np.float32).reshape(6, 8) * 5.0
     px = np.array([[2.5, 3.0], [1e39, 2.0], [-1e300, -1e300], [7.0, 5.0]])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        v = ph._sample_at(img, px)
+        v = sample_at(img, px)
     assert v.shape == (4,) and v.dtype == np.float64
     assert v[0] == (img[3, 2] + img[3, 3]) / 2.0 and v[3] == img[5, 7]
     assert v[1] == img[2, -1] and v[2] == img[0, 0]  # (the nearest edge's)
     rgb = np.dstack([img, img / 2, 255 - img])
-    assert ph._sample_at(rgb, px).shape == (4, 3)
+    assert sample_at(rgb, px).shape == (4, 3)
+    grid = np.stack([px, px[::-1]])  # (a side's profiles: a grid of points)
+    assert sample_at(img, grid).shape == (2, 4) and np.array_equal(sample_at(img, grid)[1], v[::-1])
 
 
 def test_a_grey_pad_too_small_to_show_its_design_and_grey_ground_are_never_posed(pad):
