@@ -69,6 +69,18 @@ DESIGN_FIT_MAX_SMEAR_SHARE = 0.3
 # elsewhere it holds the IMU's below hvloc.texfit.TILT_MIN_SIDE_PX: held there, the pad's four corners fix its
 # tilt too loosely and the pose is refused (fuzz seeds 114, 117, 142: 35-47 far frames each)
 UNTRACKED_TILT_MIN_SIDE_PX = 24.0
+# A grey outline read only faintly as the design (hvloc.phases.GREY_NEAR_ASYM_NCC) is taken where its design fit
+# reads at the full bars, or faintly there where the fitted drawing, lit square by square, matches the frame this
+# well.  A glossy, stained pad's sheen and dirt dilute the plain read of what a quarter turn changes (the fuzz's
+# fz363, fz382, fz387: 26-120 px pads read 0.36-0.55 through the labelled outline, leading the next naming by
+# 0.47-0.66, and were refused from 11 m down to 3.7 m); the drawing's own lighting takes much of the sheen up.
+# 563 design fits on eleven grey scenes (scratch/greyfit.py: started from the labelled outline, from it shifted
+# 15-25 % of the side, scaled 0.8 or 1.2, or with a corner a fifth of the side off): of those placed within 3 %
+# of the side, 105 read faintly, their drawing correlating 0.88-0.98 (median 0.95, 73 % at this bar or more);
+# misplaced 5-9 % and read faintly (9, all started from a corner a fifth off, unsquare, on a tilting deck whose
+# wrong tilt the fit held), 0.92 at most.  The read is needed too: misplaced fits correlated up to 0.955, and
+# read as nothing
+FAINT_READ_FIT_NCC = 0.93
 # ... and a tilt fitted there, below TILT_MIN_SIDE_PX, is believed only as far as the fits of the frames before
 # agree: the deck swells over seconds, and successive fits of a slowly tilting pad scatter by their own error
 # (times sqrt 2), whatever its cause: the RMS step over sqrt 2 is the sigma of the worst axis where one axis
@@ -2446,16 +2458,19 @@ class HierarchicalLocalizer:
     def _read_where_fitted(self, det, gray: np.ndarray, why: str) -> tuple:
         """``(det | None, reason)``: a grey outline read as the pad's design only at the lower bar
         (:data:`hvloc.phases.GREY_NEAR_ASYM_NCC`) is taken where its design fit placed it and the image
-        there reads as the design at the full bars (:func:`hvloc.phases._design_read`); refused where
-        its design was not fitted or does not read so."""
+        there reads as the design at the full bars (:func:`hvloc.phases._design_read`), or reads faintly
+        and the fitted drawing correlates :data:`FAINT_READ_FIT_NCC` with the frame; refused where its
+        design was not fitted or does not read so."""
         fit = det.info.get("design_fit")
         if not isinstance(fit, dict):
             return None, f"a grey frame's pad read faintly as its design, and its design not fitted ({fit or 'off'})"
         outer = ph._through_quad(det.px, self.geometry, self.camera, self.outer_P[:, :2], square=det.pts_P)
-        if outer is None or not np.isfinite(outer).all() \
-                or ph._design_read(gray, outer, self.geometry, self.camera, self._design())[0] != ph.READS:
-            return None, "a grey frame's pad read faintly as its design, and not as it where its design fit puts it"
-        return det, why
+        level = 0 if outer is None or not np.isfinite(outer).all() else \
+            ph._design_read(gray, outer, self.geometry, self.camera, self._design())[0]
+        if level == ph.READS or (level == ph.READS_FAINTLY and fit.get("ncc", 0.0) >= FAINT_READ_FIT_NCC):
+            return det, why
+        return None, ("a grey frame's pad read faintly as its design, and not as it where its design fit puts it "
+                      f"(its drawing correlating {fit.get('ncc', 0.0):.2f} there)")
 
     def _small_field_refused(self, det, why: str) -> tuple:
         """``(None, reason)`` for an outline placed by its white field's corners alone (its design not
