@@ -42,6 +42,12 @@ def sample_at(img: np.ndarray, pts) -> np.ndarray:
     return v.astype(np.float64).reshape(lead + v.shape[2:])
 
 
+def ncc(a: np.ndarray, b: np.ndarray) -> float:
+    """The normalized cross-correlation of two equally long samples (0 where either is flat)."""
+    a, b = a - a.mean(), b - b.mean()
+    return float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
+
+
 def _cross_profiles(g: np.ndarray, quad: np.ndarray, offsets, m: int, trim: float, camera: Camera | None) -> list:
     """For each side of ``quad``: ``(profiles (m, R), seen (m,))``, the image sampled across the side
     at ``offsets[i]`` px along its inward normal, at ``m`` places along its middle, and which of

@@ -14,6 +14,7 @@ import numpy as np
 from . import markers as mk
 from .features import (_inside, band_centroid_offsets, banded_edge_offsets, banded_profile_offsets, refine_quad,
                        refine_quads, rise_offsets, sample_at, srgb_to_linear, step_blur)
+from .features import ncc as _ncc
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, ideal_grid, invert, rotation_angle, so3_exp, transform_points
@@ -1636,12 +1637,6 @@ def _design_cells(side_m: float, n: int) -> np.ndarray:
     cells = np.column_stack([X.ravel(), Y.ravel()])
     cells.setflags(write=False)
     return cells
-
-
-def _ncc(a: np.ndarray, b: np.ndarray) -> float:
-    """The normalized cross-correlation of two equally long samples."""
-    a, b = a - a.mean(), b - b.mean()
-    return float(a @ b / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9))
 
 
 DESIGN_MIN_NCC = 0.6    # the naming's correlation with the design (over ground, quads reach 0.58 at most)

@@ -42,6 +42,7 @@ import numpy as np
 
 from pad_design.texture import texture_to_pad
 
+from .features import ncc as _ncc
 from .features import srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
@@ -529,10 +530,7 @@ def fit_pose_to_design(image: np.ndarray, camera: Camera, synth, cam2pad: np.nda
 
     def correlation(r) -> float:
         """The fitted drawing's correlation with the frame's luma on the pad, its residual ``r``."""
-        a = seen[on] - r[on]  # the drawing's luma
-        t = seen[on]
-        a, t = a - a.mean(), t - t.mean()
-        return float(a @ t / max(float(np.linalg.norm(a) * np.linalg.norm(t)), 1e-12))
+        return _ncc(seen[on] - r[on], seen[on])  # (the drawing's luma, the frame's)
 
     state, it, _ = descend((q, DB) + toned(DB[0][sel].astype(np.float64)), False)
     q, doubt = state[0], None
