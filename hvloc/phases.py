@@ -13,8 +13,7 @@ import numpy as np
 
 from . import markers as mk
 from .features import (_inside, band_centroid_offsets, banded_edge_offsets, banded_profile_offsets, refine_quad,
-                       refine_quads, rise_offsets, sample_at, srgb_to_linear, step_blur)
-from .features import ncc as _ncc
+                       refine_quads, rise_offsets, sample_at, srgb_to_linear, step_blur, ncc as _ncc)
 from pad_design.geometry import PadGeometry
 
 from .geometry import Camera, ideal_grid, invert, rotation_angle, so3_exp, transform_points

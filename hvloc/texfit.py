@@ -42,8 +42,7 @@ import numpy as np
 
 from pad_design.texture import texture_to_pad
 
-from .features import ncc as _ncc
-from .features import srgb_to_linear
+from .features import ncc as _ncc, srgb_to_linear
 from .geometry import Camera, invert, pad_plane_homography, so3_exp
 from .synthesis import box_levels, level_for
 
