@@ -56,7 +56,7 @@ RATE_SPREAD_MIN_PX = 0.05  # a doubt in the gyro's rate that unrolls no point by
 # share of each one's own smear over the exposure, counted in the pose's covariance (:meth:`_smear_spread`) ...
 TRACK_SMEAR_DOUBT = 0.1
 TRACK_SMEAR_MIN_PX = 4.0  # ... where some track is smeared this far
-HULL_CORNER_PX = 1.0  # a colour hull's corner's noise (px): a cut pad's, before its design fit places it
+HULL_CORNER_PX = 1.0  # a hull's corner's noise (px): a cut pad's colour hull, a grey pad's blob, before its design fit places it
 # the design fit's tilt is held where the frame's motion smears the pad more than this (px) over the exposure:
 # the fit's blur is isotropic, and a smear along one way is taken up by the tilt.  On unseen100 (1-4 px of
 # motion smear) the fitted tilt put 44-100 px pads 0.14-0.39 % of the height off in the median, held 0.08-0.24
@@ -2222,8 +2222,7 @@ class HierarchicalLocalizer:
             if det is not None and det.info.get("read_after_fit"):
                 det, why = self._read_where_fitted(det, gray, why)
             if det is not None and det.info.get("hull_only") and not isinstance(det.info.get("design_fit"), dict):
-                det, why = None, ("pad cut by the image's edge, its side toward the hidden corner too short to fit, "
-                                  f"and its design not fitted over what is in view ({_design_note(det)})")
+                det, why = None, f"{det.info['hull_only']}, and its design not fitted there ({_design_note(det)})"
             if det is not None and grey and self.deck is not None and not self.deck_tracked and "fitted_up_C" not in det.info:
                 # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
                 # deck_mono (both of IPPE's minima), stating 2.5.  Its design, where it fits the tilt
@@ -2410,7 +2409,7 @@ class HierarchicalLocalizer:
             # anyway, fz216's 50-65 px pads were placed 2.6-2.9 % of the height off, NEES 28-53; by
             # their corners, where the field and the colour agree, 0.7 % and within their sigma
             return replace(det, info=dict(det.info, design_fit="its band washed out: not the design's drawing"))
-        hull = bool(det.info.get("hull_only"))  # a cut pad's hull: its hidden corner a guess, started from with its doubt
+        hull = bool(det.info.get("hull_only"))  # a hull's corners (a cut pad's hidden one a guess), started from with their doubt
         scale = np.asarray(det.info.get("px_sigma_scale", np.ones(len(det.px))), np.float64) if hull else None
         start = solve_planar_pose(self.camera, det.pts_P, det.px, up_C=up_C, gravity_sigma_deg=self.up_sigma_deg,
                                   relief_m=self.config.pad_relief_m, **({"sigma_px": HULL_CORNER_PX * scale} if hull else {}))

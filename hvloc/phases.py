@@ -93,7 +93,9 @@ class OutlineQuad:
     edge_fitted: bool = False  # its sides placed by an edge fit (no centroid, profile or hull): it holds to EDGE_FIT_SMEAR_PX
     field_sigma_px: float = 0.0  # the noise field_px's corners carry beyond a found corner's (a loose fit's scatter)
     read_after_fit: bool = False  # read as the design only at a lower bar: it must read so where its design fit puts it
-    hull_only: bool = False  # a cut pad's corners its colour hull's alone (no side fitted): taken only where its design fit places it
+    # why its corners are a hull's alone (no side fitted: a cut pad's colour hull, a grey field's blob), where
+    # they are: such an outline is taken only where its design fit places it
+    hull_only: str = ""
     washed: bool = False  # its band washed out along a stretch, placed where its field and its colour agree (:func:`_field_rescue`)
 
 
@@ -280,7 +282,8 @@ def _outline_from_hull(rgb: np.ndarray, quad: np.ndarray, side_px: float, cut: b
                 # colour hull's corners, three in view within a few pixels of the pad's, to be placed
                 # by its design over the pixels in view (the localizer takes it only so placed)
                 got, why = _outline_quad(rgb, quad, pad_geometry, camera, side_px, float("inf"), None, cut, smear)
-                return (None, why) if got is None else (replace(got, hull_only=True), "ok")
+                return (None, why) if got is None else (replace(
+                    got, hull_only="pad cut by the image's edge, its side toward the hidden corner too short to fit"), "ok")
             return None, ("pad cut by the image's edge, and its sides there not found" if refined is None
                           else "pad cut by the image's edge and smeared by motion")
         return _outline_quad(rgb, smeared, pad_geometry, camera, side_px, res, None, cut, smear, fitted)
@@ -1311,6 +1314,7 @@ GREY_MIN_ASYM_LEAD = 0.4
 # the design as before (a piece of the pad misplaced 12-27 % of its side read 0.47 at most: fitted, it
 # is the pad, or fails the full bars)
 GREY_NEAR_ASYM_NCC = 0.4
+GREY_BLOB_READS = ("field", "pad")  # what each bright blob is read as: the white field, the whole pad (find_grey_outline)
 
 
 def is_grey(rgb: np.ndarray, step: int = 7, tol: int = 2) -> bool:
@@ -1334,9 +1338,12 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
     sampled through it correlates with the pad's printed design, in one naming clearly better than
     the others (:func:`name_by_design`, at :data:`GREY_MIN_NCC` and :data:`GREY_MIN_LEAD`: a white
     square or a finder square alone is symmetric under a quarter turn, and correlates alike in every
-    naming), and is :data:`GREY_MIN_SIDE_PX` across at least.  The field's sides are then fitted on
-    luma (:func:`_field_fit`), and placed by the border's whole profile across each side; the field's
-    corners (``field_px``) are what is posed."""
+    naming), and is :data:`GREY_MIN_SIDE_PX` across at least.  Each blob is read as the whole pad too
+    (:data:`GREY_BLOB_READS`), at the full bars only: a border bright in luma is as bright as the
+    field.  The field's sides are then fitted on luma (:func:`_field_fit`), and placed by the border's
+    whole profile across each side; the field's corners (``field_px``) are what is posed.  Where they
+    do not fit, or do not read as the design where they fit, the blob's square is returned, to be
+    posed only where the design's fit places it (:func:`_grey_blob_only`)."""
     g, x0, y0 = _crop(gray, roi)
     if min(g.shape[:2]) < 8:
         return None, "image too small"
@@ -1378,31 +1385,39 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
         return None, f"no field-shaped bright quadrilateral in a grey frame (a pad {GREY_MIN_SIDE_PX:g} px across at least)"
     cands.sort(key=lambda a: -a[0])
     best, near = None, []
-    for _, field in cands[:GREY_MAX_CANDIDATES]:
-        outer = _outer_of_field(field, geo, camera)
+    # each blob is read as the field and as the whole pad: a border bright in luma (cyan, or magenta under a
+    # high sun) is as bright as the field, and the field's blob is the pad's.  As the whole pad, only at the
+    # full bars: grey ground's blobs, read twice as often, reached the faint one
+    # (test_a_grey_pad_too_small_to_show_its_design_and_grey_ground_are_never_posed)
+    for outer, whole in ((o, w) for _, field in cands[:GREY_MAX_CANDIDATES]
+                         for o, w in ((_outer_of_field(field, geo, camera), False), (field, True))
+                         if ("pad" if w else "field") in GREY_BLOB_READS):
         if outer is None or not np.isfinite(outer).all():
             continue
         if _mean_side(outer) < GREY_MIN_SIDE_PX:
             continue
         level, ncc = _design_read(gray, outer, geo, camera, design)
+        if whole and level != READS:
+            level = 0
         if level and (best is None or (level, ncc) > best[:2]):
             best = (level, ncc, outer)
         elif ncc >= DESIGN_MIN_NCC:
-            near.append((ncc, outer))
+            near.append((ncc, outer, whole))
     # none reads: a blob's hull a few px off the field (its corners rounded, a bright stain run into its
     # ring) samples the design askew; the field's sides fitted from there and read again (the most
-    # alike first).  The bars are the same
-    for _, outer in sorted(near, key=lambda a: -a[0])[:GREY_REFIT_CANDIDATES] if best is None else ():
-        got = _grey_field_fitted(rgb, outer, geo, camera)
+    # alike first), a whole pad's own sides against the ground (a 70 px pad's blob 1.4 px off read 0.78,
+    # the labelled square 0.94).  The bars are the same
+    for _, outer, whole in sorted(near, key=lambda a: -a[0])[:GREY_REFIT_CANDIDATES] if best is None else ():
+        got = _grey_field_fitted(rgb, outer, geo, camera) if not whole else _grey_sides_fitted(gray, outer, camera)
         if got is not None:
             level, ncc = _design_read(gray, got[0], geo, camera, design)
-            if level and (best is None or (level, ncc) > best[:2]):
+            if level and (level == READS or not whole) and (best is None or (level, ncc) > best[:2]):
                 best = (level, ncc, got[0])
     if best is None:
         return None, f"no bright quadrilateral in a grey frame reads as the pad's design ({len(cands)} looked at)"
     got = _grey_field_fitted(rgb, best[2], geo, camera)
     if got is None:
-        return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+        return _grey_blob_only(best, "its field's sides do not fit")
     # (the fits read the pad's neighbourhood only, as _field_agrees: a whole frame's grey and light cost ms)
     gray_w, lo = _window(gray, best[2], int(np.ceil(0.3 * _mean_side(best[2]) + 8)))
     cam_w = _shifted(camera, *lo)
@@ -1422,7 +1437,7 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
         outer = _moved_sides(outer, e)
         field = _through_quad(outer, geo, camera, geo.field_corners[:, :2])
         if field is None or not np.isfinite(field).all():
-            return None, "the pad's design is seen in a grey frame, but its field's sides do not fit"
+            return _grey_blob_only(best, "its field's sides do not fit")
     # what is posed must read as the design too: a blob that was a misshapen piece of the pad (a corner a
     # fifth of the side off: 0.83, leading by 0.074 on unseen71) is refused if the fit does not mend it.
     # One read at the lower bar (GREY_NEAR_ASYM_NCC) is read so here, and at the full bars where the pad's
@@ -1430,13 +1445,39 @@ def find_grey_outline(rgb: np.ndarray, gray: np.ndarray, geo: PadGeometry, camer
     # reading lower than where the pad is)
     level = _design_read(gray, outer, geo, camera, design)[0]
     if not (level == READS or (best[0] == READS_FAINTLY and level == READS_FAINTLY)):
-        return None, "the pad's design is seen in a grey frame, but not where its field's sides fit"
+        return _grey_blob_only(best, "not where its field's sides fit")
     return OutlineQuad(outer, np.zeros((2, 4)), _mean_side(outer), rms, field_px=field,
                        read_after_fit=level != READS), "ok"
 
 
 READS, READS_FAINTLY = 2, 1  # :func:`_design_read`'s levels (0: it does not read as the design)
 GREY_REFIT_CANDIDATES = 3  # where no blob reads as the design, so many of the most alike are read again, fitted
+GREY_SIDES_MAX_RMS_PX = 0.6  # a whole pad's sides fit its blob's neighbourhood this well (px; its ground is textured)
+
+
+def _grey_blob_only(best: tuple, why: str) -> tuple:
+    """``(OutlineQuad, "ok")``: the outer square of a grey frame's bright blob that reads as the pad's
+    design (``best``: level, correlation, quad), where its white field's sides do not fit (``why``),
+    its corners the blob's alone (``hull_only``): the localizer takes it only where the design's fit
+    places it, and only where the image there reads as the design (``read_after_fit``).  A small
+    pad's field need not stand out by its edges: fzu164's 0.6 m pad under a midday sun, a grey
+    camera behind a barrel lens, 34-65 px, its border's checker as bright as the field around
+    its squares: the blob's square read as the design 1-4 px from the labelled corners (0.82-0.90;
+    at the labels 0.93-0.95), the field's sides fitted 5-14 px off or not at all, and the pad was lost
+    from 7 m to 3.7 m."""
+    return OutlineQuad(best[2], np.zeros((2, 4)), _mean_side(best[2]), float("inf"), read_after_fit=True,
+                       hull_only=f"the pad's design is seen in a grey frame, but {why}: its corners a blob's"), "ok"
+
+
+def _grey_sides_fitted(gray: np.ndarray, outer: np.ndarray, camera: Camera | None):
+    """``(outer,)``: a blob read as the whole pad, its sides fitted on luma where they meet the ground
+    (:func:`refine_quad` in the pad's neighbourhood), or ``None`` where they do not fit."""
+    side_px = _mean_side(outer)
+    g, lo = _window(gray, outer, int(np.ceil(0.3 * side_px + 8)))
+    fitted, rms = refine_quad(g, outer - lo, half_width=float(np.clip(0.05 * side_px, 1.5, 3.0)), camera=_shifted(camera, *lo))
+    if fitted is None or rms > GREY_SIDES_MAX_RMS_PX:
+        return None
+    return (fitted + lo,)
 
 
 def _grey_field_fitted(rgb: np.ndarray, outer: np.ndarray, geo: PadGeometry, camera: Camera | None):
@@ -1569,7 +1610,7 @@ def name_outline(found: OutlineQuad, pad_geometry: PadGeometry, yaw_hint_corner0
     if found.read_after_fit:
         info["read_after_fit"] = True
     if found.hull_only:
-        info["hull_only"] = True
+        info["hull_only"] = found.hull_only
     if found.washed:
         info["washed"] = True
     if found.edge_fitted:  # (the localizer checks the smear its IMU predicts against what an edge fit holds to)
