@@ -2219,10 +2219,11 @@ class HierarchicalLocalizer:
                 det = self._design_fitted(det, rgb, up_C)
                 if "design_disagrees" in det.info:  # (neither is taken: far_wide's 21 px pad, its corners kept, 11.5 % off)
                     det, why = None, _design_disagrees(det)
-            if det is not None and det.info.get("read_after_fit"):
-                det, why = self._read_where_fitted(det, gray, why)
+            # (a hull first: a grey blob's is read after its fit too, and refused unfitted for being a hull, not faint)
             if det is not None and det.info.get("hull_only") and not isinstance(det.info.get("design_fit"), dict):
                 det, why = None, f"{det.info['hull_only']}, and its design not fitted there ({_design_note(det)})"
+            if det is not None and det.info.get("read_after_fit"):
+                det, why = self._read_where_fitted(det, gray, why)
             if det is not None and grey and self.deck is not None and not self.deck_tracked and "fitted_up_C" not in det.info:
                 # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
                 # deck_mono (both of IPPE's minima), stating 2.5.  Its design, where it fits the tilt
