@@ -398,15 +398,18 @@ def test_sweep_is_a_live_run_at_every_grid_point(smoke, tmp_path):
 
     out, _ = smoke
     shutil.copytree(out / "datasets", tmp_path / "datasets")
-    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "sweep", "smoke", "--out", str(tmp_path),
+    suite = tmp_path / "sweep.yaml"  # smoke's two colour descents (its renders, reused), swept alone
+    suite.write_text("name: sweep\ndatasets:\n  - {spec: data_specs/tiny.yaml, sequences: 2, seed: 1, tier: nominal}\n"
+                     "localizers: [{name: hierarchical}]\n")
+    r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "sweep", str(suite), "--out", str(tmp_path),
                         "--adjust-heights", "3", "6", "--touchdown-heights", "0.5", "2.0", "--quiet"],
                        capture_output=True, text=True, cwd=REPO)
     assert r.returncode == 0, r.stderr
     doc = json.loads((tmp_path / "sweep.json").read_text())
     assert doc["schema"] == "hvloc-sweep/2" and len(doc["grid"]) == 4 and doc["recommended"] is not None
     base, rec = doc["check_at_base_thresholds"], doc["check_at_recommended"]
-    assert base["name"] == "base" and base["frames"] == 315  # 8 m / 1 m: not a grid point here, run beside it
-    # (315: tiny's 208 frames and tiny_mono's 107)
+    assert base["name"] == "base" and base["frames"] == 208  # 8 m / 1 m: not a grid point here, run beside it
+    assert len(list((tmp_path / "datasets").glob("tiny-*"))) == 1  # smoke's renders were the sweep's: none made
     assert base["frames_differing"] == 0 and rec["frames_differing"] == 0
     assert "confirmed by a plain run" in r.stdout and (tmp_path / "sweep_heatmaps.png").exists()
     # a grid point the sweep did not check itself, against the localizer run alone
@@ -448,17 +451,21 @@ def test_shared_image_work_gives_each_localizer_its_own_estimates_for_less_work(
                 e.append(loc.process(img, t, imu_at(seq.imu, t, seq.imu_time_offset_s)))
         return ests
 
+    def same(xs, ys):
+        for a, b in zip(xs, ys, strict=True):
+            assert (a.status, a.phase, a.method, a.reason, a.n_corr) == (b.status, b.phase, b.method, b.reason, b.n_corr)
+            assert (a.cam2pad is None and b.cam2pad is None) or np.array_equal(a.cam2pad, b.cam2pad)
+
     work = ImageWork()
     shared = run([HierarchicalLocalizer(seq.pad, seq.camera, c, seq.T_B_C, work=work) for c in cfgs], work)
     alone_work = []
-    for c, got in zip(cfgs, shared):
-        alone = run([HierarchicalLocalizer(seq.pad, seq.camera, c, seq.T_B_C)], None)[0]  # a plain run
+    for i, (c, got) in enumerate(zip(cfgs, shared)):
         counting = ImageWork()  # one client: counts the work a plain run does, shares nothing
-        run([HierarchicalLocalizer(seq.pad, seq.camera, c, seq.T_B_C, work=counting)], counting)
+        alone = run([HierarchicalLocalizer(seq.pad, seq.camera, c, seq.T_B_C, work=counting)], counting)[0]
         alone_work.append(counting.calls - counting.hits)
-        for a, b in zip(alone, got):
-            assert (a.status, a.phase, a.method, a.reason, a.n_corr) == (b.status, b.phase, b.method, b.reason, b.n_corr)
-            assert (a.cam2pad is None and b.cam2pad is None) or np.array_equal(a.cam2pad, b.cam2pad)
+        same(alone, got)
+        if i in (0, 3):  # and a plain run (no ImageWork at all) is that one-client run, here at two thresholds
+            same(run([HierarchicalLocalizer(seq.pad, seq.camera, c, seq.T_B_C)], None)[0], alone)
     computed = work.calls - work.hits
     assert computed < 0.5 * sum(alone_work), (computed, alone_work)  # five localizers, under 2.5 runs' work
 
@@ -571,10 +578,10 @@ def test_intervals_over_descents_and_a_compare_that_knows_them(smoke, tmp_path):
 
 def test_report_gives_every_tier_its_own_table(tmp_path):
     s = tmp_path / "tiers.yaml"
-    s.write_text("name: tiers\ndatasets:\n"
-                 "  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 1, tier: nominal}\n"
+    s.write_text("name: tiers\ndatasets:\n"  # at 2 Hz: what is under test is the tables, not the frames
+                 "  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 1, tier: nominal, overrides: {camera: {fps: 2}}}\n"
                  "  - {spec: data_specs/tiny.yaml, sequences: 1, seed: 2, tier: hard,"
-                 " overrides: {name: tiny_dusk, environment: {sun_intensity: [0.6, 0.8]}}}\n"
+                 " overrides: {name: tiny_dusk, camera: {fps: 2}, environment: {sun_intensity: [0.6, 0.8]}}}\n"
                  "localizers: [{name: hierarchical}]\n")
     r = subprocess.run([sys.executable, "-m", "hvloc.cli", "bench", "run", str(s), "--out", str(tmp_path / "o"), "-q"],
                        capture_output=True, text=True, cwd=REPO)
