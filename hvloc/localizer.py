@@ -658,6 +658,7 @@ class DeckTilt:
         self.x = np.zeros((2, 2))  # [tilt, rate] x [world x, world y] (rotation vector, rad)
         self.P = np.zeros((2, 2))  # shared by both axes
         self.t: float | None = None
+        self.by_design = False
 
     def _predicted(self, t: float):
         return constant_rate_prediction(self.x, self.P, self.q, max(t - self.t, 0.0))
@@ -681,8 +682,10 @@ class DeckTilt:
                 return np.array([tilt[0], tilt[1], 0.0]), math.degrees(s), math.degrees(min(self.A, 3.0 * s)), True
         return np.zeros(3), math.degrees(math.hypot(self.ahrs, self.A / math.sqrt(2.0))), math.degrees(self.A), False
 
-    def update(self, t: float, normal_W, sigma_deg: float) -> None:
-        """One image-only pad normal in the world with its fit's tilt sigma (deg), seen at ``t``."""
+    def update(self, t: float, normal_W, sigma_deg: float, by_design: bool = False) -> None:
+        """One image-only pad normal in the world with its fit's tilt sigma (deg), seen at ``t``;
+        ``by_design``: fitted by the pad's design (an outline's design fit), which :attr:`by_design` keeps
+        while only such fits have told the track since it was started."""
         if normal_W is None or not math.isfinite(t) or not math.isfinite(sigma_deg) or sigma_deg <= 0:
             return
         n = np.asarray(normal_W, np.float64) / np.linalg.norm(normal_W)
@@ -693,12 +696,13 @@ class DeckTilt:
         if self.t is None or not self._known(self._predicted(t)[1]):
             self.x = np.array([z, [0.0, 0.0]])
             self.P = np.diag([R, self.rate0 ** 2])
-            self.t = t
+            self.t, self.by_design = t, by_design
             return
         x, P = self._predicted(t)
         S = P[0, 0] + R
         if np.abs(z - x[0]).max() > 3.0 * math.sqrt(S) + math.radians(1.0):
             return
+        self.by_design = self.by_design and by_design
         K = P[:, 0] / S
         self.x = x + np.outer(K, z - x[0])
         self.P = P - np.outer(K, K) * S
@@ -738,6 +742,26 @@ def _fitted_up(cam2pad: np.ndarray, info: dict) -> dict:
     if "tilt_deg" not in info:
         return {}
     return {"fitted_up_C": cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0]), "fitted_up_sigma_deg": info["tilt_sigma_deg"]}
+
+
+def _image_only_up(fitted_up_C, fitted_sigma_deg: float, prior_up_C, prior_sigma_deg: float) -> dict:
+    """``{"design_normal_C", "design_tilt_sigma_deg"}``: the pad's normal as a design fit's image alone
+    fixed it, its fitted normal ``fitted_up_C`` (doubt ``fitted_sigma_deg``) with the prior it was weighed
+    against (``prior_up_C``, ``prior_sigma_deg``) taken out again, as Gaussians in the tilt's tangent plane:
+    what a deck's track may take as a measurement of its own, not its prediction fed back.  ``{}`` where the
+    fit told nearly nothing beyond its prior (doubt within 5 % of it)."""
+    m = np.asarray(fitted_up_C, np.float64)
+    n0 = np.asarray(prior_up_C, np.float64)
+    m, n0 = m / np.linalg.norm(m), n0 / np.linalg.norm(n0)
+    sm, sp = math.radians(fitted_sigma_deg), math.radians(prior_sigma_deg)
+    if not (math.isfinite(sm) and math.isfinite(sp) and 0.0 < sm < 0.95 * sp):
+        return {}
+    gain = sp * sp / (sp * sp - sm * sm)  # the image's normal lies this much further from the prior than the fit's
+    axis = np.cross(n0, m)
+    s = float(np.linalg.norm(axis))
+    angle = math.atan2(s, float(n0 @ m))
+    normal = m if s < 1e-12 else so3_exp(axis / s * angle * gain) @ n0
+    return {"design_normal_C": normal, "design_tilt_sigma_deg": math.degrees(sm * sp / math.sqrt(sp * sp - sm * sm))}
 
 
 def outline_rms_share(est: "Estimate") -> float:
@@ -833,6 +857,13 @@ def loose_tilt_refusal(est: "Estimate", cfg: LocalizerConfig, imu: bool) -> str:
 
 
 SURE_TILT_DEG = 1.0  # a pose whose image alone fixes the pad's tilt to this (one sigma) sees how the pad lies
+# A deck's tilt counts as tracked (its design fitted as on an untracked deck's otherwise) where its track's prediction
+# is this sure: a tilt as uncertain moves a far pose sideways by MAX_SIDEWAYS_SIGMA of the height, what
+# loose_tilt_refusal refuses.  A track made from one pose does not know the swell's rate, and its prediction
+# spreads to 3.7-4.1 degrees within a quarter of a second: fzu165's grey outline at 73 px, on such a track and
+# so no longer fitted by its design (up to hvloc.texfit.MAX_SIDE_PX under a rolling shutter), was posed from its
+# four corners 2.6 degrees off in tilt, 5.6 % of the height
+DECK_TRACKED_SIGMA_DEG = math.degrees(math.atan(MAX_SIDEWAYS_SIGMA))
 DECK_SEEN_POSES = 3  # so many such poses within DECK_SEEN_WINDOW_S contradicting the IMU's up: the pad tilts (a deck)
 DECK_SEEN_WINDOW_S = 5.0
 DECK_AMPLITUDE_SHARE = 1.5  # a deck seen tilting d is taken to tilt up to this times d
@@ -1237,6 +1268,7 @@ class HierarchicalLocalizer:
         # it the pad may lie (a tilting deck's; 0: level)
         self.up_sigma_deg, self.up_tolerance_deg = cfg.up_sigma_deg(), cfg.pad_tilt_deg
         self.deck_tracked = False  # whether a tilting deck's tilt is known from the image this frame
+        self.deck_known = False  # ... or known at all, however loosely (its prior drawn from the track)
         self.texture_tried_kf: int | None = None  # the chained keyframe the texture was last drawn over (_texture_over_flow)
         self.flow = ph.FlowTracker(self.camera, self.config.flow_reanchor_scale, self.config.flow_min_tracks, self.work,
                                    self.outer_P)
@@ -1319,13 +1351,18 @@ class HierarchicalLocalizer:
         since = -math.inf if self.vfilter.t is None else self.vfilter.t
         self.accels = ([r for r in self.accels if since < r[0] < t and t - r[0] < self.vfilter.coast_s]
                        + (imu_accel(imu, t, self.ahrs.corrected, imu_t) if R_W_B is not None else []))
-        self.deck_tracked, self.deck_note = False, ""
+        self.deck_tracked, self.deck_known, self.deck_note = False, False, ""
         if self.deck_seen:
             self._take_for_deck()
         R_use = self.ahrs.corrected(R_W_B)
         if self.deck is not None and R_W_B is not None and math.isfinite(t):
             # the attitude relative to the deck's tracked tilt: its up is the pad's normal as predicted
-            tilt, self.up_sigma_deg, self.up_tolerance_deg, self.deck_tracked = self.deck.prior(float(t))
+            tilt, self.up_sigma_deg, self.up_tolerance_deg, self.deck_known = self.deck.prior(float(t))
+            # (tracked, for the design fit, only as far as a pose may stand on it: a track spread past
+            # DECK_TRACKED_SIGMA_DEG, a swell's rate not yet learnt, fixes the tilt no better than an untracked
+            # deck's whole swing does; a grey outline's four corners are posed on any track, as before: fz444's
+            # 203 px pad, past what the design is fitted to, on a 3.7 degree track, 0.9 % of the height off)
+            self.deck_tracked = self.deck_known and self.up_sigma_deg <= DECK_TRACKED_SIGMA_DEG
             R_use = so3_exp(-tilt) @ R_use
             self.gates.tilt_allowance_deg = self.up_tolerance_deg
             self.flow.gravity_sigma_deg = self.up_sigma_deg
@@ -1449,9 +1486,24 @@ class HierarchicalLocalizer:
                                  est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
                                  est.extras.get("mirror_normal_img_C"),
                                  est.extras.get("mirror_chi2_gap", float("inf")))
-                normal_W = self._pad_normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
-                if self.deck is not None and normal_W is not None:  # (the AHRS's error is not learnt on a deck)
+                normal_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_W_B if R_W_B_raw is None else R_W_B_raw)
+                # (the AHRS's error is not learnt on a deck; the deck's tilt is, but not from markers that stood on
+                # a track only design fits made: a far markers fit can lie degrees off its stated sigma
+                # (image_tilt_contradicts), and on a track of their own they were taken first where they stood
+                # alone.  fz253's 13-15 px markers, taken on its design-made track at 4.5-6.5 m, drew it 5 degrees
+                # off in one frame, their fit 0.96 degrees sure, and were posed up to 11 % of the height off)
+                stood = self.deck is not None and est.method == "markers" and self.deck_known and self.deck.by_design
+                if self.deck is not None and normal_W is not None and not stood:
                     self.deck.update(t, normal_W, est.extras.get("tilt_sigma_deg", float("nan")))
+            elif self.deck is not None and "design_normal_C" in est.extras:
+                # an outline whose tilt its design fit fixed surely: the whole pad's drawing measured it, as
+                # a texture pose's points do (its four corners alone never count: image_tilt_from_many).
+                # Left out, a grey camera's deck (fzu165) was posed from 3 m to 2 m by such outlines, 0.1-0.4 %
+                # of the height off, while its tilt stayed untracked: the markers that came next, 36
+                # corners 0.4 % off, were refused as loose
+                normal_W = self._pad_normal_W(est.extras["design_normal_C"], R_W_B if R_W_B_raw is None else R_W_B_raw)
+                if normal_W is not None:
+                    self.deck.update(t, normal_W, est.extras["design_tilt_sigma_deg"], by_design=True)
         self._after_accept(method, est, gray)
         return est
 
@@ -1519,7 +1571,7 @@ class HierarchicalLocalizer:
         31 % posed, the tracked tilt held to 2 degrees and the tracks' poses refused)."""
         # (not from a patch of the pad: a wrinkle tilts it as far as a deck does, DECK_SEEN_MIN_SPREAD)
         sees_pad = est.extras.get("spread_m", 0.0) >= DECK_SEEN_MIN_SPREAD * self.geometry.side_m
-        n_W = self._pad_normal_W(est, R_W_B) if sure_tilt(est) and sees_pad else None
+        n_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_W_B) if sure_tilt(est) and sees_pad else None
         if n_W is None:
             return
         tilt = math.degrees(math.acos(float(np.clip(n_W[2], -1.0, 1.0))))
@@ -1573,10 +1625,9 @@ class HierarchicalLocalizer:
         self.vfilter.reset()
         self.flow.reset()
 
-    def _pad_normal_W(self, est: Estimate, R_W_B) -> np.ndarray | None:
-        """The pad's normal in the world (unit) as ``est``'s image alone fixes it, turned by the
-        AHRS's attitude ``R_W_B``; ``None`` without either."""
-        normal_C = est.extras.get("normal_img_C")
+    def _pad_normal_W(self, normal_C, R_W_B) -> np.ndarray | None:
+        """The pad's normal in the world (unit) from ``normal_C``, in the camera as an image alone
+        fixes it, turned by the AHRS's attitude ``R_W_B``; ``None`` without either."""
         if R_W_B is None or normal_C is None:
             return None
         n = R_W_B @ self.T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
@@ -2224,7 +2275,7 @@ class HierarchicalLocalizer:
                 det, why = None, f"{det.info['hull_only']}, and its design not fitted there ({_design_note(det)})"
             if det is not None and det.info.get("read_after_fit"):
                 det, why = self._read_where_fitted(det, gray, why)
-            if det is not None and grey and self.deck is not None and not self.deck_tracked and "fitted_up_C" not in det.info:
+            if det is not None and grey and self.deck is not None and not self.deck_known and "fitted_up_C" not in det.info:
                 # the grey field's four corners on a tilted pad: 10-12 degrees off in tilt at 8 m on
                 # deck_mono (both of IPPE's minima), stating 2.5.  Its design, where it fits the tilt
                 # (hvloc.texfit.TILT_MIN_SIDE_PX and sharp), fixes it as on a colour camera's frame;
@@ -2450,7 +2501,9 @@ class HierarchicalLocalizer:
         # So do a far fit's before its tilt is believed (_far_tilt_doubt): stated at the corners' 0.3 px,
         # they carried the tilt the prior no longer did (a 35 px pad seen 30 degrees obliquely, its first
         # frame: sideways sigma 2.7 % of the height, from the fitted tilt alone)
-        held = {} if believed else {
+        # A believed fit's tilt is the image's, once the IMU's up it was weighed against is taken out: a
+        # deck's track may take it (_accepted)
+        held = _image_only_up(up["fitted_up_C"], up["fitted_up_sigma_deg"], up_C, self.up_sigma_deg) if believed else {
             "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
         return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
                                              **({} if square else {"rescued": "design fit"})))
@@ -2588,6 +2641,8 @@ class HierarchicalLocalizer:
         if refusal:
             return None, refusal
         info = {k: v for k, v in det.info.items() if k not in ("fitted_up_C", "fitted_up_sigma_deg")}
+        if info.get("design_tilt_sigma_deg", math.inf) >= SURE_TILT_DEG:  # (a deck's track takes only a sure one)
+            info.pop("design_normal_C", None), info.pop("design_tilt_sigma_deg", None)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
