@@ -65,8 +65,8 @@ def test_apriltag_pad_is_two_nested_tags_the_detector_reads_where_pad_json_puts_
     """The AprilTag library itself finds both tags of the printed pad, with the ids of pad.json, and
     their corners where pad.json puts them (a head-on, exactly scaled view of pad.png)."""
     import cv2
-    from pupil_apriltags import Detector
 
+    from benchmarks.peers import _apriltag_detector  # (pupil-apriltags' own frees its family before itself)
     from pad_design.apriltag import DETECTOR_TO_PAD_CORNERS, FAMILY
 
     g = apriltag_pad.geometry
@@ -74,7 +74,7 @@ def test_apriltag_pad_is_two_nested_tags_the_detector_reads_where_pad_json_puts_
     assert [m.name for m in tags.values()] == ["Large", "Small"] and len(tags) == 2
     n = 1000
     gray = cv2.resize(cv2.cvtColor(apriltag_pad.texture_rgb, cv2.COLOR_RGB2GRAY), (n, n), interpolation=cv2.INTER_AREA)
-    found = {d.tag_id: d for d in Detector(families=FAMILY).detect(gray)}
+    found = {d.tag_id: d for d in _apriltag_detector(FAMILY).detect(gray)}
     assert set(found) == set(tags) and all(d.hamming == 0 for d in found.values())
     for tid, m in tags.items():
         c = m.outer_corners[list(DETECTOR_TO_PAD_CORNERS)]
