@@ -1481,19 +1481,20 @@ class HierarchicalLocalizer:
             self.heading_t = t
             # the image's own view of the normal, from many points (field1080's outline tilts were
             # 0.6 degrees off on average: they taught the AHRS a wrong error)
+            R_img = R_W_B if R_W_B_raw is None else R_W_B_raw  # (the AHRS's own: what the image's normal is turned by)
             if image_tilt_from_many(est):
-                self.ahrs.update(R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C[:3, :3],
+                self.ahrs.update(R_img, self.T_B_C[:3, :3],
                                  est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
                                  est.extras.get("mirror_normal_img_C"),
                                  est.extras.get("mirror_chi2_gap", float("inf")))
-                normal_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_W_B if R_W_B_raw is None else R_W_B_raw)
+                normal_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_img)
                 # (the AHRS's error is not learnt on a deck; the deck's tilt is, but not from markers that stood on
                 # a track only design fits made: a far markers fit can lie degrees off its stated sigma
                 # (image_tilt_contradicts), and on a track of their own they were taken first where they stood
                 # alone.  fz253's 13-15 px markers, taken on its design-made track at 4.5-6.5 m, drew it 5 degrees
                 # off in one frame, their fit 0.96 degrees sure, and were posed up to 11 % of the height off)
-                stood = self.deck is not None and est.method == "markers" and self.deck_known and self.deck.by_design
-                if self.deck is not None and normal_W is not None and not stood:
+                if self.deck is not None and normal_W is not None and not (
+                        est.method == "markers" and self.deck_known and self.deck.by_design):
                     self.deck.update(t, normal_W, est.extras.get("tilt_sigma_deg", float("nan")))
             elif self.deck is not None and "design_normal_C" in est.extras:
                 # an outline whose tilt its design fit fixed surely: the whole pad's drawing measured it, as
@@ -1501,7 +1502,7 @@ class HierarchicalLocalizer:
                 # Left out, a grey camera's deck (fzu165) was posed from 3 m to 2 m by such outlines, 0.1-0.4 %
                 # of the height off, while its tilt stayed untracked: the markers that came next, 36
                 # corners 0.4 % off, were refused as loose
-                normal_W = self._pad_normal_W(est.extras["design_normal_C"], R_W_B if R_W_B_raw is None else R_W_B_raw)
+                normal_W = self._pad_normal_W(est.extras["design_normal_C"], R_img)
                 if normal_W is not None:
                     self.deck.update(t, normal_W, est.extras["design_tilt_sigma_deg"], by_design=True)
         self._after_accept(method, est, gray)
@@ -2501,10 +2502,14 @@ class HierarchicalLocalizer:
         # So do a far fit's before its tilt is believed (_far_tilt_doubt): stated at the corners' 0.3 px,
         # they carried the tilt the prior no longer did (a 35 px pad seen 30 degrees obliquely, its first
         # frame: sideways sigma 2.7 % of the height, from the fitted tilt alone)
-        # A believed fit's tilt is the image's, once the IMU's up it was weighed against is taken out: a
-        # deck's track may take it (_accepted)
-        held = _image_only_up(up["fitted_up_C"], up["fitted_up_sigma_deg"], up_C, self.up_sigma_deg) if believed else {
+        held = {} if believed else {
             "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
+        if believed and self.deck is not None:
+            # a believed fit's tilt is the image's, once the IMU's up it was weighed against is taken out: a
+            # deck's track takes it where it is sure (_accepted)
+            image = _image_only_up(up["fitted_up_C"], up["fitted_up_sigma_deg"], up_C, self.up_sigma_deg)
+            if image.get("design_tilt_sigma_deg", math.inf) < SURE_TILT_DEG:
+                held = image
         return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
                                              **({} if square else {"rescued": "design fit"})))
 
@@ -2641,8 +2646,6 @@ class HierarchicalLocalizer:
         if refusal:
             return None, refusal
         info = {k: v for k, v in det.info.items() if k not in ("fitted_up_C", "fitted_up_sigma_deg")}
-        if info.get("design_tilt_sigma_deg", math.inf) >= SURE_TILT_DEG:  # (a deck's track takes only a sure one)
-            info.pop("design_normal_C", None), info.pop("design_tilt_sigma_deg", None)
         # a whole marker off (its contour pulled by something across it: 6-9 px on two corners of each
         # of its squares) is no scatter of points; with two others seen, its residuals stand out
         # (the joint fit leans toward it, so each suspect is judged by the fit of the others)
