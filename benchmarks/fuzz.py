@@ -5,7 +5,7 @@ length, renders one descent, localizes it with hvloc's hierarchical localizer (t
 where the deck tilts, as a user would be) and reports its availability and every false accept, and
 the scenes pooled (frames in scope posed over all of them, false accepts, scenes at 95 % or more).
 
-    python -m benchmarks.fuzz --seeds 100:112 --out DIR [--small]
+    python -m benchmarks.fuzz --seeds 100:112 --out DIR [--small] [--set FIELD=VALUE ...]
 
 A development tool for finding what breaks, not a frozen benchmark: the spec space grows with the
 spec, so a seed's scene may change between commits (its spec is written beside its render,
@@ -13,6 +13,13 @@ spec, so a seed's scene may change between commits (its spec is written beside i
 property test's size (160-224 px, 3-5 m), for a quick look.  Twelve seeds at camera size take
 ~12 min on 2 cores; seeds 100-111 at b6447e6's parent found a false accept (README: a marker
 found in part).
+
+``--set FIELD=VALUE`` (repeatable): each seed's scene drawn as before, then with that spec field set
+(a dotted path, a JSON value: ``--set camera.supersample=3 --set 'pad_material.relief_m=[0,0]'``).
+Put a failing seed's folder aside and run it again with one suspect taken away at a time: the draw is
+the same, so what changes is that field's doing.  (Fresh seed 508's two false accepts, a grey 43 px
+pad on a tilting deck, went with ``camera.supersample=3`` and stayed with its relief, gloss, dirt,
+vignetting and chromatic aberration taken away: the GPU's mipmapped far pad, not the scene.)
 """
 from __future__ import annotations
 
@@ -27,10 +34,12 @@ from .suite import REPO
 SIZES = (480, 640, 800)  # camera widths drawn (4:3)
 
 
-def random_scene(seed: int, small: bool = False) -> dict:
+def random_scene(seed: int, small: bool = False, fields: tuple = ()) -> dict:
     """The spec (a dict) of seed ``seed``'s scene: a random spec (``tests.spec_space.random_spec``),
     one descent of hvloc's own pads at a camera's size, 5 or 10 Hz, from 6-12 m in 10-16 s (with
-    ``small``: as drawn, the property test's quick size)."""
+    ``small``: as drawn, the property test's quick size); then ``fields`` (``(dotted path, value)``
+    pairs) set, the scene drawn as without them.  A field the spec refuses raises
+    :class:`~pad_design.errors.InputError` naming it."""
     if str(REPO) not in sys.path:
         sys.path.insert(0, str(REPO))
     from pad_design.errors import InputError, validate_model
@@ -54,10 +63,44 @@ def random_scene(seed: int, small: bool = False) -> dict:
         d["name"], d["sequences"] = f"fz{seed}", 1
         try:
             validate_model(DatasetSpec, d)
-            return d
         except InputError:
             continue
+        return _with_fields(seed, d, fields)
     raise RuntimeError(f"seed {seed}: no valid scene in 50 draws")
+
+
+def _with_fields(seed: int, d: dict, fields: tuple) -> dict:
+    """Seed ``seed``'s drawn scene ``d`` with ``fields`` set, validated (:func:`random_scene`)."""
+    from pad_design.errors import InputError, validate_model
+    from render.spec import DatasetSpec
+    from tests.spec_space import set_path
+
+    if not fields:
+        return d
+    out = json.loads(json.dumps(d))
+    for path, value in fields:
+        try:
+            set_path(out, path, value)
+        except (AttributeError, TypeError):
+            raise InputError(f"--set {path}: {path.rsplit('.', 1)[0]} is no group of fields in seed {seed}'s spec") from None
+    try:
+        validate_model(DatasetSpec, out)
+    except InputError as e:
+        raise InputError(f"seed {seed} with --set {' '.join(f'{p}={json.dumps(v)}' for p, v in fields)}: {e}") from None
+    return out
+
+
+def parse_field(text: str) -> tuple:
+    """``"camera.supersample=3"`` -> ``("camera.supersample", 3)``: a dotted path and a JSON value (a
+    bare word is a string: ``camera.model=fisheye``); ``ValueError`` naming what is wrong."""
+    path, sep, raw = text.partition("=")
+    path = path.strip()
+    if not sep or not path or any(not k for k in path.split(".")):
+        raise ValueError(f"{text!r} is not FIELD=VALUE (a dotted spec path, a JSON value)")
+    try:
+        return path, json.loads(raw)
+    except json.JSONDecodeError:
+        return path, raw.strip()
 
 
 def config_for(spec):
@@ -75,9 +118,10 @@ def config_for(spec):
     return LocalizerConfig(**told)
 
 
-def run_seed(seed: int, out, small: bool = False) -> dict:
-    """Render, localize and score seed ``seed``'s scene into ``out/fz<seed>``; a row of the report.
-    A scene the generator refuses (an unflyable draw) is a row that says why."""
+def run_seed(seed: int, out, small: bool = False, fields: tuple = ()) -> dict:
+    """Render, localize and score seed ``seed``'s scene (with ``fields`` set: :func:`random_scene`)
+    into ``out/fz<seed>``; a row of the report.  A scene the generator refuses (an unflyable draw) is
+    a row that says why."""
     from benchmarks import metrics as M
     from pad_design.errors import InputError, validate_model
     from render.dataset import Dataset
@@ -86,10 +130,13 @@ def run_seed(seed: int, out, small: bool = False) -> dict:
 
     from .run import localize_dataset, read_estimates
 
-    d = random_scene(seed, small)
+    try:
+        d = random_scene(seed, small, fields)
+    except InputError as e:  # (a field set that this seed's draw refuses: the other seeds still run)
+        return {"seed": seed, "scene": "-", "refused": str(e)}
     spec = validate_model(DatasetSpec, d)
     root = Path(out) / f"fz{seed}"
-    row = {"seed": seed, "scene": describe(spec)}
+    row = {"seed": seed, "scene": describe(spec, fields)}
     try:
         generate(spec, root / "data", show_progress=False)
     except InputError as e:
@@ -110,8 +157,8 @@ def run_seed(seed: int, out, small: bool = False) -> dict:
                                "rot_err_deg": round(float(fe["rot_err_deg"][k]), 2)} for k in np.nonzero(wrong)[0]]}
 
 
-def describe(spec) -> str:
-    """What makes a scene hard, in one line."""
+def describe(spec, fields: tuple = ()) -> str:
+    """What makes a scene hard, in one line (and the ``fields`` set on it, :func:`random_scene`)."""
     c, p, t = spec.camera, spec.platform, spec.trajectory
     deck = []
     if any(abs(v) > 0 for v in p.velocity_mps):
@@ -125,7 +172,8 @@ def describe(spec) -> str:
             f"{f', JPEG {spec.degradations.jpeg_quality}' if spec.degradations.jpeg_quality else ''}"
             f"{', grey' if c.mono else ''}; {spec.pad.variant} pad {spec.pad.side_m:.2f} m"
             f"{f' (relief {1000 * spec.pad_material.relief_m[1]:.0f} mm)' if spec.pad_material.relief_m[1] > 0 else ''}; "
-            f"{'; '.join(deck) + '; ' if deck else ''}{t.families[0]} from {t.start_height_m:.1f} m")
+            f"{'; '.join(deck) + '; ' if deck else ''}{t.families[0]} from {t.start_height_m:.1f} m"
+            + "".join(f"; set {p}={json.dumps(v)}" for p, v in fields))
 
 
 def table(rows: list) -> str:
@@ -171,6 +219,9 @@ def main(argv=None, prog: str = "python -m benchmarks.fuzz") -> int:
     p.add_argument("--seeds", required=True, help="A:B, the seeds A to B-1")
     p.add_argument("--out", required=True, help="a folder: fz<seed>/{data,estimates,spec.json}, fuzz.json, fuzz.md")
     p.add_argument("--small", action="store_true", help="scenes at the property test's size (quick)")
+    p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="fields",
+                   help="set this spec field on every scene, drawn as without it (repeatable; a dotted path and "
+                        "a JSON value, e.g. camera.supersample=3): a failing seed run again with one suspect taken away")
     a = p.parse_args(sys.argv[1:] if argv is None else argv)
     try:
         lo, hi = (int(x) for x in a.seeds.split(":"))
@@ -178,11 +229,18 @@ def main(argv=None, prog: str = "python -m benchmarks.fuzz") -> int:
         p.error(f"--seeds: {a.seeds!r} is not A:B")
     if not 0 <= lo < hi:
         p.error(f"--seeds: {a.seeds!r} holds no seed")
+    from pad_design.errors import InputError
+
+    try:
+        fields = tuple(parse_field(f) for f in a.fields)
+        random_scene(lo, a.small, fields)  # (a field the spec refuses, before anything is rendered)
+    except (ValueError, InputError) as e:
+        p.error(f"--set: {e}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     for seed in range(lo, hi):
-        rows.append(run_seed(seed, out, a.small))
+        rows.append(run_seed(seed, out, a.small, fields))
         print(table(rows[-1:]).splitlines()[-1], flush=True)
     (out / "fuzz.json").write_text(json.dumps(rows, indent=1) + "\n")
     (out / "fuzz.md").write_text(table(rows) + "\n" + summary_line(rows) + "\n")

@@ -1080,3 +1080,46 @@ def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_pa
     with pytest.raises(SystemExit) as e:
         fuzz.main(["--seeds", "7", "--out", str(tmp_path)])
     assert e.value.code == 2
+
+
+def test_fuzz_sets_a_field_on_each_scene_drawn_as_without_it(tmp_path, monkeypatch):
+    """``--set FIELD=VALUE``: a seed's scene drawn as before, with that field set (how a failing seed is
+    run again with one suspect taken away); a field or value the spec refuses is refused by name before
+    anything is rendered, and a seed whose draw refuses it is a refused row, the other seeds still run."""
+    from benchmarks import fuzz
+    from pad_design.errors import InputError, validate_model
+    from render.spec import DatasetSpec
+
+    assert fuzz.parse_field("camera.supersample=3") == ("camera.supersample", 3)
+    assert fuzz.parse_field("pad_material.relief_m=[0, 0]") == ("pad_material.relief_m", [0, 0])
+    assert fuzz.parse_field("camera.model=fisheye") == ("camera.model", "fisheye")
+    for bad in ("camera.supersample", "=3", "camera..fps=5"):
+        with pytest.raises(ValueError, match="FIELD=VALUE"):
+            fuzz.parse_field(bad)
+    base = fuzz.random_scene(508)
+    fields = (("camera.supersample", 3), ("pad_material.relief_m", [0.0, 0.0]))
+    set_ = fuzz.random_scene(508, fields=fields)
+    assert set_["camera"]["supersample"] == 3 and set_["pad_material"]["relief_m"] == [0.0, 0.0]
+    assert base["camera"]["supersample"] == 1 and base["pad_material"]["relief_m"][1] > 0
+    for d in (base, set_):  # the rest as drawn
+        d["camera"].pop("supersample"), d["pad_material"].pop("relief_m")
+    assert set_ == base
+    with pytest.raises(InputError, match="camera.supersample"):
+        fuzz.random_scene(508, fields=(("camera.supersample", 9),))
+    with pytest.raises(InputError, match="camera.supersampel"):
+        fuzz.random_scene(508, fields=(("camera.supersampel", 2),))
+    with pytest.raises(InputError, match="camera.fps is no group"):
+        fuzz.random_scene(508, fields=(("camera.fps.x", 2),))
+    rendered = []
+    monkeypatch.setattr("render.generate.generate", lambda *a, **k: rendered.append(a))
+    for argv in (["--set", "camera.supersample=9"], ["--set", "camera.supersample"]):
+        with pytest.raises(SystemExit) as e:
+            fuzz.main(["--seeds", "5:7", "--out", str(tmp_path / "out")] + argv)
+        assert e.value.code == 2
+    assert not rendered and not (tmp_path / "out").exists()
+    # a value one seed's draw refuses (a fisheye's field of view past what it allows, say): that seed's row says so
+    row = fuzz.run_seed(508, tmp_path, fields=(("camera.hfov_deg", 500.0),))
+    assert row["seed"] == 508 and "camera.hfov_deg" in row["refused"] and not rendered
+    assert "refused: seed 508 with --set camera.hfov_deg=500.0" in fuzz.table([row])
+    spec = validate_model(DatasetSpec, fuzz.random_scene(5, fields=fields))
+    assert fuzz.describe(spec, fields).endswith("; set camera.supersample=3; set pad_material.relief_m=[0.0, 0.0]")
