@@ -32,6 +32,12 @@ import numpy as np
 from .suite import REPO
 
 SIZES = (480, 640, 800)  # camera widths drawn (4:3)
+# rendered at 2 since fuzz seeds 500-511: at 1 (the spec's default) the GPU reads a far pad's texture between two
+# mipmap levels, and the design fit of a grey 43 px pad (fz508) and a glossy 53 px one (fz447) put its tilt 6-7
+# degrees off stating 1.5-1.8: three false accepts, none at 2.  33 tilting-deck scenes rendered again at 2, same
+# code: 3,889 -> 3,958 of 4,298 frames in scope posed, median error 0.74 -> 0.60 % of the height, and 25 false
+# accepts on fz445 that 1 did not show (a flow chain's tilt 5 degrees off: README, "Random scenes")
+SUPERSAMPLE = 2
 
 
 def random_scene(seed: int, small: bool = False, fields: tuple = ()) -> dict:
@@ -54,7 +60,10 @@ def random_scene(seed: int, small: bool = False, fields: tuple = ()) -> dict:
             set_path(d, "camera.width", w)
             set_path(d, "camera.height", w * 3 // 4)
             set_path(d, "camera.fps", float(rng.choice([5.0, 10.0])))
-            set_path(d, "camera.supersample", 1)
+            # each pixel sums its light over 2 x 2 samples, as a camera's does, not the GPU's one mipmapped read:
+            # at 1, far pads' design fits lean on the renderer's filter (README, "What `supersample: 1` renders
+            # are not"), which is not what a user's camera will show
+            set_path(d, "camera.supersample", SUPERSAMPLE)
         set_path(d, "pad.variant", str(rng.choice(["paper", "paper", "nested"])))  # hvloc's own pads
         if not small:
             set_path(d, "trajectory.start_height_m", float(rng.uniform(6.0, 12.0)))

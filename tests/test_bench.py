@@ -1061,6 +1061,7 @@ def test_fuzz_draws_a_scene_renders_localizes_and_lists_its_false_accepts(tmp_pa
     assert fuzz.random_scene(5, small=True) == fuzz.random_scene(5, small=True)
     big = validate_model(DatasetSpec, fuzz.random_scene(5))
     assert big.camera.width in fuzz.SIZES and 6.0 <= big.trajectory.start_height_m <= 12.0
+    assert big.camera.supersample == 2  # pixels summing light as a camera's, not the GPU's mipmapped read
     assert big.pad.variant in ("paper", "nested") and big.sequences == 1
     assert fuzz.config_for(big).pad_tilt_deg == (max(big.platform.roll_deg, big.platform.pitch_deg) + 3.0
                                                  if max(big.platform.roll_deg, big.platform.pitch_deg) > 0 else 0.0)
@@ -1100,7 +1101,7 @@ def test_fuzz_sets_a_field_on_each_scene_drawn_as_without_it(tmp_path, monkeypat
     fields = (("camera.supersample", 3), ("pad_material.relief_m", [0.0, 0.0]))
     set_ = fuzz.random_scene(508, fields=fields)
     assert set_["camera"]["supersample"] == 3 and set_["pad_material"]["relief_m"] == [0.0, 0.0]
-    assert base["camera"]["supersample"] == 1 and base["pad_material"]["relief_m"][1] > 0
+    assert base["camera"]["supersample"] == 2 and base["pad_material"]["relief_m"][1] > 0
     for d in (base, set_):  # the rest as drawn
         d["camera"].pop("supersample"), d["pad_material"].pop("relief_m")
     assert set_ == base
