@@ -242,7 +242,8 @@ def main(argv=None, prog: str = "python -m benchmarks.fuzz") -> int:
 
     try:
         fields = tuple(parse_field(f) for f in a.fields)
-        random_scene(lo, a.small, fields)  # (a field the spec refuses, before anything is rendered)
+        if fields:  # (a field the spec refuses, before anything is rendered)
+            random_scene(lo, a.small, fields)
     except (ValueError, InputError) as e:
         p.error(f"--set: {e}")
     out = Path(a.out)

@@ -134,6 +134,17 @@ def so3_log(R) -> np.ndarray:
     return v / s * angle
 
 
+def rotvec_between(a, b) -> np.ndarray:
+    """``(3,)``: the rotation vector of the least rotation that takes direction ``a`` onto direction
+    ``b`` (about ``a x b``, by the angle between them); zero where they are parallel (or opposite: no
+    axis is least there)."""
+    a = np.asarray(a, dtype=np.float64) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=np.float64) / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s = float(np.linalg.norm(axis))
+    return axis / s * math.atan2(s, float(a @ b)) if s > 1e-12 else np.zeros(3)
+
+
 def rotation_angle(R_a, R_b=None) -> float:
     """Geodesic angle (radians) of ``R_a`` or, given ``R_b``, of ``R_a^T R_b``."""
     R = np.asarray(R_a, dtype=np.float64)[:3, :3]

@@ -18,7 +18,7 @@ import numpy as np
 from . import phases as ph
 from .config import LocalizerConfig
 from .geometry import (GRAVITY_MPS2, Camera, heading_turn, invert, make_transform, matrix_from_quat_xyzw, rotation_angle,
-                       pad_plane_homography, rotation_z, so3_exp, so3_log, transform_points)
+                       pad_plane_homography, rotation_z, rotvec_between, so3_exp, so3_log, transform_points)
 from .pose import (PIXEL_SIGMA, PoseResult, SharedNoise, outlying_points, point_residuals, projection_sigma_px,
                    solve_planar_pose)
 from .shutter import RollingShutter, Twist, VelocityFilter
@@ -688,10 +688,7 @@ class DeckTilt:
         while only such fits have told the track since it was started."""
         if normal_W is None or not math.isfinite(t) or not math.isfinite(sigma_deg) or sigma_deg <= 0:
             return
-        n = np.asarray(normal_W, np.float64) / np.linalg.norm(normal_W)
-        axis = np.array([-n[1], n[0]])  # e_z x n
-        s = float(np.linalg.norm(axis))
-        z = axis / s * math.atan2(s, n[2]) if s > 1e-12 else np.zeros(2)
+        z = rotvec_between([0.0, 0.0, 1.0], normal_W)[:2]  # (about a horizontal axis: its z is 0)
         R = math.radians(sigma_deg) ** 2 + self.ahrs ** 2
         if self.t is None or not self._known(self._predicted(t)[1]):
             self.x = np.array([z, [0.0, 0.0]])
@@ -750,17 +747,12 @@ def _image_only_up(fitted_up_C, fitted_sigma_deg: float, prior_up_C, prior_sigma
     against (``prior_up_C``, ``prior_sigma_deg``) taken out again, as Gaussians in the tilt's tangent plane:
     what a deck's track may take as a measurement of its own, not its prediction fed back.  ``{}`` where the
     fit told nearly nothing beyond its prior (doubt within 5 % of it)."""
-    m = np.asarray(fitted_up_C, np.float64)
-    n0 = np.asarray(prior_up_C, np.float64)
-    m, n0 = m / np.linalg.norm(m), n0 / np.linalg.norm(n0)
     sm, sp = math.radians(fitted_sigma_deg), math.radians(prior_sigma_deg)
     if not (math.isfinite(sm) and math.isfinite(sp) and 0.0 < sm < 0.95 * sp):
         return {}
     gain = sp * sp / (sp * sp - sm * sm)  # the image's normal lies this much further from the prior than the fit's
-    axis = np.cross(n0, m)
-    s = float(np.linalg.norm(axis))
-    angle = math.atan2(s, float(n0 @ m))
-    normal = m if s < 1e-12 else so3_exp(axis / s * angle * gain) @ n0
+    n0 = np.asarray(prior_up_C, np.float64) / np.linalg.norm(prior_up_C)
+    normal = so3_exp(gain * rotvec_between(n0, fitted_up_C)) @ n0
     return {"design_normal_C": normal, "design_tilt_sigma_deg": math.degrees(sm * sp / math.sqrt(sp * sp - sm * sm))}
 
 
@@ -2504,13 +2496,14 @@ class HierarchicalLocalizer:
         # frame: sideways sigma 2.7 % of the height, from the fitted tilt alone)
         held = {} if believed else {
             "px_sigma_held": round(float(np.sqrt(np.mean(np.sum((px - det.px) ** 2, axis=1)))), 3)}
+        image = {}
         if believed and self.deck is not None:
             # a believed fit's tilt is the image's, once the IMU's up it was weighed against is taken out: a
             # deck's track takes it where it is sure (_accepted)
             image = _image_only_up(up["fitted_up_C"], up["fitted_up_sigma_deg"], up_C, self.up_sigma_deg)
-            if image.get("design_tilt_sigma_deg", math.inf) < SURE_TILT_DEG:
-                held = image
-        return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held,
+            if image.get("design_tilt_sigma_deg", math.inf) >= SURE_TILT_DEG:
+                image = {}
+        return replace(det, px=px, info=dict(det.info, design_fit=info, **up, **held, **image,
                                              **({} if square else {"rescued": "design fit"})))
 
     def _read_where_fitted(self, det, gray: np.ndarray, why: str) -> tuple:

@@ -179,3 +179,20 @@ def test_srgb_to_linear_is_the_srgb_curve_for_any_shape():
             np.testing.assert_allclose(out, srgb(v), rtol=1e-6, atol=1e-5)
     assert srgb_to_linear(np.arange(256, dtype=np.uint8)).max() == np.float32(255.0)
     np.testing.assert_allclose(srgb_to_linear([[198, 51, 176]]), srgb([[198, 51, 176]]), rtol=1e-6)
+
+
+def test_rotvec_between_is_the_least_rotation_taking_one_direction_onto_another():
+    """It takes ``a`` onto ``b`` (unnormalised in), about an axis normal to both, by their angle; zero
+    for parallel or opposite directions (no axis is least for a half turn)."""
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a, b = rng.normal(size=3) * rng.uniform(0.1, 10.0), rng.normal(size=3)
+        r = g.rotvec_between(a, b)
+        ua, ub = a / np.linalg.norm(a), b / np.linalg.norm(b)
+        np.testing.assert_allclose(g.so3_exp(r) @ ua, ub, atol=1e-9)
+        assert abs(r @ ua) < 1e-9 and abs(r @ ub) < 1e-9
+        assert math.isclose(np.linalg.norm(r), math.acos(np.clip(ua @ ub, -1.0, 1.0)), abs_tol=1e-7)
+    assert not g.rotvec_between([0, 0, 1], [0, 0, 3]).any() and not g.rotvec_between([0, 0, 1], [0, 0, -1]).any()
+    # a pad tilted 5 degrees about world x: its normal's rotation vector from up is (5 deg, 0, 0)
+    n = g.so3_exp([math.radians(5.0), 0.0, 0.0]) @ np.array([0.0, 0.0, 1.0])
+    np.testing.assert_allclose(g.rotvec_between([0, 0, 1], n), [math.radians(5.0), 0.0, 0.0], atol=1e-12)
