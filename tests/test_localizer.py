@@ -1512,6 +1512,38 @@ def test_tracks_are_refined_on_their_keyframe_through_a_zoom_and_a_shadows_edge(
     assert np.median(e[np.isfinite(e)]) > 0.15, np.percentile(e[np.isfinite(e)], [50, 90, 100])
 
 
+
+@pytest.mark.parametrize("scale, shift", [(1.005, (1.0, -0.5)), (1.01, (0.8, -0.5)), (0.994, (-0.5, 1.2))])
+def test_tracks_that_slipped_together_are_refined_from_where_the_others_put_them(pad, monkeypatch, scale, shift):
+    """Frame-to-frame tracks that slipped together (after an untracked frame, a guess off) are 1-3 px
+    off at the view's edge, past the 2 px a refinement on the keyframe may move a track: they were
+    kept as they were, and the few left after RANSAC tilted the pose (fz445 at 1.5 m: 5.3 degrees
+    stating 1.2, 10.7 % of the height off).  Refined again from where the refined tracks' homography
+    puts them, every one lands on its feature."""
+    import hvloc.phases as ph
+    from hvloc.geometry import invert, transform_points
+
+    G0, G1 = tilted(0.01, -0.02, 0.45, 0.3, 0.02, -0.01), tilted(0.012, -0.018, 0.40, 0.33, 0.025, -0.005)
+    view = lambda G: cv2.cvtColor(warp_pad_view(pad, CAM, G, GROUND), cv2.COLOR_RGB2GRAY)
+    g0, g1 = view(G0), view(G1)
+    kf = ph.make_keyframe(g0, G0, CAM, anchored=True)
+    truth = CAM.project(transform_points(invert(G1), kf.pts_P))
+    seen = np.all((truth > 24) & (truth < [CAM.width - 24, CAM.height - 24]), axis=1)
+    c = truth[seen].mean(axis=0)
+    slipped = np.where(seen[:, None], c + scale * (truth - c) + np.asarray(shift), np.nan)
+    off = np.linalg.norm(slipped - truth, axis=1)[seen]
+    assert np.median(off) > 1.0 and np.mean(off > 2.0) > 0.2, np.percentile(off, [50, 100])
+
+    def errors():  # tracked from the frame itself: the frame-to-frame step keeps them where they slipped to
+        px = ph.track_to_keyframe(kf, g1, slipped, g1, CAM, 1.0)
+        return np.linalg.norm(px - truth, axis=1)[seen]
+
+    e = errors()
+    assert np.isfinite(e).all() and np.median(e) < 0.05 and e.max() < 0.2, np.percentile(e, [50, 90, 100])
+    monkeypatch.setattr(ph, "_reseeded_on_keyframe", lambda kf, gray, kf_px, p1, *a: p1)
+    e = errors()
+    assert np.percentile(e, 90) > 1.0, np.percentile(e, [50, 90, 100])
+
 def test_a_few_tracks_that_slipped_together_are_no_inliers_of_sharp_tracks():
     """Sharp tracks agree with their homography to hundredths of a pixel; RANSAC's 2 px kept the
     few that slipped a pixel, and where they lie together on one side of the view they tilt the pose
