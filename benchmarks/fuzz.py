@@ -36,7 +36,7 @@ SIZES = (480, 640, 800)  # camera widths drawn (4:3)
 # mipmap levels, and the design fit of a grey 43 px pad (fz508) and a glossy 53 px one (fz447) put its tilt 6-7
 # degrees off stating 1.5-1.8: three false accepts, none at 2.  33 tilting-deck scenes rendered again at 2, same
 # code: 3,889 -> 3,958 of 4,298 frames in scope posed, median error 0.74 -> 0.60 % of the height, and 25 false
-# accepts on fz445 that 1 did not show (a flow chain's tilt 5 degrees off: README, "Random scenes")
+# accepts on fz445 that 1 did not show (a flow chain's tilt 5 degrees off, since mended: README, "Random scenes")
 SUPERSAMPLE = 2
 
 
