@@ -1864,6 +1864,8 @@ def _mask_share(mask: np.ndarray, quad: np.ndarray) -> float:
 # (blur, JPEG, a marker cut by the image's edge), and the few left pose a pad at 0.4 m from one
 # 4-corner square 3.6 degrees off the IMU, 10 % of the height sideways
 MIN_SQUARES_PER_MARKER = 2
+# a square whose corners lie this share of a module off the other squares' homography, together, slipped (_slipped_squares_out)
+SLIPPED_SQUARE_MODULES = 0.5
 
 
 NO_LAYOUT = "no marker layout"
@@ -1998,6 +2000,10 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
             continue
         pts_P.append(P)
         px.append(ref + [x0, y0])
+    if len(pts_P) >= 4:
+        seen = [q - [x0, y0] for q in px]
+        keep = _slipped_squares_out(pts_P, [cam.undistort_pixels(q) for q in seen] if lens else seen, module_px)
+        pts_P, px = [P for P, k in zip(pts_P, keep) if k], [q for q, k in zip(px, keep) if k]
 
     def predict(xy):
         # what lies beyond the markers (the pad's outer corners) is predicted by the refined
@@ -2013,6 +2019,35 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
         return through(H)(xy)
 
     return pts_P, px, predict
+
+
+def _slipped_squares_out(pts_P: list, px: list, module_px: float) -> list:
+    """``[bool]``: which of a marker set's refined squares (pad points ``pts_P``, ideal pixels ``px``,
+    one ``(4, ...)`` array each) to keep.  A square whose contour or prediction was a module off (a
+    dirt splotch joined to its dark ring, glare eating into it) is refined onto the next ring's edges:
+    its four corners lie a module off together, within the half module a refinement may move a
+    corner, and the homography of the set still fits them by tilting the pad (fz537 at 1.4 m: one outer
+    square 5.6-6.3 px off with 5.7 px modules, the pad's outer corners it predicted 7-9 px off, the
+    pose 5 degrees off at RMS 0.45 px).  Each square is held against the homography of the others: the
+    one lying furthest off, by its corners' mean, over :data:`SLIPPED_SQUARE_MODULES` of a module (and
+    1.5 px), is left out, and the rest held again, while four squares or more are left."""
+    keep = [True] * len(pts_P)
+    while sum(keep) > 4:
+        worst, off = None, max(1.5, SLIPPED_SQUARE_MODULES * module_px)
+        for i in (j for j, k in enumerate(keep) if k):
+            others = [j for j, k in enumerate(keep) if k and j != i]
+            H, _ = cv2.findHomography(np.concatenate([pts_P[j][:, :2] for j in others]),
+                                      np.concatenate([px[j] for j in others]), 0)
+            if H is None or not np.isfinite(H).all():
+                return keep
+            at = cv2.perspectiveTransform(np.asarray(pts_P[i][:, :2], np.float64).reshape(-1, 1, 2), H)[:, 0, :]
+            d = float(np.linalg.norm(np.mean(px[i] - at, axis=0)))
+            if d > off:
+                worst, off = i, d
+        if worst is None:
+            break
+        keep[worst] = False
+    return keep
 
 
 def _pair_by_prior(nests: list, sets: dict, camera: Camera, prior: np.ndarray, x0: int, y0: int):
