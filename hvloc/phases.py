@@ -2000,10 +2000,11 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
             continue
         pts_P.append(P)
         px.append(ref + [x0, y0])
+    # the refined squares in the ideal pinhole's pixels of the crop, where one homography holds them all
+    ideal_px = [cam.undistort_pixels(q - [x0, y0]) if lens else q - [x0, y0] for q in px]
     if len(pts_P) >= 4:
-        seen = [q - [x0, y0] for q in px]
-        keep = _slipped_squares_out(pts_P, [cam.undistort_pixels(q) for q in seen] if lens else seen, module_px)
-        pts_P, px = [P for P, k in zip(pts_P, keep) if k], [q for q, k in zip(px, keep) if k]
+        keep = _slipped_squares_out(pts_P, ideal_px, module_px)
+        pts_P, px, ideal_px = ([v for v, k in zip(vs, keep) if k] for vs in (pts_P, px, ideal_px))
 
     def predict(xy):
         # what lies beyond the markers (the pad's outer corners) is predicted by the refined
@@ -2012,8 +2013,7 @@ def _marker_corners(g: np.ndarray, ms: dict, quads: dict, module_px: float, came
         # (its refinement's reach, 2 % of the side), from these 0.1-0.2 px.  (Fitted when asked:
         # only the markers pose that joins the outer corners asks.)
         if len(pts_P) >= 2:
-            seen = np.concatenate(px) - [x0, y0]
-            Hr, _ = cv2.findHomography(np.concatenate(pts_P)[:, :2], cam.undistort_pixels(seen) if lens else seen, 0)
+            Hr, _ = cv2.findHomography(np.concatenate(pts_P)[:, :2], np.concatenate(ideal_px), 0)
             if Hr is not None and np.isfinite(Hr).all():
                 return through(Hr)(xy)
         return through(H)(xy)
@@ -2648,7 +2648,6 @@ def track_to_keyframe(kf: Keyframe, prev_gray: np.ndarray, prev_px: np.ndarray, 
     return out
 
 
-
 def _reseeded_on_keyframe(kf: Keyframe, gray: np.ndarray, kf_px: np.ndarray, p1: np.ndarray, good: np.ndarray,
                           refined: np.ndarray, camera: Camera) -> np.ndarray:
     """``p1`` (``(N, 1, 2)``), whose ``refined`` tracks the keyframe refined, with the other ``good``
@@ -2675,6 +2674,7 @@ def _reseeded_on_keyframe(kf: Keyframe, gray: np.ndarray, kf_px: np.ndarray, p1:
         return p1
     now = again & (st3[:, 0] == 1) & (np.linalg.norm((p3 - start)[:, 0, :], axis=1) < 2.0)
     return np.where(now[:, None, None], p3, p1)
+
 
 LOCAL_MEAN_SIGMA_PX = 4.0  # the keyframe refinement compares the frames divided by their local mean (a Gaussian this wide)
 WARP_GRID_PX = 8           # the keyframe is warped through a map computed every this many pixels (bilinear between)

@@ -1512,8 +1512,6 @@ def test_tracks_are_refined_on_their_keyframe_through_a_zoom_and_a_shadows_edge(
     assert np.median(e[np.isfinite(e)]) > 0.15, np.percentile(e[np.isfinite(e)], [50, 90, 100])
 
 
-
-
 @pytest.mark.parametrize("slip", [(1.0, 0.0), (0.0, -1.0), (0.7, 0.7)])
 def test_a_marker_square_refined_a_module_off_is_left_out_and_the_others_kept(slip):
     """A finder square whose contour was a module off (a dirt splotch joined to its dark ring) is refined
@@ -1546,6 +1544,7 @@ def test_a_marker_square_refined_a_module_off_is_left_out_and_the_others_kept(sl
     slipped[bad] = px[bad] + 0.2 * module_px * np.asarray(slip) / np.linalg.norm(slip)
     assert all(_slipped_squares_out(squares, slipped, module_px))
 
+
 @pytest.mark.parametrize("scale, shift", [(1.005, (1.0, -0.5)), (1.01, (0.8, -0.5)), (0.994, (-0.5, 1.2))])
 def test_tracks_that_slipped_together_are_refined_from_where_the_others_put_them(pad, monkeypatch, scale, shift):
     """Frame-to-frame tracks that slipped together (after an untracked frame, a guess off) are 1-3 px
@@ -1576,6 +1575,7 @@ def test_tracks_that_slipped_together_are_refined_from_where_the_others_put_them
     monkeypatch.setattr(ph, "_reseeded_on_keyframe", lambda kf, gray, kf_px, p1, *a: p1)
     e = errors()
     assert np.percentile(e, 90) > 1.0, np.percentile(e, [50, 90, 100])
+
 
 def test_a_few_tracks_that_slipped_together_are_no_inliers_of_sharp_tracks():
     """Sharp tracks agree with their homography to hundredths of a pixel; RANSAC's 2 px kept the
