@@ -5981,7 +5981,10 @@ def test_a_stained_pads_fitted_tilt_is_doubted_for_the_drawings_own_error(pad, m
     per few degrees: stains the design does not show move that more than the pixels' noise says.  A
     fuzz scene's dirty 31 px pad, fitted from its labelled pose, went 3.5 degrees off stating 0.9.  The
     doubt the fit states carries the drawing's own error (:data:`hvloc.texfit.DESIGN_MODEL_PX`): every
-    stained view here within 3 of its stated doubt, as none was without it."""
+    stained view here within 3 of its stated doubt, as none was without it while every stain's pixels
+    counted.  Since a stain's patch is left out where the tilt is fitted (fuzz seed 545's shadow,
+    :func:`hvloc.texfit._unexplained`) the stains pull less: without the drawing's error the worst
+    view here lies 2.8 of its doubt off.  The error stays for what no patch shows (a relief, wear)."""
     import hvloc.texfit as tf
     from hvloc.synthesis import PadSynthesis
     from render.textures import dirty_texture
@@ -6008,7 +6011,8 @@ def test_a_stained_pads_fitted_tilt_is_doubted_for_the_drawings_own_error(pad, m
 
     assert ratios().max() < 3.0
     monkeypatch.setattr(tf, "DESIGN_MODEL_PX", 0.0)
-    assert ratios().max() > 3.0  # the premise: the pixels' noise alone understates
+    monkeypatch.setattr(tf, "PATCH_K", 0.0)  # (no patch left out)
+    assert ratios().max() > 3.0  # the premise: the pixels' noise alone understates where the stains pull
 
 
 def test_a_drawing_that_matches_its_pad_poorly_doubts_the_pads_fitted_tilt_more(pad, monkeypatch):
@@ -6051,6 +6055,66 @@ def test_a_drawing_that_matches_its_pad_poorly_doubts_the_pads_fitted_tilt_more(
     usual = fits()
     assert np.all(scaled[:, 2] >= usual[:, 2] - 1e-9) and np.all(scaled[poor, 2] > usual[poor, 2]), (scaled, usual)
     assert usual[:, 0].max() > 1.5, usual  # the premise: stated so, the worst views lie further off
+
+
+def _shadowed(frame, G, rng, pad, cover: float):
+    """``frame`` with a hard shadow (60 % of the light taken) over a square 0.6 of the pad's side
+    beside one of its sides, reaching ``cover`` of the side onto the pad: the drone's own shadow
+    under a high sun, as it lies in fuzz seed 545's frames."""
+    half = pad.geometry.side_m / 2
+    quad = CAM.project_from(G, np.array([[-half, half, 0], [half, half, 0], [half, -half, 0], [-half, -half, 0.0]]))
+    k = int(rng.integers(4))
+    mid = (quad[k] + quad[(k + 1) % 4]) / 2
+    out = (mid - quad.mean(axis=0)) / np.linalg.norm(mid - quad.mean(axis=0))
+    side = float(np.linalg.norm(quad[(k + 1) % 4] - quad[k]))
+    along, s = (quad[(k + 1) % 4] - quad[k]) / side, 0.6 * side
+    centre = mid + out * (s / 2 - cover * side)
+    corners = np.array([centre + (a * along + b * out) * s / 2 for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    m = np.zeros(frame.shape[:2], np.float32)
+    cv2.fillConvexPoly(m, np.round(corners * 16).astype(np.int32), 1.0, cv2.LINE_AA, 4)
+    m = cv2.GaussianBlur(m, (0, 0), 0.8)[..., None]
+    return (frame * (1.0 - 0.6 * m) + 0.5).astype(np.uint8)
+
+
+@pytest.mark.parametrize("grey", [False, True], ids=["colour", "grey_jpeg60"])
+def test_a_shadow_beside_a_far_pad_does_not_steer_its_fitted_tilt(pad, monkeypatch, grey):
+    """A far pad's tilt shows only in its foreshortening, a few tenths of a pixel per degree.  A hard
+    shadow over part of it and the ground beside it (the drone's own, under a high sun) is light the
+    drawing does not hold.  Down-weighted by Huber's rule its pixels still pull, each by a bounded
+    amount, and together they outweighed that signal: fuzz seed 545's grey 47-58 px pad, fitted from
+    its labelled pose, tilted 3.3-7.8 degrees off stating 1.5-1.7 (two false accepts).  Where the tilt
+    is fitted, a patch the held fit leaves unexplained counts for nothing
+    (:func:`hvloc.texfit._unexplained`).  Here 44-62 px views pitched 15 degrees, a shadow reaching
+    10-30 % of the side onto the pad, fitted from the labelled pose against a 5 degree prior: every
+    tilt within 0.6 degrees in colour, 1.2 in grey under JPEG 60, half within 0.3 and 0.6; every pixel
+    counted, 0.7-1.9 and 1.2-2.8, half over 1.3 and 2."""
+    import hvloc.texfit as tf
+    from hvloc.synthesis import PadSynthesis
+
+    syn = PadSynthesis(pad)
+
+    def errors():
+        rng, out = np.random.default_rng(5), []
+        for trial in range(10):
+            G = _pitched_view(pad, rng, rng.uniform(44.0, 62.0), pitch_deg=15.0)
+            frame = _shadowed(_camera_view(pad, rng, None, (120, 110, 90), G=G)[2], G, rng, pad, rng.uniform(0.1, 0.3))
+            if grey:
+                frame = _jpeg(_grey(frame), 60)
+            up_C = G[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+            got, info = tf.fit_pose_to_design(frame, CAM, syn, G, max_side_px=tf.HALVED_MAX_SIDE_PX, up_C=up_C,
+                                              up_sigma_deg=5.0, tilt_min_side_px=24.0)
+            if got is None:  # (refused: the shadow takes the drawing's correlation under MIN_NCC)
+                assert "matches the frame poorly" in info["why"], info
+                continue
+            assert "tilt_deg" in info, info
+            out.append(math.degrees(math.acos(min(1.0, float((got[:3, :3].T @ np.array([0.0, 0.0, 1.0])) @ up_C)))))
+        return np.array(out)
+
+    robust = errors()
+    assert len(robust) >= 7 and robust.max() < 1.5 and np.median(robust) < 0.6, robust
+    monkeypatch.setattr(tf, "PATCH_K", 0.0)  # (no patch left out)
+    counted = errors()
+    assert np.median(counted) > 1.0, counted  # the premise: the shadow's pixels, down-weighted only, tilt the fit
 
 
 def test_a_middle_far_pad_on_an_untracked_deck_is_posed_by_its_design_with_its_tilt(pad):
