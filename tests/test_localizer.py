@@ -3569,6 +3569,46 @@ def test_an_outline_pose_whose_corners_are_no_square_is_rejected(pad):
         assert gates.check(est, None, None) == f"reprojection RMS not finite ({bad}): the fit failed"
 
 
+def test_a_decks_pose_whose_tilt_steps_past_the_decks_swing_is_refused():
+    """On a tilting deck the IMU's up is not the pad's normal, and the vision-IMU jump holds only the
+    heading: a pose whose tilt stepped 8 degrees from the last one in 0.1 s, stating half a degree,
+    passed every gate while its tilt stayed within the deck's 7 degrees and the gate's 3 (branch
+    exp/glare-rings's fz445 frame 73: a smeared drawing's texture pose 11.3 degrees off, 21.7 % of the
+    height, after an outline pose 1.1 off).  No deck swings its tilt that fast
+    (:func:`hvloc.localizer.tilt_step_refusal`): refused; a step of 1 degree is not, nor is 8 degrees
+    over 2 s, nor the camera turning 8 degrees over a level pad between two frames (the step is the
+    pad's, in the world)."""
+    from hvloc.localizer import DEFAULT_T_B_C, Estimate, FalsePoseGates
+
+    cfg = LocalizerConfig(pad_tilt_deg=7.0)
+    G = tilted(0.2, -0.1, 3.0, 0.5)
+    cov = np.diag([1e-4, 1e-4, 1e-4] + [math.radians(0.5) ** 2] * 3)
+
+    def pose(t, tilt_deg, turn_deg=0.0):
+        """A pose at ``t`` tilted ``tilt_deg`` off the level pad about its x axis, taken by a camera turned
+        ``turn_deg`` about its own x axis (the IMU's attitude turned with it)."""
+        cam = G.copy()
+        cam[:3, :3] = G[:3, :3] @ so3_exp([math.radians(turn_deg), 0.0, 0.0])
+        est = cam.copy()
+        est[:3, :3] = so3_exp([math.radians(tilt_deg), 0.0, 0.0]) @ cam[:3, :3]
+        return Estimate(t, "adjustment", "ok", est, 36, 0.3, cov.copy(), method="markers"), _imu_from(cam)
+
+    def verdict(first, second):
+        gates = FalsePoseGates(cfg, DEFAULT_T_B_C)
+        (e0, R0), (e1, R1) = first, second
+        assert gates.check(e0, R0, None) == ""
+        return gates.check(e1, R1, e0)
+
+    assert "tilt stepped 8.0 deg in 0.10 s" in verdict(pose(0.0, -2.0), pose(0.1, 6.0))
+    assert verdict(pose(0.0, -2.0), pose(0.1, -1.0)) == ""
+    assert verdict(pose(0.0, -2.0), pose(2.0, 6.0)) == ""
+    assert verdict(pose(0.0, -2.0), pose(0.1, -2.0, turn_deg=8.0)) == ""
+    # on a level pad a step is left to the whole rotation's jump (imu_jump_deg), as before
+    level = FalsePoseGates(LocalizerConfig(), DEFAULT_T_B_C)
+    (e0, R0), (e1, R1) = pose(0.0, -2.5), pose(0.1, 2.5)
+    assert level.check(e0, R0, None) == "" and "vision-IMU rotation jumped 5.0 deg" in level.check(e1, R1, e0)
+
+
 @pytest.mark.parametrize("h", [0.25, 0.5, 0.9])
 def test_the_pad_is_found_by_its_own_texture_near_the_ground(pad, h):
     """A few decimetres of the field fill the view: no marker or outline fits in it.  ORB matches to
