@@ -61,7 +61,15 @@ WHITE_PX = 21        # the local white is the brightest within this many window 
 FIELD_NEAR_PX = WHITE_PX // 2
 MAX_TURN_DEG = 8.0   # the warp may turn the drawing this much at most ...
 MAX_SCALE = 1.15     # ... and scale it within 1 / this and this
-MAX_SHIFT = 0.15     # ... and move it this share of the window's longer side
+MAX_SHIFT = 0.15     # ... and move it this share of the window's longer side ...
+# ... and stretch it at most this much more along one axis than across (its singular values' ratio, less 1).  To
+# first order a stretch is a tilt: seen at an angle a from its normal, a pad tilted d more is foreshortened by about
+# tan(a) d more, and the pose from the carried points takes the stretch as that tilt.  The prediction's tilt comes
+# from a pose at most SYNTHESIS_MAX_AGE_S old, and the warps of right ones stretched little (gusty_blur, fuzz seed 437:
+# 28 drawn poses, 0.2-2.4 %, the poses 0.2-0.9 degrees off); a warp aligned under glare on a glossy pad stretched
+# 9.4 % at cc 0.76 (branch exp/glare-rings, fuzz seed 445's frame 73, 32 degrees oblique: its pose 11.3 degrees off
+# stating 1.3, 21.7 % of the height)
+MAX_STRETCH = 0.05
 SHUTTER_BANDS = 8    # a rolling shutter's frame is drawn in this many bands of rows, each at its own time
 GRID = 5             # pad points per side whose images are the correspondences (those in the smear's area)
 BLUR_STEPS_PX = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # blurs tried on the drawing to match a softer frame ...
@@ -338,6 +346,11 @@ class PadSynthesis:
             return None, f"the smeared drawing aligns with correlation {cc:.2f} (< {MIN_CC})"
         if abs(turn) > MAX_TURN_DEG or not 1 / MAX_SCALE < zoom < MAX_SCALE or shift > MAX_SHIFT * max(w, h):
             return None, f"the smeared drawing moved too far to align ({turn:.1f} deg, x{zoom:.2f}, {shift:.0f} px)"
+        sv = np.linalg.svd(A, compute_uv=False)
+        stretch = float(sv[0] / max(sv[1], 1e-12) - 1.0)
+        if stretch > MAX_STRETCH:
+            return None, (f"the smeared drawing stretched {100 * stretch:.1f} % along one axis to align (> "
+                          f"{100 * MAX_STRETCH:g} %): a tilt its prediction did not have, or a warp the frame pulled")
         # (at half size where the pad is still twice the smallest drawn there: a 50-60 px pad halved
         # is too few pixels to hold its scale, and was refused)
         off = _scale_unsettled(*_shrunk(0.5 if side * scale >= 4 * MIN_PAD_PX else 1.0, a, b, compared, warp))
@@ -360,6 +373,7 @@ class PadSynthesis:
         x = q[ok] @ Wi[:, :2].T + Wi[:, 2]
         frame_px = (x + 0.5) / scale - 0.5 + [x0, y0]
         info = {"by": "synthesis", "cc": round(float(cc), 3), "smear_px": round(smear, 1), "instants": n,
+                "stretch": round(stretch, 4),
                 "blur_px": round(math.sqrt(blur) / scale, 2),
                 "fill": round(fill, 2), "px_sigma_blur": ALIGN_SIGMA_PX / scale}
         return Detection(P[ok], frame_px, "texture", info), "ok"
