@@ -647,12 +647,18 @@ class DeckTilt:
         self.widen(amplitude_deg)
         self.reset()
 
+    @classmethod
+    def fastest_rate(cls, amplitude):
+        """How fast (per second, in ``amplitude``'s unit) a deck tilting ``amplitude`` may turn: its
+        swell at :data:`PERIOD_MIN_S` through level."""
+        return amplitude * 2.0 * math.pi / cls.PERIOD_MIN_S
+
     def widen(self, amplitude_deg: float) -> None:
         """How far the deck may tilt (degrees), what it is tracked and bounded with; its track kept."""
         self.A = math.radians(amplitude_deg)
         w = 2.0 * math.pi / self.PERIOD_MIN_S
         self.q = (self.A * w * w) ** 2  # the white acceleration's spectral density (rad^2 / s^3)
-        self.rate0 = self.A * w
+        self.rate0 = self.fastest_rate(self.A)
 
     def reset(self) -> None:
         self.x = np.zeros((2, 2))  # [tilt, rate] x [world x, world y] (rotation vector, rad)
@@ -921,6 +927,15 @@ def heading_var(est: "Estimate") -> float | None:
     return float(n_C @ est.cov[3:, 3:] @ n_C)
 
 
+def pad_normal_W(normal_C, R_W_B, T_B_C: np.ndarray) -> np.ndarray | None:
+    """The pad's normal in the world (unit) from ``normal_C``, its normal in the camera, turned by the
+    attitude ``R_W_B`` through the mount ``T_B_C``; ``None`` without either."""
+    if R_W_B is None or normal_C is None:
+        return None
+    n = R_W_B @ T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
+    return n / np.linalg.norm(n)
+
+
 def tilt_sigma_deg(est: "Estimate") -> float | None:
     """How well ``est`` fixes the pad's tilt (degrees, one sigma along its worst axis): its
     covariance's rotation about the two camera axes across the pad's normal; ``None`` without one."""
@@ -954,7 +969,7 @@ def tilt_step_refusal(est: "Estimate", n_W: np.ndarray, last: tuple | None, cfg:
         return ""
     t0, n0, s0 = last
     a = cfg.pad_tilt_deg
-    swing = min(2.0 * a, a * 2.0 * math.pi / DeckTilt.PERIOD_MIN_S * max(est.t - t0, 0.0))
+    swing = min(2.0 * a, DeckTilt.fastest_rate(a) * max(est.t - t0, 0.0))
     step = math.degrees(math.acos(float(np.clip(n_W @ n0, -1.0, 1.0))))
     allowed = swing + TILT_STEP_SIGMAS * math.sqrt(sigma ** 2 + s0 ** 2 + cfg.ahrs_tilt_sigma_deg ** 2)
     if step <= allowed:
@@ -1051,15 +1066,9 @@ class FalsePoseGates:
         (the tilt's step from ``last`` is measured in the world: :func:`tilt_step_refusal`)."""
         why = self._check(est, R_W_B, last, R_W_B_raw)
         if not why and est.cam2pad is not None:
-            n_W = self._normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw)
+            n_W = pad_normal_W(est.cam2pad[2, :3], R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C)
             self.last_tilt = None if n_W is None else (est.t, n_W, tilt_sigma_deg(est))
         return why
-
-    def _normal_W(self, est: "Estimate", R_W_B) -> np.ndarray | None:
-        """``est``'s pad normal in the world, through the attitude ``R_W_B`` (``None`` without it)."""
-        if R_W_B is None:
-            return None
-        return R_W_B @ self.T_B_C[:3, :3] @ (est.cam2pad[:3, :3].T @ np.array([0.0, 0.0, 1.0]))
 
     def _check(self, est: "Estimate", R_W_B, last: "Estimate | None", R_W_B_raw) -> str:
         """:meth:`check`'s verdict, the gates' state moved on only where it passes."""
@@ -1094,8 +1103,8 @@ class FalsePoseGates:
             return (f"tilt from the image alone disagrees with the IMU's gravity by {est.extras['tilt_err_deg']:.1f} "
                     f"deg (+-{est.extras['tilt_sigma_deg']:.1f} deg)")
         if last is not None and self.last_tilt is not None and self.last_tilt[0] == last.t:
-            why = tilt_step_refusal(est, self._normal_W(est, R_W_B if R_W_B_raw is None else R_W_B_raw),
-                                    self.last_tilt, cfg)
+            why = tilt_step_refusal(est, pad_normal_W(est.cam2pad[2, :3], R_W_B if R_W_B_raw is None else R_W_B_raw,
+                                                      self.T_B_C), self.last_tilt, cfg)
             if why:
                 return why
         R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
@@ -1543,7 +1552,7 @@ class HierarchicalLocalizer:
                                  est.extras.get("normal_img_C"), est.extras.get("tilt_sigma_deg", float("nan")), t,
                                  est.extras.get("mirror_normal_img_C"),
                                  est.extras.get("mirror_chi2_gap", float("inf")))
-                normal_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_img)
+                normal_W = pad_normal_W(est.extras.get("normal_img_C"), R_img, self.T_B_C)
                 # (the AHRS's error is not learnt on a deck; the deck's tilt is, but not from markers that stood on
                 # a track only design fits made: a far markers fit can lie degrees off its stated sigma
                 # (image_tilt_contradicts), and on a track of their own they were taken first where they stood
@@ -1558,7 +1567,7 @@ class HierarchicalLocalizer:
                 # Left out, a grey camera's deck (fzu165) was posed from 3 m to 2 m by such outlines, 0.1-0.4 %
                 # of the height off, while its tilt stayed untracked: the markers that came next, 36
                 # corners 0.4 % off, were refused as loose
-                normal_W = self._pad_normal_W(est.extras["design_normal_C"], R_img)
+                normal_W = pad_normal_W(est.extras["design_normal_C"], R_img, self.T_B_C)
                 if normal_W is not None:
                     self.deck.update(t, normal_W, est.extras["design_tilt_sigma_deg"], by_design=True)
         self._after_accept(method, est, gray)
@@ -1628,7 +1637,7 @@ class HierarchicalLocalizer:
         31 % posed, the tracked tilt held to 2 degrees and the tracks' poses refused)."""
         # (not from a patch of the pad: a wrinkle tilts it as far as a deck does, DECK_SEEN_MIN_SPREAD)
         sees_pad = est.extras.get("spread_m", 0.0) >= DECK_SEEN_MIN_SPREAD * self.geometry.side_m
-        n_W = self._pad_normal_W(est.extras.get("normal_img_C"), R_W_B) if sure_tilt(est) and sees_pad else None
+        n_W = pad_normal_W(est.extras.get("normal_img_C"), R_W_B, self.T_B_C) if sure_tilt(est) and sees_pad else None
         if n_W is None:
             return
         tilt = math.degrees(math.acos(float(np.clip(n_W[2], -1.0, 1.0))))
@@ -1681,14 +1690,6 @@ class HierarchicalLocalizer:
         self.last, self.velocity = None, None
         self.vfilter.reset()
         self.flow.reset()
-
-    def _pad_normal_W(self, normal_C, R_W_B) -> np.ndarray | None:
-        """The pad's normal in the world (unit) from ``normal_C``, in the camera as an image alone
-        fixes it, turned by the AHRS's attitude ``R_W_B``; ``None`` without either."""
-        if R_W_B is None or normal_C is None:
-            return None
-        n = R_W_B @ self.T_B_C[:3, :3] @ np.asarray(normal_C, np.float64)
-        return n / np.linalg.norm(n)
 
     def _deck_amplitude(self, amplitude_deg: float) -> None:
         """From now on, the pad may tilt ``amplitude_deg`` (at most 30): as if the config said so."""
