@@ -915,6 +915,10 @@ PAD_HEADING_MIN_SIGMA_DEG = 0.05  # a pose's heading is taken no surer than this
 # the offsets' own heading noise (PadHeading.unexplained_var) is read from the last this many accepted
 # poses, from every three of them within this span (over a longer one a turn's curvature would count)
 PAD_HEADING_SCATTER_WINDOW, PAD_HEADING_SCATTER_SPAN_S = 21, 0.6
+# ... and until they show it, taken to be a hobby AHRS's: its heading jitters a few tenths of a degree
+# from row to row (the generator's default 0.3, its random scenes' up to 0.6); this counts as so many
+# of the triples the scatter is read from (PadHeading.unexplained_var)
+PAD_HEADING_JITTER_PRIOR_DEG, PAD_HEADING_JITTER_PRIOR_N = 0.5, 3
 CHI2_1_MEDIAN = 0.4549364  # the median of a chi-square of one degree of freedom
 
 
@@ -1180,6 +1184,7 @@ class PadHeading:
         self.P = np.zeros((2, 2))
         self.t = 0.0
         self.recent: list = []  # the last accepted offsets: (t, heading unwrapped, its stated variance)
+        self.triples_seen = 0  # how many offsets since the reset came with two before them (the prior's fade)
 
     def unexplained_var(self) -> float:
         """The heading noise (rad^2) the recent offsets show beyond what their poses state: the
@@ -1189,7 +1194,13 @@ class PadHeading:
         :data:`PAD_HEADING_SCATTER_SPAN_S` is a few hundredths of a degree), robustly (the median).
         Weighed at the poses' 0.05 degrees alone, a still pad's offsets jittering 0.3 degrees read
         as a turn of 10 degrees a second: carried through a second without a pose, gusty_blur's
-        reference was 10.5 degrees off and refused eight right texture poses at 0.17-0.25 m."""
+        reference was 10.5 degrees off and refused eight right texture poses at 0.17-0.25 m.
+        Read from a flight's first few offsets the median is as likely nil as not: until they are
+        many, it is drawn toward a hobby AHRS's jitter (:data:`PAD_HEADING_JITTER_PRIOR_DEG`, worth
+        :data:`PAD_HEADING_JITTER_PRIOR_N` triples against those seen since the filter started: after
+        a few seconds of poses it is the offsets' own).  Without that, fz549's first eight offsets
+        (its AHRS's heading jittering 0.46 degrees) read as a turn of 11 degrees a second, and seven
+        right poses after them were refused as jumps."""
         h = self.recent
         e2, stated = [], []
         for (t0, p0, r0), (t1, p1, r1), (t2, p2, r2) in zip(h, h[1:], h[2:]):
@@ -1200,9 +1211,9 @@ class PadHeading:
             g = 1.0 + a * a + b * b  # the residual's variance in units of one offset's
             e2.append((p1 - a * p0 - b * p2) ** 2 / g)
             stated.append((r1 + a * a * r0 + b * b * r2) / g)
-        if not e2:
-            return 0.0
-        return max(float(np.median(e2)) / CHI2_1_MEDIAN - float(np.median(stated)), 0.0)
+        read = max(float(np.median(e2)) / CHI2_1_MEDIAN - float(np.median(stated)), 0.0) if e2 else 0.0
+        n, n0 = max(len(e2), self.triples_seen), PAD_HEADING_JITTER_PRIOR_N
+        return (n * read + n0 * math.radians(PAD_HEADING_JITTER_PRIOR_DEG) ** 2) / (n + n0)
 
     def turning(self) -> bool:
         """Whether the poses show the pad turning: a rate past three of its sigmas and
@@ -1233,6 +1244,7 @@ class PadHeading:
                 self.recent.clear()
             last = self.recent[-1][1] if self.recent else psi
             self.recent = self.recent[-(PAD_HEADING_SCATTER_WINDOW - 1):] + [(t, last + math.remainder(psi - last, 2.0 * math.pi), r)]
+            self.triples_seen += len(self.recent) >= 3
         r += self.unexplained_var()
         if self.x is None or not math.isfinite(t):
             self.x, self.t = np.array([psi, 0.0]), t if math.isfinite(t) else self.t
