@@ -1068,14 +1068,16 @@ class FalsePoseGates:
         """Why ``est`` (an ``ok`` pose) must be rejected, or ``""``; ``last``: the last accepted one.
         ``R_W_B_raw``: the AHRS's own attitude where ``R_W_B`` has a deck's predicted tilt taken out
         (the tilt's step from ``last`` is measured in the world: :func:`tilt_step_refusal`)."""
-        why = self._check(est, R_W_B, last, R_W_B_raw)
+        n_W = None if est.cam2pad is None else \
+            pad_normal_W(est.cam2pad[2, :3], R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C)
+        why = self._check(est, R_W_B, last, n_W)
         if not why and est.cam2pad is not None:
-            n_W = pad_normal_W(est.cam2pad[2, :3], R_W_B if R_W_B_raw is None else R_W_B_raw, self.T_B_C)
             self.last_tilt = None if n_W is None else (est.t, n_W, tilt_sigma_deg(est))
         return why
 
-    def _check(self, est: "Estimate", R_W_B, last: "Estimate | None", R_W_B_raw) -> str:
-        """:meth:`check`'s verdict, the gates' state moved on only where it passes."""
+    def _check(self, est: "Estimate", R_W_B, last: "Estimate | None", n_W) -> str:
+        """:meth:`check`'s verdict, the gates' state moved on only where it passes; ``n_W``: the pad's
+        normal in the world through the AHRS's own attitude."""
         cfg = self.config
         if not cfg.false_pose_detection:
             return ""
@@ -1107,8 +1109,7 @@ class FalsePoseGates:
             return (f"tilt from the image alone disagrees with the IMU's gravity by {est.extras['tilt_err_deg']:.1f} "
                     f"deg (+-{est.extras['tilt_sigma_deg']:.1f} deg)")
         if last is not None and self.last_tilt is not None and self.last_tilt[0] == last.t:
-            why = tilt_step_refusal(est, pad_normal_W(est.cam2pad[2, :3], R_W_B if R_W_B_raw is None else R_W_B_raw,
-                                                      self.T_B_C), self.last_tilt, cfg)
+            why = tilt_step_refusal(est, n_W, self.last_tilt, cfg)
             if why:
                 return why
         R_W_P = R_W_B @ self.T_B_C[:3, :3] @ invert(est.cam2pad)[:3, :3]
@@ -1212,7 +1213,7 @@ class PadHeading:
             e2.append((p1 - a * p0 - b * p2) ** 2 / g)
             stated.append((r1 + a * a * r0 + b * b * r2) / g)
         read = max(float(np.median(e2)) / CHI2_1_MEDIAN - float(np.median(stated)), 0.0) if e2 else 0.0
-        n, n0 = max(len(e2), self.triples_seen), PAD_HEADING_JITTER_PRIOR_N
+        n, n0 = self.triples_seen, PAD_HEADING_JITTER_PRIOR_N  # (the window's triples are among those seen)
         return (n * read + n0 * math.radians(PAD_HEADING_JITTER_PRIOR_DEG) ** 2) / (n + n0)
 
     def turning(self) -> bool:
